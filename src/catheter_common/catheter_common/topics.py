@@ -1,0 +1,41 @@
+"""Topic names, frame ids and QoS profiles of the catheter node graph (DESIGN section 4).
+
+One place for every name, so nodes, the recorder and tests agree.
+"""
+from rclpy.qos import (QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile,
+                       QoSReliabilityPolicy, qos_profile_sensor_data)
+
+# Frames
+FRAME_CATHETER_BASE = 'catheter_base'
+FRAME_CAMERA = 'camera_optical_frame'
+
+# Topics
+CAMERA_IMAGE = '/camera/image_raw'             # sensor_msgs/Image, mono8, 30 Hz
+CONTROL_POINTS = '/catheter/control_points'    # geometry_msgs/PoseArray, 4 poses base->tip
+TIP_LOAD = '/catheter/tip_load'                # geometry_msgs/WrenchStamped (input of fam_solver)
+SHAPE = '/catheter/shape'                      # nav_msgs/Path
+SHAPE_MARKER = '/catheter/shape_marker'        # visualization_msgs/Marker
+TIP_WRENCH = '/catheter/tip_wrench'            # geometry_msgs/WrenchStamped (estimated tip force)
+SHAPE_DEBUG_IMAGE = '/catheter/debug_image'    # sensor_msgs/Image overlay (only while subscribed)
+SLAVE_JOINT_STATE = '/slave/joint_state'       # sensor_msgs/JointState (insertion m, rotation rad; effort N)
+SLAVE_IMPEDANCE = '/slave/impedance'           # sensor_msgs/JointState used as stamped named float64 values
+SLAVE_FORCE = '/slave/force'                   # geometry_msgs/WrenchStamped
+MASTER_COMMAND = '/master/command'             # sensor_msgs/JointState
+MASTER_RENDERED_FORCE = '/master/rendered_force'  # geometry_msgs/WrenchStamped
+DIAGNOSTICS = '/diagnostics'                   # diagnostic_msgs/DiagnosticArray
+CLOCK = '/clock'                               # rosgraph_msgs/Clock
+
+# Names of the values carried in /slave/impedance (JointState.name, values in JointState.position).
+IMPEDANCE_FIELDS = ('m', 'c', 'k', 'offset', 'valid')
+
+# QoS
+#: camera frames, control points, tip wrench: best effort, keep last 5, volatile
+QOS_SENSOR = qos_profile_sensor_data
+#: 1 kHz streams: best effort, depth 1 (latest wins, never queue stale data)
+QOS_FAST = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1,
+                      reliability=QoSReliabilityPolicy.BEST_EFFORT,
+                      durability=QoSDurabilityPolicy.VOLATILE)
+#: on-demand topics (tip load, shape, diagnostics): reliable, keep last 10
+QOS_DEFAULT = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=10,
+                         reliability=QoSReliabilityPolicy.RELIABLE,
+                         durability=QoSDurabilityPolicy.VOLATILE)

@@ -1,0 +1,1 @@
+"""Simulated patient side: insertion robot, vessel interaction, force sensor, camera stream, UDP-like link."""
