@@ -22,6 +22,11 @@ SLAVE_IMPEDANCE = '/slave/impedance'           # sensor_msgs/JointState used as 
 SLAVE_FORCE = '/slave/force'                   # geometry_msgs/WrenchStamped
 MASTER_COMMAND = '/master/command'             # sensor_msgs/JointState
 MASTER_RENDERED_FORCE = '/master/rendered_force'  # geometry_msgs/WrenchStamped
+# The simulated UDP-like link: each side's sim node receives the other side's streams through
+# its side of the link (delay, jitter, loss, outages, latest-wins) and republishes what was
+# delivered on these master-local topics, which the renderer consumes.
+MASTER_LINK_IMPEDANCE = '/master/link/impedance'  # /slave/impedance as delivered at the master
+MASTER_LINK_FORCE = '/master/link/force'          # /slave/force as delivered at the master
 DIAGNOSTICS = '/diagnostics'                   # diagnostic_msgs/DiagnosticArray
 CLOCK = '/clock'                               # rosgraph_msgs/Clock
 
