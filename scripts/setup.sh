@@ -19,10 +19,10 @@ if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
 
-want=$(sha256sum requirements.lock | cut -d' ' -f1)
+want=$(cat requirements.txt requirements.lock | sha256sum | cut -d' ' -f1)
 if [ "$(cat .venv/.requirements.sha 2>/dev/null || true)" != "$want" ]; then
-  echo "[setup] installing pinned packages (requirements.lock)"
-  .venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.lock
+  echo "[setup] installing pinned packages (requirements.txt, versions from requirements.lock)"
+  .venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.txt -c requirements.lock
   echo "$want" > .venv/.requirements.sha
 fi
 
