@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One-time (and idempotent) set-up of the project:
-#   1. .venv/ at the repository root with the pinned packages of requirements.lock
+#   1. .venv/ at the repository root: requirements.txt at the versions pinned in requirements.lock
 #      (ROS 2 Jazzy from the ros-jazzy-* wheels, numpy, scipy, OpenCV, scikit-learn, mcap, colcon, pytest ...)
 #   2. the src/ packages importable from that venv (a .pth file, like an editable install)
 #   3. `colcon build --symlink-install` of ros_ws/ (sources: ../src)
