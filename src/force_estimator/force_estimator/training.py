@@ -1,0 +1,199 @@
+"""Training of the learned force models with scikit-learn, exported to `ForceModel`.
+
+Inputs X (n, 12) are raw control-point features (m), targets Y (n, 2) tip forces (N).
+Both are standardised (mean / scale) before fitting; a feature whose training spread is
+below `MIN_FEATURE_SCALE` (e.g. z of a planar data set, or p0 which sits at the clamp) gets
+that scale instead, so it carries no weight rather than amplifying camera noise.
+
+* SVR (thesis section 2.3.2.2): RBF kernel, C = 100, one regressor per output; epsilon
+  (given in newtons, i.e. target units) and gamma are chosen by validation on a held-out
+  part of the training set (mean absolute error in N), then refitted on all of it.
+* MLP (thesis section 2.3.2.1): one hidden layer of 10 ReLU units, L-BFGS; several
+  initialisations, the best on validation wins. A larger MLP is available through
+  `hidden_layer_sizes`.
+
+scikit-learn is imported only here, never by the inference path.
+"""
+from __future__ import annotations
+
+import time
+from typing import Dict, Iterable, Optional, Sequence, Tuple
+
+import numpy as np
+
+from force_estimator.models import (N_FEATURES, N_TARGETS, TARGET_NAMES, ForceModel,
+                                    envelope_bounds)
+
+#: scale floor of a feature, m: spreads below this are treated as noise, not signal
+MIN_FEATURE_SCALE = 1e-3
+#: thesis regularisation constant
+SVR_C = 100.0
+#: candidate epsilons, N (target units)
+SVR_EPSILONS_N = (2.5e-4, 5e-4, 1e-3, 2e-3, 4e-3)
+#: candidate RBF widths in standardised feature units
+SVR_GAMMAS = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
+
+
+def _check_xy(X, Y) -> Tuple[np.ndarray, np.ndarray]:
+    X = np.asarray(X, dtype=float)
+    Y = np.asarray(Y, dtype=float)
+    if X.ndim != 2 or X.shape[1] != N_FEATURES:
+        raise ValueError(f'X must have shape (n, 12), got {X.shape}')
+    if Y.shape != (X.shape[0], N_TARGETS):
+        raise ValueError(f'Y must have shape ({X.shape[0]}, 2), got {Y.shape}')
+    if X.shape[0] < 10:
+        raise ValueError(f'X needs at least 10 samples, got {X.shape[0]}')
+    if not (np.isfinite(X).all() and np.isfinite(Y).all()):
+        raise ValueError('X and Y must be finite')
+    return X, Y
+
+
+def scaling(X: np.ndarray, Y: np.ndarray) -> Dict[str, np.ndarray]:
+    """Standardisation arrays and the training envelope of (X, Y)."""
+    lo, hi = envelope_bounds(X)
+    return dict(x_mean=X.mean(axis=0), x_scale=np.maximum(X.std(axis=0), MIN_FEATURE_SCALE),
+                y_mean=Y.mean(axis=0), y_scale=np.maximum(Y.std(axis=0), 1e-6),
+                env_lo=lo, env_hi=hi)
+
+
+def _split(n: int, frac: float, seed: int) -> Tuple[np.ndarray, np.ndarray]:
+    idx = np.random.default_rng(seed).permutation(n)
+    n_val = max(1, int(round(frac * n)))
+    return idx[n_val:], idx[:n_val]
+
+
+def _header(kind: str, X, Y, hyper: dict, extra: Optional[dict]) -> dict:
+    import sklearn
+    h = dict(kind=kind, features='bezier control points p0..p3 (x, y, z), m, catheter_base',
+             targets=list(TARGET_NAMES), target_units='N', feature_units='m',
+             hyper=hyper, n_train=int(X.shape[0]), sklearn_version=sklearn.__version__,
+             envelope=dict(max_force=float(np.sqrt((Y ** 2).sum(axis=1)).max()),
+                           margin='see force_estimator.models.ENVELOPE_MARGIN'))
+    if extra:
+        h.update(extra)
+    return h
+
+
+def svr_arrays(models: Sequence, ) -> Dict[str, np.ndarray]:
+    """Stack fitted sklearn SVRs (one per output, RBF, numeric gamma) into sv/coef/gamma/intercept.
+
+    Support vectors shared by outputs with the same gamma are stored once.
+    """
+    rows: Dict[Tuple[float, int], int] = {}
+    sv, coef, gamma = [], [], []
+    for k, m in enumerate(models):
+        g = float(m._gamma)
+        for j, (idx, vec) in enumerate(zip(m.support_, m.support_vectors_)):
+            key = (g, int(idx))
+            if key not in rows:
+                rows[key] = len(sv)
+                sv.append(vec)
+                coef.append(np.zeros(len(models)))
+                gamma.append(g)
+            coef[rows[key]][k] += m.dual_coef_[0, j]
+    return dict(sv=np.array(sv), coef=np.array(coef), gamma=np.array(gamma),
+                intercept=np.array([float(m.intercept_[0]) for m in models]))
+
+
+def fit_svr(X, Y, C: float = SVR_C, epsilons_n: Iterable[float] = SVR_EPSILONS_N,
+            gammas: Iterable[float] = SVR_GAMMAS, val_frac: float = 0.2, seed: int = 0,
+            extra_header: Optional[dict] = None) -> Tuple[ForceModel, dict]:
+    """Train one RBF SVR per output; epsilon (N) and gamma by validation MAE (N).
+
+    Returns (model, report) with report = chosen hyper-parameters, validation table, fit time.
+    """
+    from sklearn.svm import SVR
+    X, Y = _check_xy(X, Y)
+    t0 = time.perf_counter()
+    sc = scaling(X, Y)
+    Z = (X - sc['x_mean']) / sc['x_scale']
+    T = (Y - sc['y_mean']) / sc['y_scale']
+    tr, va = _split(len(X), val_frac, seed)
+    chosen, table = [], []
+    for k in range(N_TARGETS):
+        best = None
+        for eps in epsilons_n:
+            for g in gammas:
+                m = SVR(kernel='rbf', C=C, epsilon=eps / sc['y_scale'][k], gamma=g)
+                m.fit(Z[tr], T[tr, k])
+                mae = float(np.abs(m.predict(Z[va]) * sc['y_scale'][k] - T[va, k]
+                                   * sc['y_scale'][k]).mean())
+                table.append((TARGET_NAMES[k], eps, g, mae))
+                if best is None or mae < best[0]:
+                    best = (mae, eps, g)
+        chosen.append(best)
+    models = []
+    for k, (_, eps, g) in enumerate(chosen):
+        m = SVR(kernel='rbf', C=C, epsilon=eps / sc['y_scale'][k], gamma=g)
+        m.fit(Z, T[:, k])
+        models.append(m)
+    fit_time = time.perf_counter() - t0
+    hyper = dict(C=C, kernel='rbf', epsilon_n=[c[1] for c in chosen],
+                 gamma=[c[2] for c in chosen], val_mae_n=[c[0] for c in chosen])
+    model = ForceModel('svr', {**sc, **svr_arrays(models)},
+                       _header('svr', X, Y, hyper, extra_header))
+    model.sklearn = models
+    return model, dict(hyper=hyper, table=table, fit_time_s=fit_time)
+
+
+def mlp_arrays(mlp) -> Dict[str, np.ndarray]:
+    """Weights of a fitted sklearn MLPRegressor (ReLU hidden, identity output) as W0, b0, ..."""
+    if mlp.activation != 'relu' or mlp.out_activation_ != 'identity':
+        raise ValueError('mlp must use ReLU hidden layers and an identity output')
+    out = {}
+    for i, (W, b) in enumerate(zip(mlp.coefs_, mlp.intercepts_)):
+        out[f'W{i}'] = np.array(W)
+        out[f'b{i}'] = np.array(b)
+    return out
+
+
+def fit_mlp(X, Y, hidden_layer_sizes: Tuple[int, ...] = (10,), alpha: float = 1e-4,
+            n_init: int = 5, max_iter: int = 5000, val_frac: float = 0.2, seed: int = 0,
+            extra_header: Optional[dict] = None) -> Tuple[ForceModel, dict]:
+    """Train an MLP (ReLU, L-BFGS) on standardised data; best of `n_init` seeds on validation.
+
+    The winning initialisation is refitted on all training data. Returns (model, report).
+    """
+    import warnings
+
+    from sklearn.exceptions import ConvergenceWarning
+    from sklearn.neural_network import MLPRegressor
+    X, Y = _check_xy(X, Y)
+    t0 = time.perf_counter()
+    sc = scaling(X, Y)
+    Z = (X - sc['x_mean']) / sc['x_scale']
+    T = (Y - sc['y_mean']) / sc['y_scale']
+    tr, va = _split(len(X), val_frac, seed)
+
+    def make(rs):
+        return MLPRegressor(hidden_layer_sizes=tuple(hidden_layer_sizes), activation='relu',
+                            solver='lbfgs', alpha=alpha, max_iter=max_iter, random_state=rs)
+    best, table = None, []
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', ConvergenceWarning)
+        for rs in range(seed, seed + n_init):
+            m = make(rs).fit(Z[tr], T[tr])
+            mae = float(np.abs((m.predict(Z[va]) - T[va]) * sc['y_scale']).mean())
+            table.append((rs, mae))
+            if best is None or mae < best[0]:
+                best = (mae, rs)
+        mlp = make(best[1]).fit(Z, T)
+    fit_time = time.perf_counter() - t0
+    hyper = dict(hidden_layer_sizes=list(hidden_layer_sizes), activation='relu',
+                 solver='lbfgs', alpha=alpha, random_state=best[1], val_mae_n=best[0])
+    model = ForceModel('mlp', {**sc, **mlp_arrays(mlp)},
+                       _header('mlp', X, Y, hyper, extra_header))
+    model.sklearn = mlp
+    return model, dict(hyper=hyper, table=table, fit_time_s=fit_time)
+
+
+def sklearn_predict(model: ForceModel, X) -> np.ndarray:
+    """The scikit-learn prediction of a freshly trained model (for equivalence tests and
+    benchmarks): X (B, 12) raw features -> (B, 2) N."""
+    a = model.arrays
+    Z = (np.asarray(X, dtype=float) - a['x_mean']) / a['x_scale']
+    if model.kind == 'svr':
+        T = np.stack([m.predict(Z) for m in model.sklearn], axis=1)
+    else:
+        T = model.sklearn.predict(Z).reshape(-1, N_TARGETS)
+    return T * a['y_scale'] + a['y_mean']
