@@ -1,0 +1,48 @@
+"""Argument checks shared by the core modules: ValueError naming the argument, never a NaN."""
+from __future__ import annotations
+
+import math
+
+
+def finite(name: str, value) -> float:
+    """Return `value` as a float; ValueError naming `name` if it is not a finite real number."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be a finite number, got {value!r}') from None
+    if not math.isfinite(v):
+        raise ValueError(f'{name} must be finite, got {value!r}')
+    return v
+
+
+def nonneg(name: str, value) -> float:
+    """A finite number >= 0."""
+    v = finite(name, value)
+    if v < 0.0:
+        raise ValueError(f'{name} must be >= 0, got {v!r}')
+    return v
+
+
+def positive(name: str, value) -> float:
+    """A finite number > 0."""
+    v = finite(name, value)
+    if v <= 0.0:
+        raise ValueError(f'{name} must be > 0, got {v!r}')
+    return v
+
+
+def probability(name: str, value) -> float:
+    """A finite number in [0, 1]."""
+    v = finite(name, value)
+    if not 0.0 <= v <= 1.0:
+        raise ValueError(f'{name} must be in [0, 1], got {v!r}')
+    return v
+
+
+def seed(name: str, value):
+    """None or an int >= 0 (bools refused)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ValueError(f'{name} must be None or an int >= 0, got {value!r}')
+    return value
