@@ -1,0 +1,319 @@
+"""Bezier curves: evaluation, least-squares fitting (thesis Eqs. 2-5) with parameter
+correction, and perpendicular (orthogonal) distances of points to a curve.
+
+Pure numpy; no rclpy. Control points are an array (n + 1, D) for degree n in D
+dimensions (D = 2 or 3 here, any D works); points are (N, D); parameters s are in [0, 1].
+Units are whatever the points carry (metres in this project).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import comb
+from typing import Optional
+
+import numpy as np
+
+__all__ = ['BezierFit', 'bernstein', 'bezier_eval', 'bezier_derivative', 'chord_length_params',
+           'fit_bezier', 'fit_bezier_detailed', 'project_points', 'bezier_distance']
+
+
+def _as_points(points, name: str = 'points', min_rows: int = 1) -> np.ndarray:
+    try:
+        p = np.asarray(points, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f'{name} must be a numeric array (N, D): {exc}') from None
+    if p.ndim != 2 or p.shape[1] < 1:
+        raise ValueError(f'{name} must have shape (N, D), got {p.shape}')
+    if p.shape[0] < min_rows:
+        raise ValueError(f'{name} needs at least {min_rows} rows, got {p.shape[0]}')
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f'{name} contains non-finite values')
+    return p
+
+
+def _as_ctrl(ctrl) -> np.ndarray:
+    c = _as_points(ctrl, 'control_points', min_rows=2)
+    return c
+
+
+def bernstein(s, degree: int) -> np.ndarray:
+    """Bernstein basis matrix (len(s), degree + 1): B[i, j] = C(n, j) s_i^j (1 - s_i)^(n - j).
+
+    For degree 3 its transpose is the thesis's Lambda (Eq. 5)."""
+    if int(degree) != degree or degree < 1:
+        raise ValueError(f'degree must be an integer >= 1, got {degree!r}')
+    degree = int(degree)
+    s = np.asarray(s, dtype=float).reshape(-1)
+    j = np.arange(degree + 1)
+    binom = np.array([comb(degree, k) for k in j], dtype=float)
+    # powers by cumulative products: stable and faster than ** for small degrees
+    sp = np.ones((s.size, degree + 1))
+    tp = np.ones((s.size, degree + 1))
+    t = 1.0 - s
+    for k in range(1, degree + 1):
+        sp[:, k] = sp[:, k - 1] * s
+        tp[:, k] = tp[:, k - 1] * t
+    return binom * sp * tp[:, ::-1]
+
+
+def bezier_eval(control_points, s) -> np.ndarray:
+    """Curve points c(s), shape (len(s), D), of the Bezier curve with control points (n+1, D) (Eq. 3)."""
+    c = _as_ctrl(control_points)
+    return bernstein(s, c.shape[0] - 1) @ c
+
+
+def bezier_derivative(control_points, order: int = 1) -> np.ndarray:
+    """Control points (n + 1 - order, D) of the order-th derivative curve d^k c / ds^k."""
+    c = _as_ctrl(control_points)
+    for _ in range(order):
+        n = c.shape[0] - 1
+        if n < 1:
+            return np.zeros((1, c.shape[1]))
+        c = n * np.diff(c, axis=0)
+    return c
+
+
+def chord_length_params(points) -> np.ndarray:
+    """Normalised cumulative chord length (Eq. 2): s_0 = 0, s_{N-1} = 1, shape (N,).
+
+    Raises ValueError when the points have zero total length."""
+    p = _as_points(points, min_rows=2)
+    d = np.sqrt(np.sum(np.diff(p, axis=0) ** 2, axis=1))
+    total = d.sum()
+    if not total > 0:
+        raise ValueError('points have zero total length: cannot parameterise by arc length')
+    s = np.empty(p.shape[0])
+    s[0] = 0.0
+    np.cumsum(d, out=s[1:])
+    s /= total
+    s[-1] = 1.0
+    return s
+
+
+@dataclass
+class BezierFit:
+    """A fitted curve: control_points (n+1, D), the final parameter of every point (N,),
+    the mean and max perpendicular distance of the points to the curve (same unit as the
+    points), and the mean distance at the chord-length parameters before correction."""
+    control_points: np.ndarray
+    params: np.ndarray
+    residual: float
+    max_distance: float
+    chord_residual: float
+
+
+def _constraint_map(n1: int, D: int, start, start_tangent):
+    """Affine parameterisation of the control points, vec(C) = c0 + M x (point-major)."""
+    size = n1 * D
+    c0 = np.zeros(size)
+    if start is None:
+        return c0, np.eye(size)
+    c0[:D] = start
+    if start_tangent is None:
+        M = np.zeros((size, size - D))
+        M[D:, :] = np.eye(size - D)
+        return c0, M
+    c0[D:2 * D] = start
+    M = np.zeros((size, 1 + size - 2 * D))
+    M[D:2 * D, 0] = start_tangent
+    M[2 * D:, 1:] = np.eye(size - 2 * D)
+    return c0, M
+
+
+def _solve_ls(B: np.ndarray, p: np.ndarray, c0: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """Least-squares control points (n+1, D) for basis B (N, n+1), points p (N, D) and the
+    affine constraint vec(C) = c0 + M x. Unconstrained this is the Moore-Penrose
+    solution of Eq. 4 (computed with lstsq, better conditioned than the normal equations)."""
+    n1 = B.shape[1]
+    D = p.shape[1]
+    if M.shape[1] == n1 * D:
+        return np.linalg.lstsq(B, p, rcond=None)[0]
+    A = np.einsum('ij,de->idje', B, np.eye(D)).reshape(B.shape[0] * D, n1 * D)
+    x = np.linalg.lstsq(A @ M, p.reshape(-1) - A @ c0, rcond=None)[0]
+    return (c0 + M @ x).reshape(n1, D)
+
+
+def _tdm_step(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, c0: np.ndarray,
+              M: np.ndarray) -> np.ndarray:
+    """One tangent-distance-minimisation (Gauss-Newton on the perpendicular distances)
+    update of the control points for points p at their foot-point parameters s."""
+    n = ctrl.shape[0] - 1
+    N, D = p.shape
+    B = bernstein(s, n)
+    r = B @ ctrl - p
+    t = bernstein(s, n - 1) @ bezier_derivative(ctrl, 1)
+    tn = np.linalg.norm(t, axis=1, keepdims=True)
+    t = t / np.where(tn > 0, tn, 1.0)
+    if D == 2:
+        # one normal per point: scalar signed distances e_i = n_i . r_i
+        nrm = np.stack([-t[:, 1], t[:, 0]], axis=1)
+        A = (B[:, :, None] * nrm[:, None, :]).reshape(N, (n + 1) * D)
+        rhs = -np.sum(nrm * r, axis=1)
+    else:
+        P = np.eye(D)[None] - t[:, :, None] * t[:, None, :]        # (N, D, D) normal projectors
+        A = np.einsum('ij,ide->idje', B, P).reshape(N * D, (n + 1) * D)
+        rhs = -np.einsum('ide,ie->id', P, r).reshape(-1)
+    # the first and last points keep s = 0 and s = 1: their full distance counts, so the
+    # curve starts and ends at the data instead of running past it
+    ends = np.einsum('ij,de->idje', B[[0, -1]], np.eye(D)).reshape(2 * D, (n + 1) * D)
+    A = np.vstack([A, ends])
+    rhs = np.concatenate([rhs, -r[[0, -1]].reshape(-1)])
+    # M has orthonormal columns (selection / unit tangent), so dC = M dx
+    dx = np.linalg.lstsq(A @ M, rhs, rcond=None)[0]
+    return ctrl + (M @ dx).reshape(n + 1, D)
+
+
+def _anchored(s: np.ndarray) -> np.ndarray:
+    s[0], s[-1] = 0.0, 1.0
+    return s
+
+
+def _newton_params(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, steps: int) -> np.ndarray:
+    """Newton steps on (c(s) - p) . c'(s) = 0 for every point, clamped to [0, 1]."""
+    n = ctrl.shape[0] - 1
+    d1 = bezier_derivative(ctrl, 1)
+    d2 = bezier_derivative(ctrl, 2) if n >= 2 else np.zeros((1, ctrl.shape[1]))
+    for _ in range(steps):
+        r = bernstein(s, n) @ ctrl - p
+        c1 = bernstein(s, n - 1) @ d1 if n >= 2 else np.repeat(d1, s.size, axis=0)
+        c2 = bernstein(s, n - 2) @ d2 if n >= 3 else np.repeat(d2[:1], s.size, axis=0)
+        f = np.sum(r * c1, axis=1)
+        fp = np.sum(c1 * c1, axis=1) + np.sum(r * c2, axis=1)
+        # a Newton step where the objective is locally convex, a gradient step otherwise
+        ok = fp > 1e-12 * (np.sum(c1 * c1, axis=1) + 1e-300)
+        step = np.where(ok, f / np.where(ok, fp, 1.0), 0.0)
+        s = np.clip(s - step, 0.0, 1.0)
+    return s
+
+
+def _project_global(c: np.ndarray, p: np.ndarray, samples: int, steps: int) -> np.ndarray:
+    n = c.shape[0] - 1
+    ss = np.linspace(0.0, 1.0, samples)
+    cs = bernstein(ss, n) @ c
+    d2 = (np.sum(p * p, axis=1)[:, None] - 2.0 * p @ cs.T + np.sum(cs * cs, axis=1)[None, :])
+    return _newton_params(c, p, ss[np.argmin(d2, axis=1)], steps)
+
+
+def _dist(c: np.ndarray, p: np.ndarray, s: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.sum((bernstein(s, c.shape[0] - 1) @ c - p) ** 2, axis=1))
+
+
+def project_points(control_points, points, params=None, steps: int = 8,
+                   samples: int = 0) -> tuple:
+    """Orthogonal projection of points (N, D) onto the curve: returns (s (N,), distances (N,)).
+
+    Starts from `params` when given, otherwise from the nearest of `samples` (default
+    max(64, 16 (n+1))) equally spaced curve samples, then Newton steps."""
+    c = _as_ctrl(control_points)
+    p = _as_points(points)
+    if p.shape[1] != c.shape[1]:
+        raise ValueError(f'points have D={p.shape[1]} but control_points D={c.shape[1]}')
+    n = c.shape[0] - 1
+    if params is None:
+        s = _project_global(c, p, samples or max(64, 16 * (n + 1)), steps)
+    else:
+        s = np.clip(np.asarray(params, dtype=float).reshape(-1), 0.0, 1.0)
+        if s.size != p.shape[0]:
+            raise ValueError(f'params has {s.size} entries for {p.shape[0]} points')
+        s = _newton_params(c, p, s, steps)
+    return s, _dist(c, p, s)
+
+
+def bezier_distance(control_points, points) -> np.ndarray:
+    """Perpendicular (closest-point) distance (N,) of each point to the curve."""
+    return project_points(control_points, points)[1]
+
+
+def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 10,
+                        start=None, start_tangent=None, tol: float = 1e-3) -> BezierFit:
+    """Least-squares Bezier fit of ordered points (N, D) (thesis Eqs. 2-5) with parameter
+    correction.
+
+    points: (N, D), ordered from the start (s = 0) to the end (s = 1); N >= degree + 1.
+    params: optional initial parameters (N,) in [0, 1]; default normalised chord length (Eq. 2).
+    refine: at most this many parameter-correction rounds (each: project every point onto
+        the current curve by Newton steps, then one Gauss-Newton step on the perpendicular
+        distances, falling back to a plain least-squares re-solve if that does not help).
+        0 = the thesis's chord-length fit.
+    tol: stop correcting once a round lowers the mean squared distance by less than
+        this fraction (1e-3 is well below pixel noise; 0 runs all `refine` rounds).
+    start: optional (D,) point that p0 is fixed to (e.g. the clamp).
+    start_tangent: optional (D,) direction; p1 is then constrained to p0 + a * t (needs start).
+    Returns a BezierFit whose residual is the mean perpendicular distance.
+    """
+    if int(degree) != degree or degree < 1:
+        raise ValueError(f'degree must be an integer >= 1, got {degree!r}')
+    degree = int(degree)
+    p = _as_points(points, min_rows=degree + 1)
+    if int(refine) != refine or refine < 0:
+        raise ValueError(f'refine must be a non-negative integer, got {refine!r}')
+    D = p.shape[1]
+    if start is not None:
+        start = np.asarray(start, dtype=float).reshape(-1)
+        if start.shape != (D,) or not np.all(np.isfinite(start)):
+            raise ValueError(f'start must be a finite point of dimension {D}')
+    if start_tangent is not None:
+        if start is None:
+            raise ValueError('start_tangent needs start')
+        t = np.asarray(start_tangent, dtype=float).reshape(-1)
+        nt = np.linalg.norm(t) if t.shape == (D,) else 0.0
+        if t.shape != (D,) or not np.isfinite(nt) or nt == 0:
+            raise ValueError(f'start_tangent must be a finite non-zero vector of dimension {D}')
+        start_tangent = t / nt
+        if degree < 2:
+            raise ValueError('start_tangent needs degree >= 2')
+    if params is None:
+        s = chord_length_params(p)
+    else:
+        s = np.asarray(params, dtype=float).reshape(-1)
+        if s.size != p.shape[0] or not np.all(np.isfinite(s)):
+            raise ValueError(f'params must be {p.shape[0]} finite values')
+        s = np.clip(s, 0.0, 1.0)
+    c0, M = _constraint_map(degree + 1, D, start, start_tangent)
+    ctrl = _solve_ls(bernstein(s, degree), p, c0, M)
+    chord_res = float(np.mean(np.sqrt(np.sum((bernstein(s, degree) @ ctrl - p) ** 2, axis=1))))
+    # Parameter correction: foot points by Newton (orthogonal projection), then a
+    # Gauss-Newton step on the perpendicular distances (tangent distance minimisation).
+    # A step is kept only if it lowers the mean squared perpendicular distance.
+    s = _anchored(_newton_params(ctrl, p, s, 2))
+    dist = np.sqrt(np.sum((bernstein(s, degree) @ ctrl - p) ** 2, axis=1))
+    err = float(np.mean(dist ** 2))
+    for _ in range(int(refine)):
+        if err <= 1e-30:
+            break
+        trial = _tdm_step(ctrl, p, s, c0, M)
+        if not np.all(np.isfinite(trial)):
+            break
+        s_t = _anchored(_newton_params(trial, p, s, 2))
+        e_t = float(np.mean(np.sum((bernstein(s_t, degree) @ trial - p) ** 2, axis=1)))
+        if e_t > err:
+            # fall back to a plain parameter-correction round (Hoschek), always safe
+            trial = _solve_ls(bernstein(s, degree), p, c0, M)
+            s_t = _anchored(_newton_params(trial, p, s, 2))
+            e_t = float(np.mean(np.sum((bernstein(s_t, degree) @ trial - p) ** 2, axis=1)))
+            if e_t > err:
+                break
+        improved = err - e_t
+        ctrl, s, err = trial, s_t, e_t
+        if improved <= tol * err:
+            break
+    # final residual: the closest point, from the fit's parameters and from a coarse global
+    # search (guards against a local foot point on strongly curved fits)
+    s_loc = _newton_params(ctrl, p, s, 3)
+    d_loc = _dist(ctrl, p, s_loc)
+    s_glob = _project_global(ctrl, p, 8 * (degree + 1), 4)
+    d_glob = _dist(ctrl, p, s_glob)
+    use_glob = d_glob < d_loc
+    s = np.where(use_glob, s_glob, s_loc)
+    dist = np.where(use_glob, d_glob, d_loc)
+    return BezierFit(control_points=ctrl, params=s, residual=float(dist.mean()),
+                     max_distance=float(dist.max()), chord_residual=chord_res)
+
+
+def fit_bezier(points, degree: int = 3, *, params=None, refine: int = 10, start=None,
+               start_tangent=None, tol: float = 1e-3) -> np.ndarray:
+    """Control points (degree + 1, D) of the least-squares Bezier curve through ordered
+    points (N, D); see fit_bezier_detailed for the options. refine=0 gives the thesis's
+    chord-length Moore-Penrose fit (Eq. 4)."""
+    return fit_bezier_detailed(points, degree, params=params, refine=refine, start=start,
+                               start_tangent=start_tangent, tol=tol).control_points
