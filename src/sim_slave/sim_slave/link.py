@@ -20,6 +20,11 @@ from typing import Any, List, Optional, Tuple
 from sim_slave._check import finite, nonneg, probability, seed as check_seed
 
 
+#: s; a packet due within this of the receive time counts as arrived, so that a delay of
+#: exactly k periods is k periods despite floating-point rounding of t + delay.
+_ARRIVAL_TOL = 1e-9
+
+
 @dataclass(frozen=True)
 class LinkConfig:
     """Configuration of one direction of the link.
@@ -150,7 +155,8 @@ class Link:
         heap = self._heap
         best = None
         best_seq = self._last_seq
-        while heap and heap[0][0] <= t:
+        t_arr = t + _ARRIVAL_TOL
+        while heap and heap[0][0] <= t_arr:
             _, seq, t_sent, payload = heapq.heappop(heap)
             if seq > best_seq:
                 if best is not None:
