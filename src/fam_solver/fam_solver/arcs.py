@@ -1,0 +1,126 @@
+"""Closed forms of one circular arc, written in complex numbers, with series near phi = 0.
+
+An arc of length ``l`` that starts at ``P`` with heading ``theta`` and turns by ``phi``
+(constant curvature ``phi / l``) has, at arc-length fraction ``t`` in [0, 1],
+
+    p(t) = P + l * exp(i theta) * t * g(phi t),      g(phi) = (exp(i phi) - 1) / (i phi)
+                                                            = sin(phi)/phi + i (1 - cos(phi))/phi
+
+(the thesis' Eq. 25 in complex form: g * l is the chord ``(r sin phi, r (1 - cos phi))``).
+The mean position over the arc is ``P + l e^{i theta} h(phi)`` with
+
+    h(phi) = integral_0^1 t g(phi t) dt ... = (g(phi) - 1) / (i phi)
+           = (1 - cos phi)/phi^2 + i (phi - sin phi)/phi^2,
+
+and the lever from the mean point to the arc end is ``l e^{i theta} q(phi)`` with q = g - h.
+For a load at fraction ``tau`` inside the arc, the mean over t in [0, tau] of (p(tau) - p(t))
+is ``l e^{i theta} tau^2 q(phi tau)``.
+
+All four functions g, q and their phi-derivatives g', q' are entire; as phi -> 0 the closed
+forms cancel (0/0), so |phi| < 1 uses their Taylor series (18 terms: truncation below
+3e-16 relative) evaluated as ONE Vandermonde matrix product (few numpy calls; this matters
+for small N). Larger |phi| uses the closed forms, which are exact there.
+
+    g  = sum_n (i phi)^n / (n+1)!          q  = sum_n (i phi)^n (n+1)/(n+2)!
+    g' = sum_{n>=1} n i^n phi^(n-1)/(n+1)!  q' = sum_{n>=1} n(n+1) i^n phi^(n-1)/(n+2)!
+
+No rclpy here.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+SERIES_LIMIT = 1.0
+_K = 18
+_n = np.arange(_K + 1)
+_fact = np.array([math.factorial(k) for k in range(_K + 3)], dtype=float)
+_ipow = 1j ** _n  # i^n
+
+
+def _coef_matrix():
+    """(K, 8) real matrix: columns Re/Im of g, q, g', q' as polynomials in phi (powers 0..K-1)."""
+    C = np.zeros((_K, 8))
+    for n in range(_K):
+        cg = _ipow[n] / _fact[n + 1]
+        cq = _ipow[n] * (n + 1) / _fact[n + 2]
+        C[n, 0], C[n, 1] = cg.real, cg.imag
+        C[n, 2], C[n, 3] = cq.real, cq.imag
+        m = n + 1  # derivative: term m contributes m * c_m phi^(m-1) to power n
+        cgp = m * _ipow[m] / _fact[m + 1]
+        cqp = m * (m + 1) * _ipow[m] / _fact[m + 2]
+        C[n, 4], C[n, 5] = cgp.real, cgp.imag
+        C[n, 6], C[n, 7] = cqp.real, cqp.imag
+    return C
+
+
+_COEF = _coef_matrix()
+_POW = np.arange(_K, dtype=float)
+
+
+def _series(phi):
+    V = phi[..., None] ** _POW
+    R = V @ _COEF
+    g = R[..., 0] + 1j * R[..., 1]
+    q = R[..., 2] + 1j * R[..., 3]
+    gp = R[..., 4] + 1j * R[..., 5]
+    qp = R[..., 6] + 1j * R[..., 7]
+    return g, q, gp, qp
+
+
+def _closed(phi):
+    e = np.exp(1j * phi)
+    g = (e - 1.0) / (1j * phi)
+    h = (g - 1.0) / (1j * phi)
+    gp = (e - g) / phi
+    hp = (gp - 1j * h) / (1j * phi)
+    return g, g - h, gp, gp - hp
+
+
+def arc_funcs(phi):
+    """g, q, g', q' (complex arrays, same shape as the real array ``phi``) for arc angles phi [rad]."""
+    phi = np.asarray(phi, dtype=float)
+    a = np.abs(phi)
+    if phi.size == 0 or a.max() < SERIES_LIMIT:
+        return _series(phi)
+    if a.min() >= SERIES_LIMIT:
+        return _closed(phi)
+    small = a < SERIES_LIMIT
+    s = _series(np.where(small, phi, 0.0))
+    c = _closed(np.where(small, 1.0, phi))
+    return tuple(np.where(small, x, y) for x, y in zip(s, c))
+
+
+def g_only(phi):
+    """g(phi) = (e^{i phi} - 1)/(i phi), the unit-length chord of an arc turning by phi (complex)."""
+    phi = np.asarray(phi, dtype=float)
+    small = np.abs(phi) < 1e-3
+    p = np.where(small, 1.0, phi)
+    closed = np.sin(p) / p + 1j * (2.0 * np.sin(0.5 * p) ** 2) / p
+    p2 = phi * phi
+    ser = (1.0 - p2 / 6.0 + p2 * p2 / 120.0) + 1j * (phi / 2.0 - phi * p2 / 24.0 + phi * p2 * p2 / 720.0)
+    return np.where(small, ser, closed)
+
+
+def bezier_lambda(phi):
+    """Handle-length ratio lambda(phi) = h / l of the cubic Bezier that follows a circular arc.
+
+    Derivation (replaces the thesis' garbled Eq. 10): an arc of length l turning by phi has
+    radius r = l / phi. Put the Bezier control points as in Eq. 9, p1 = p0 + h t0 and
+    p2 = p3 - h t3 (t0, t3 the end tangents). By symmetry the Bezier midpoint c(1/2) =
+    (p0 + 3 p1 + 3 p2 + p3)/8 lies on the arc's symmetry axis; requiring it to lie ON the
+    circle gives, in the frame with the chord along x and the circle centre on the axis,
+    h = (4/3) tan(phi/4) r  (the classic circular-arc handle). Hence
+
+        lambda = h / l = (4/3) tan(phi/4) / phi  -> 1/3 + phi^2/144 + ... as phi -> 0,
+
+    which is exact at the midpoint and the two ends (positions and tangents) and has a
+    radial error of about 2.7e-4 r at phi = pi/2 (tests check both). Series below |phi| < 1e-3.
+    """
+    phi = np.asarray(phi, dtype=float)
+    small = np.abs(phi) < 1e-3
+    p = np.where(small, 1.0, phi)
+    closed = (4.0 / 3.0) * np.tan(p / 4.0) / p
+    ser = 1.0 / 3.0 + phi * phi / 144.0
+    return np.where(small, ser, closed)

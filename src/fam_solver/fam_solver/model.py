@@ -1,0 +1,259 @@
+"""Data types of the public API: Catheter, Loads, Shape, BatchShape (no rclpy, SI units).
+
+Frame: ``catheter_base`` -- origin at the clamp, x along the undeformed catheter, y in the
+bending plane. Angles in rad, counter-clockwise from +x. Arc-length fractions s in [0, 1].
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Optional, Tuple
+
+import numpy as np
+
+from .arcs import g_only
+
+
+def _finite_float(value, name: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be a real number, got {value!r}') from None
+    if not math.isfinite(v):
+        raise ValueError(f'{name} must be finite, got {value!r}')
+    return v
+
+
+def _vec2(value, name: str) -> Tuple[float, float]:
+    a = np.asarray(value, dtype=float) if not isinstance(value, str) else None
+    if a is None or a.shape != (2,):
+        raise ValueError(f'{name} must be a pair (fx, fy), got {value!r}')
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f'{name} must be finite, got {value!r}')
+    return float(a[0]), float(a[1])
+
+
+@dataclass(frozen=True)
+class Catheter:
+    """A planar, initially straight, clamped catheter.
+
+    length: m (> 0). ei: flexural rigidity E*I in N m^2 (> 0).
+    """
+    length: float
+    ei: float
+
+    def __post_init__(self):
+        length = _finite_float(self.length, 'length')
+        ei = _finite_float(self.ei, 'ei')
+        if length <= 0:
+            raise ValueError(f'length must be positive (m), got {length}')
+        if ei <= 0:
+            raise ValueError(f'ei must be positive (N m^2), got {ei}')
+        object.__setattr__(self, 'length', length)
+        object.__setattr__(self, 'ei', ei)
+
+
+@dataclass(frozen=True)
+class Loads:
+    """External loads, in the catheter_base frame unless ``follower``.
+
+    tip_force: (fx, fy) N. With ``follower=True`` the components are in the TIP frame
+        (x along the tip tangent, y its normal), so the force turns with the tip (tendon pull).
+    tip_moment: mz, N m (counter-clockwise positive).
+    point_forces: sequence of (s, fx, fy): s the arc-length fraction in (0, 1], force in N,
+        fixed in the base frame. A point force at s = 1 adds to the tip force (base frame).
+    """
+    tip_force: Tuple[float, float] = (0.0, 0.0)
+    tip_moment: float = 0.0
+    follower: bool = False
+    point_forces: Tuple[Tuple[float, float, float], ...] = field(default_factory=tuple)
+
+    def __post_init__(self):
+        object.__setattr__(self, 'tip_force', _vec2(self.tip_force, 'tip_force'))
+        object.__setattr__(self, 'tip_moment', _finite_float(self.tip_moment, 'tip_moment'))
+        if not isinstance(self.follower, (bool, np.bool_)):
+            raise ValueError(f'follower must be a bool, got {self.follower!r}')
+        object.__setattr__(self, 'follower', bool(self.follower))
+        pf = self.point_forces
+        if pf is None:
+            pf = ()
+        try:
+            rows = [tuple(r) for r in pf]
+        except TypeError:
+            raise ValueError(f'point_forces must be a sequence of (s, fx, fy), got {pf!r}') from None
+        out = []
+        for r in rows:
+            if len(r) != 3:
+                raise ValueError(f'point_forces entries must be (s, fx, fy), got {r!r}')
+            s = _finite_float(r[0], 'point_forces s')
+            if not 0.0 < s <= 1.0:
+                raise ValueError(f'point_forces s must be in (0, 1], got {s}')
+            out.append((s, _finite_float(r[1], 'point_forces fx'),
+                        _finite_float(r[2], 'point_forces fy')))
+        object.__setattr__(self, 'point_forces', tuple(out))
+
+    def load_parameter(self, cat: Catheter) -> float:
+        """Dimensionless size of the loading: (sum |F|) L^2/EI + |M| L/EI."""
+        f = math.hypot(*self.tip_force) + sum(math.hypot(fx, fy) for _, fx, fy in self.point_forces)
+        return f * cat.length ** 2 / cat.ei + abs(self.tip_moment) * cat.length / cat.ei
+
+
+class Shape:
+    """A solved planar centreline (FAM or the reference rod), base at (0, 0) heading +x.
+
+    Attributes
+    ----------
+    tip : ndarray (2,), m.          tip_angle : float, rad (tangent angle at the tip).
+    arc_angles : ndarray (n_arcs,), rad -- the bending angle phi_i of each arc, base -> tip
+        (for the reference rod: tangent-angle increments over 100 equal pieces).
+    converged : bool.  iterations : int (Newton iterations, all continuation steps).
+    stable : bool -- False when the returned equilibrium is known to be unstable (a straight
+        catheter under an axial compression past its buckling load: loading from zero keeps
+        the straight equilibrium; it is returned and flagged, see ``warning``).
+    warning : str -- '' or a short reason (non-convergence, instability).
+    residual : float -- max |residual| of the solved equations (rad for FAM, N m for the rod).
+    arc_model : str -- 'exact', 'bezier' or 'elastica'.
+    """
+
+    def __init__(self, length: float, tip, tip_angle: float, arc_angles, converged: bool,
+                 iterations: int, points_fn: Callable[[np.ndarray], np.ndarray],
+                 angles_fn: Callable[[np.ndarray], np.ndarray], stable: bool = True,
+                 warning: str = '', residual: float = 0.0, arc_model: str = 'exact'):
+        self.length = float(length)
+        self.tip = np.asarray(tip, dtype=float).reshape(2)
+        self.tip_angle = float(tip_angle)
+        self.arc_angles = np.asarray(arc_angles, dtype=float)
+        self.converged = bool(converged)
+        self.iterations = int(iterations)
+        self.stable = bool(stable)
+        self.warning = str(warning)
+        self.residual = float(residual)
+        self.arc_model = arc_model
+        self._points_fn = points_fn
+        self._angles_fn = angles_fn
+
+    def points_at(self, s) -> np.ndarray:
+        """Positions (len(s), 2) in m at arc-length fractions s in [0, 1]."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        if s.ndim != 1 or not np.all(np.isfinite(s)) or np.any(s < 0) or np.any(s > 1):
+            raise ValueError('s must be a 1-D array of fractions in [0, 1]')
+        return self._points_fn(s)
+
+    def angles_at(self, s) -> np.ndarray:
+        """Tangent angles (len(s),) in rad at arc-length fractions s in [0, 1]."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        if s.ndim != 1 or not np.all(np.isfinite(s)) or np.any(s < 0) or np.any(s > 1):
+            raise ValueError('s must be a 1-D array of fractions in [0, 1]')
+        return self._angles_fn(s)
+
+    def centerline(self, k: int = 50) -> np.ndarray:
+        """(k, 2) positions in m, base -> tip, at equal arc-length spacing (k >= 2)."""
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 2:
+            raise ValueError(f'k must be an integer >= 2, got {k!r}')
+        return self.points_at(np.linspace(0.0, 1.0, int(k)))
+
+    def __repr__(self):
+        return (f'Shape(tip={self.tip.tolist()}, tip_angle={self.tip_angle:.6g}, '
+                f'n_arcs={self.arc_angles.size}, converged={self.converged}, '
+                f'iterations={self.iterations}, stable={self.stable}, model={self.arc_model!r})')
+
+
+def arc_shape(length: float, phi: np.ndarray, **kw) -> Shape:
+    """Shape of N equal circular arcs with bending angles ``phi`` (N,), base at the origin."""
+    phi = np.asarray(phi, dtype=float)
+    n = phi.size
+    l = length / n
+    th_end = np.cumsum(phi)
+    th_start = th_end - phi
+    E = np.exp(1j * th_start)
+    d = l * E * g_only(phi)
+    P_end = np.cumsum(d)
+    if not np.any(phi):
+        # exactly straight: no accumulated round-off, tip == (L, 0)
+        P_end = length * (np.arange(1, n + 1) / n) + 0j
+        P_end[-1] = length
+    P_start = np.concatenate([[0j], P_end[:-1]])
+
+    def locate(s):
+        x = s * n
+        i = np.minimum(np.floor(x).astype(int), n - 1)
+        tau = x - i
+        return i, tau
+
+    def points(s):
+        i, tau = locate(s)
+        z = P_start[i] + l * E[i] * tau * g_only(phi[i] * tau)
+        z = np.where(s >= 1.0, P_end[-1], z)
+        return np.stack([z.real, z.imag], axis=-1)
+
+    def angles(s):
+        i, tau = locate(s)
+        return th_start[i] + phi[i] * tau
+
+    tip = P_end[-1]
+    return Shape(length, (tip.real, tip.imag), float(th_end[-1]) if n else 0.0, phi,
+                 points_fn=points, angles_fn=angles, **kw)
+
+
+class BatchShape:
+    """Results of ``solve_fam_batch``: B load cases with N arcs each.
+
+    arc_angles (B, N) rad; tips (B, 2) m; tip_angles (B,) rad; converged (B,) bool;
+    stable (B,) bool; iterations (B,) int; residual (B,) rad.
+    """
+
+    def __init__(self, length: float, arc_angles, converged, iterations, stable, residual,
+                 arc_model: str):
+        self.length = float(length)
+        self.arc_angles = np.asarray(arc_angles, dtype=float)
+        self.converged = np.asarray(converged, dtype=bool)
+        self.iterations = np.asarray(iterations, dtype=int)
+        self.stable = np.asarray(stable, dtype=bool)
+        self.residual = np.asarray(residual, dtype=float)
+        self.arc_model = arc_model
+        B, n = self.arc_angles.shape
+        self._l = self.length / max(n, 1)
+        th_end = np.cumsum(self.arc_angles, axis=1)
+        self.tip_angles = th_end[:, -1].copy() if n else np.zeros(B)
+        d = self._l * np.exp(1j * (th_end - self.arc_angles)) * g_only(self.arc_angles)
+        tip = d.sum(axis=1)
+        straight = ~np.any(self.arc_angles != 0.0, axis=1)
+        tip = np.where(straight, self.length + 0j, tip)
+        self.tips = np.stack([tip.real, tip.imag], axis=-1)
+
+    def __len__(self):
+        return self.arc_angles.shape[0]
+
+    def shape(self, b: int) -> Shape:
+        """The b-th case as a Shape."""
+        return arc_shape(self.length, self.arc_angles[b], converged=bool(self.converged[b]),
+                         iterations=int(self.iterations[b]), stable=bool(self.stable[b]),
+                         residual=float(self.residual[b]), arc_model=self.arc_model)
+
+    def points_at(self, s) -> np.ndarray:
+        """(B, len(s), 2) positions in m at arc-length fractions s in [0, 1]."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        if s.ndim != 1 or not np.all(np.isfinite(s)) or np.any(s < 0) or np.any(s > 1):
+            raise ValueError('s must be a 1-D array of fractions in [0, 1]')
+        phi = self.arc_angles
+        B, n = phi.shape
+        th_end = np.cumsum(phi, axis=1)
+        th_start = th_end - phi
+        E = np.exp(1j * th_start)
+        d = self._l * E * g_only(phi)
+        P_end = np.cumsum(d, axis=1)
+        P_start = P_end - d
+        x = s * n
+        i = np.minimum(np.floor(x).astype(int), n - 1)
+        tau = x - i
+        z = P_start[:, i] + self._l * E[:, i] * tau * g_only(phi[:, i] * tau)
+        z = np.where(s[None, :] >= 1.0, P_end[:, -1:], z)
+        straight = ~np.any(phi != 0.0, axis=1)
+        z = np.where(straight[:, None], self.length * s[None, :] + 0j, z)
+        return np.stack([z.real, z.imag], axis=-1)
+
+    def centerlines(self, k: int = 50) -> np.ndarray:
+        """(B, k, 2) positions in m, base -> tip, at equal arc-length spacing."""
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 2:
+            raise ValueError(f'k must be an integer >= 2, got {k!r}')
+        return self.points_at(np.linspace(0.0, 1.0, int(k)))
