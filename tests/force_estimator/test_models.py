@@ -9,29 +9,12 @@ from hypothesis import strategies as st
 
 from force_estimator.models import (ForceModel, control_points_to_features, load_estimator,
                                     load_model)
-from force_estimator.training import fit_mlp, fit_svr, sklearn_predict
-
-
-def _toy_data(n=160, seed=0):
-    """Planar control-point-like features (z = 0) and a smooth nonlinear force map."""
-    rng = np.random.default_rng(seed)
-    cp = np.zeros((n, 4, 3))
-    cp[:, 1, 0] = 0.02 + 0.003 * rng.standard_normal(n)
-    cp[:, 2, :2] = [0.04, 0.0] + 0.01 * rng.standard_normal((n, 2))
-    cp[:, 3, :2] = [0.06, 0.0] + 0.015 * rng.standard_normal((n, 2))
-    X = cp.reshape(n, 12)
-    Y = np.stack([3.0 * (cp[:, 3, 0] - 0.06) + 20 * (cp[:, 2, 1]) ** 2,
-                  10.0 * cp[:, 3, 1] * (1 + 10 * cp[:, 2, 1])], axis=1)
-    return X, Y
+from force_estimator.training import sklearn_predict
 
 
 @pytest.fixture(scope='module')
-def trained():
-    X, Y = _toy_data()
-    svr, rep_s = fit_svr(X, Y, epsilons_n=(1e-3, 4e-3), gammas=(0.02, 0.1))
-    mlp, rep_m = fit_mlp(X, Y, n_init=2, max_iter=500)
-    big, _ = fit_mlp(X, Y, hidden_layer_sizes=(16, 16), n_init=1, max_iter=300)
-    return X, Y, {'svr': svr, 'mlp': mlp, 'big': big}, rep_s
+def trained(toy_models):
+    return toy_models
 
 
 @pytest.mark.parametrize('kind', ['svr', 'mlp', 'big'])
@@ -123,7 +106,7 @@ def test_envelope_flags_extrapolation(trained):
         _, flags = m.predict(X.reshape(-1, 4, 3), return_flags=True)
         assert flags.dtype == bool and flags.all()           # every training input is inside
         far = X[0].reshape(4, 3).copy()
-        far[3, 1] += 0.05                                    # 5 cm beyond any training tip
+        far[3, 1] += 0.2                                     # 20 cm beyond any training tip
         f, inside = m.predict(far, return_flags=True)
         assert inside is False and f.shape == (2,)
         assert not m.in_envelope(np.stack([far, X[1].reshape(4, 3)]))[0]

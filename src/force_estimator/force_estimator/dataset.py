@@ -169,10 +169,13 @@ def render_control_points(centerlines, length: float = BLAZER_LENGTH, seed: int 
 def make_dataset(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI,
                  n_arcs: int = 12, point_noise: float = 0.0, render: bool = False,
                  test_frac: float = 0.3, seed: int = 0, progress: bool = True,
-                 name: str = '') -> dict:
+                 name: str = '', mirror: bool = False) -> dict:
     """Build a data set from tip forces (n, 2) N: FAM shapes, control points, 70:30 split.
 
     Non-converged FAM solves (and failed renders) are dropped and counted in the header.
+    mirror: also add the mirror image of every case (y -> -y, fy -> -fy; the catheter is
+    symmetric), so a model covers deflections to both sides; a case and its mirror share
+    the same split.
     Returns a dict with the keys documented in the module docstring.
     """
     F = np.asarray(forces, dtype=float)
@@ -185,22 +188,30 @@ def make_dataset(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI,
         cp = fit_control_points(cls, point_noise=point_noise, seed=seed, progress=progress)
         ok = np.ones(len(F), dtype=bool)
     keep = conv & ok
+    n_not_conv = int((~conv).sum())
+    n_render_failed = int((conv & ~ok).sum())
     rng = np.random.default_rng(seed + 1)
     n = int(keep.sum())
     split = np.zeros(n, dtype=np.int8)
     split[rng.permutation(n)[:int(round(test_frac * n))]] = 1
     Fk = F[keep]
+    cpk = cp[keep]
+    if mirror:
+        flip = np.array([1.0, -1.0, 1.0])
+        cpk = np.concatenate([cpk, cpk * flip])
+        Fk = np.concatenate([Fk, Fk * flip[:2]])
+        split = np.concatenate([split, split])
+        n = 2 * n
     header = dict(name=name, catheter=dict(length=length, ei=ei), n_arcs=n_arcs,
                   generator='fam_solver.solve_fam_batch',
                   fitter='render+ShapeSensor' if render else 'catheter_shape.fit_bezier',
-                  point_noise=point_noise, seed=seed, test_frac=test_frac,
-                  n_requested=int(len(F)), n_not_converged=int((~conv).sum()),
-                  n_render_failed=int((conv & ~ok).sum()), n=n,
+                  point_noise=point_noise, seed=seed, test_frac=test_frac, mirror=mirror,
+                  n_requested=int(len(F)), n_not_converged=n_not_conv,
+                  n_render_failed=n_render_failed, n=n,
                   units=dict(control_points='m', X='m', Y='N', angle='rad'))
-    cpk = cp[keep]
     return dict(control_points=cpk, X=cpk.reshape(n, 12), Y=Fk,
                 magnitude=np.hypot(Fk[:, 0], Fk[:, 1]), angle=np.arctan2(Fk[:, 1], Fk[:, 0]),
-                split=split, converged=conv[keep], header=header)
+                split=split, converged=np.ones(n, dtype=bool), header=header)
 
 
 def save_dataset(path, ds: dict) -> str:

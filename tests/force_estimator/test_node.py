@@ -1,0 +1,99 @@
+"""force_estimator_node in-process: control points in, tip wrench out (stamp, frame, value),
+bad messages counted while the node keeps running, diagnostics published."""
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Point, Pose, PoseArray, WrenchStamped
+from rclpy.parameter import Parameter
+
+from catheter_common.topics import (CONTROL_POINTS, DIAGNOSTICS, FRAME_CATHETER_BASE,
+                                    QOS_DEFAULT, QOS_SENSOR, TIP_WRENCH)
+from force_estimator.force_estimator_node import NODE_CLASS
+from force_estimator.models import load_estimator
+
+pytestmark = pytest.mark.ros
+
+
+def _msg(cp, sec=0, nsec=0, frame=FRAME_CATHETER_BASE):
+    m = PoseArray()
+    m.header.frame_id = frame
+    m.header.stamp.sec = sec
+    m.header.stamp.nanosec = nsec
+    for p in cp:
+        m.poses.append(Pose(position=Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))))
+    return m
+
+
+def _setup(ros, overrides):
+    node = NODE_CLASS(context=ros.context, parameter_overrides=overrides)
+    ros.add(node)
+    client = ros.node('fe_test_client')
+    pub = client.create_publisher(PoseArray, CONTROL_POINTS, QOS_SENSOR)
+    got, diags = [], []
+    client.create_subscription(WrenchStamped, TIP_WRENCH, got.append, QOS_SENSOR)
+    client.create_subscription(DiagnosticArray, DIAGNOSTICS, diags.append, QOS_DEFAULT)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0
+                          and node.pub.get_subscription_count() > 0, 10.0)
+    return node, pub, got, diags
+
+
+def _send_until(ros, pub, msg, got):
+    """Publish (best effort) until a wrench with the message's stamp arrived."""
+    sec = msg.header.stamp.sec
+
+    def arrived():
+        return any(w.header.stamp.sec == sec for w in got)
+    for _ in range(50):
+        pub.publish(msg)
+        if ros.spin_until(arrived, 0.2):
+            return True
+    return False
+
+
+@pytest.mark.parametrize('method', ['svr', 'mlp'])
+def test_node_estimates_with_stamp_and_frame(ros, toy_models, toy_model_files, method):
+    X = toy_models[0]
+    node, pub, got, diags = _setup(ros, [
+        Parameter('method', value=method),
+        Parameter(f'{method}_model', value=str(toy_model_files[method]))])
+    est = load_estimator(toy_model_files[method])
+    cp = X[7].reshape(4, 3)
+    assert _send_until(ros, pub, _msg(cp, 12, 345), got)
+    w = got[-1]
+    assert w.header.frame_id == FRAME_CATHETER_BASE
+    assert (w.header.stamp.sec, w.header.stamp.nanosec) == (12, 345)
+    np.testing.assert_allclose([w.wrench.force.x, w.wrench.force.y], est.predict(cp),
+                               rtol=1e-12, atol=1e-15)
+    assert w.wrench.force.z == 0.0 and w.wrench.torque.z == 0.0
+
+    # bad messages: wrong count of poses, NaN, wrong frame -> counted, nothing published
+    ros.spin_for(0.2)
+    n_before = len(got)
+    bad_nan = cp.copy()
+    bad_nan[3, 1] = np.nan
+    for bad in (_msg(cp[:3]), _msg(bad_nan), _msg(cp, frame='camera_optical_frame')):
+        pub.publish(bad)
+    assert ros.spin_until(lambda: node.diag.get('bad_messages') >= 3, 5.0)
+    ros.spin_for(0.1)
+    assert len(got) == n_before
+    # ... and the node keeps working; a far input is flagged out of envelope
+    far = cp.copy()
+    far[3, 1] += 0.2
+    assert _send_until(ros, pub, _msg(far, 13, 0), got)
+    assert node.diag.get('out_of_envelope') >= 1
+    assert ros.spin_until(lambda: any(
+        kv.key == 'bad_messages' for d in diags for s in d.status for kv in s.values), 5.0)
+    keys = {kv.key for d in diags for s in d.status for kv in s.values}
+    assert {'estimates', 'estimates_rate_hz', 'out_of_envelope', 'method'} <= keys
+
+
+def test_node_rejects_unknown_method(ros):
+    with pytest.raises(ValueError, match='method'):
+        NODE_CLASS(context=ros.context, parameter_overrides=[Parameter('method', value='knn')])
+
+
+def test_node_rejects_model_of_wrong_kind(ros, toy_model_files):
+    with pytest.raises(ValueError, match='svr_model'):
+        NODE_CLASS(context=ros.context, parameter_overrides=[
+            Parameter('method', value='svr'),
+            Parameter('svr_model', value=str(toy_model_files['mlp']))])
