@@ -29,7 +29,7 @@ def conserved(link):
 
 @pytest.mark.parametrize('delay', [0.0, 0.001, 0.05, 0.2, 0.5, 1.0])
 def test_exact_delay_without_jitter(delay):
-    link = Link(LinkConfig(delay=delay), seed=0)
+    link = Link(LinkConfig(delay=delay, outages=()), seed=0)
     got = run(link, 3.0)
     k = int(round(delay * RATE))
     assert len(got) == 3000 - k
@@ -44,7 +44,7 @@ def test_exact_delay_without_jitter(delay):
 @given(st.integers(0, 10_000), st.sampled_from([0.05, 0.1, 0.3, 0.5]))
 def test_loss_rate_within_binomial_bounds(seed, p):
     n = 4000
-    link = Link(LinkConfig(delay=0.0, loss=p), seed=seed)
+    link = Link(LinkConfig(delay=0.0, loss=p, outages=()), seed=seed)
     run(link, n / RATE)
     lost = link.stats.lost_random
     sd = math.sqrt(n * p * (1 - p))
@@ -84,7 +84,7 @@ def test_latest_wins_never_out_of_order(seed, delay, jitter, loss, o_start, o_le
 
 
 def test_jitter_drops_stale_packets_and_counts_them():
-    link = Link(LinkConfig(delay=0.1, jitter=0.02), seed=5)
+    link = Link(LinkConfig(delay=0.1, jitter=0.02, outages=()), seed=5)
     got = run(link, 5.0)
     assert link.stats.dropped_stale > 0
     assert link.stats.delivered == len(got)
@@ -115,6 +115,14 @@ def test_receive_returns_payload_and_none_when_nothing_new():
     assert link.receive(0.005) is None
     assert link.receive(0.01) == {'x': 1}
     assert link.receive(0.02) is None            # never delivered twice
+
+
+def test_default_config_is_the_thesis_experiment_two():
+    cfg = LinkConfig()
+    assert (cfg.delay, cfg.jitter, cfg.loss) == (0.2, 0.0, 0.0)
+    assert cfg.outages == ((4.0, 1.0), (8.0, 1.0))
+    assert LinkConfig.from_flat() == cfg
+    assert LinkConfig(outages=()).outages == ()
 
 
 def test_from_flat_outages():

@@ -74,3 +74,33 @@ def test_slave_defaults_and_bad_arguments():
         sim.step(math.nan, 0.0)
     with pytest.raises(ValueError, match='x_cmd'):
         sim.step(0.002, math.inf)
+
+
+def test_advance_catches_up_whole_periods():
+    a, b = SlaveSimulation(), SlaveSimulation()
+    cmd = 0.02
+    s, n = a.advance(0.001, cmd)
+    assert n == 1
+    s, n = a.advance(0.001, cmd)                 # the same tick again: nothing to do
+    assert n == 0 and s.t == 0.001
+    s, n = a.advance(0.005, cmd)                 # a late timer: four periods
+    assert n == 4 and s.t == 0.005
+    ref = [b.step((k + 1) / 1000, cmd) for k in range(5)]
+    assert s.x == pytest.approx(ref[-1].x, abs=1e-15)
+    s, n = a.advance(1.0, cmd, max_steps=10)     # a huge jump is capped
+    assert n == 10 and s.t == 1.0
+    with pytest.raises(ValueError, match='t must not decrease'):
+        a.advance(0.5, cmd)
+    with pytest.raises(ValueError, match='max_steps'):
+        a.advance(2.0, cmd, max_steps=0)
+
+
+def test_rotation_axis_follows_and_holds():
+    sim = SlaveSimulation()
+    for k in range(2000):
+        sim.step((k + 1) / 1000, 0.0, 1.0 if k < 10 else None)
+    assert sim.rotation.x == pytest.approx(1.0, abs=1e-4)
+    with pytest.raises(ValueError, match='rot_cmd'):
+        sim.step(3.0, 0.0, math.nan)
+    with pytest.raises(ValueError, match='rotation'):
+        SlaveSimulation(rotation=SlaveRobot(rate=500.0))

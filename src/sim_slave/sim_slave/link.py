@@ -34,13 +34,14 @@ class LinkConfig:
         jitter: s, extra delay drawn uniformly from [0, jitter] per packet (default 0).
         loss: probability in [0, 1] that a packet is lost at random (default 0).
         outages: ((start, length), ...) in s: packets sent in [start, start + length) are
-            lost (default none; the thesis's Experiment II is ((4.0, 1.0), (8.0, 1.0))).
+            lost. Default: the thesis's Experiment II, 1 s at t = 4 s and at t = 8 s. Pass
+            ``outages=()`` for a link without outages.
     """
 
     delay: float = 0.2
     jitter: float = 0.0
     loss: float = 0.0
-    outages: Tuple[Tuple[float, float], ...] = ()
+    outages: Tuple[Tuple[float, float], ...] = ((4.0, 1.0), (8.0, 1.0))
 
     def __post_init__(self):
         nonneg('delay', self.delay)
@@ -60,7 +61,7 @@ class LinkConfig:
 
     @staticmethod
     def from_flat(delay: float = 0.2, jitter: float = 0.0, loss: float = 0.0,
-                  outages_flat=()) -> 'LinkConfig':
+                  outages_flat=(4.0, 1.0, 8.0, 1.0)) -> 'LinkConfig':
         """Build from a flat [start0, length0, start1, length1, ...] list (ROS parameters)."""
         flat = list(outages_flat)
         if len(flat) % 2:
