@@ -18,6 +18,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'run_scenario = catheter_bringup.run_scenario:main',
+            'recorder_node = catheter_bringup.recorder_node:main',
         ],
     },
 )

@@ -1,0 +1,70 @@
+"""`run_scenario`: run a scenario of ros_ws/config/ (launchless, one process) and record it.
+
+    run_scenario [SCENARIO] [--mode lockstep|realtime] [--duration S] [--bag PATH] [--no-record]
+                 [--quiet] [--ros-args ...]
+
+Without arguments it runs the default scenario (experiment_ii) in lockstep. The runner's own
+node is named ``run_scenario``. Exit code 0 when the run completed or was stopped with Ctrl-C,
+1 when a node failed.
+"""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+
+DEFAULT_SCENARIO = 'experiment_ii'
+
+
+def build_parser():
+    p = argparse.ArgumentParser(prog='run_scenario', description=__doc__.split('\n\n')[0])
+    p.add_argument('scenario', nargs='?', default=DEFAULT_SCENARIO,
+                   help='name in ros_ws/config/ or path to a YAML file')
+    p.add_argument('--mode', choices=('lockstep', 'realtime'), default=None)
+    p.add_argument('--duration', type=float, default=None, help='override, s')
+    p.add_argument('--bag', default=None, help='output .mcap (default bags/<scenario>.mcap)')
+    p.add_argument('--no-record', action='store_true')
+    p.add_argument('--quiet', action='store_true', help='no progress bar')
+    return p
+
+
+def summarize(res) -> str:
+    lines = [f'scenario {res.scenario}: {res.status}' + (f' ({res.reason})' if res.reason else ''),
+             f'  simulated {res.sim_time:.3f} s in {res.wall_time:.2f} s wall '
+             f'(real-time factor {res.realtime_factor:.2f}x)',
+             f'  nodes: {", ".join(res.nodes) or "(none)"}']
+    if res.skipped:
+        lines.append(f'  not available (skipped): {", ".join(res.skipped)}')
+    if res.missing_outputs:
+        lines.append(f'  wanted outputs nobody produces: {", ".join(res.missing_outputs)}')
+    if res.bag:
+        total = sum(res.recorded.values())
+        lost = sum(res.lost.values())
+        lines.append(f'  recorded {total} messages on {len(res.recorded)} topics -> {res.bag} '
+                     f'(lost: {lost})')
+    return '\n'.join(lines)
+
+
+def main(args=None):
+    from rclpy.utilities import remove_ros_args
+    argv = list(sys.argv[1:] if args is None else args)
+    argv = remove_ros_args(['x'] + argv)[1:]
+    opts = build_parser().parse_args(argv)
+    from catheter_bringup.runner import ScenarioRunner
+    runner = ScenarioRunner(opts.scenario, bag=opts.bag, mode=opts.mode,
+                            duration=opts.duration, progress=not opts.quiet,
+                            record=False if opts.no_record else None)
+    # SIGTERM behaves like Ctrl-C: stop, close the recording
+    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    try:
+        runner.setup()
+    except KeyboardInterrupt:
+        runner.close()
+        return 0
+    res = runner.run()
+    print(summarize(res), flush=True)
+    return 1 if res.status == 'failed' else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,471 @@
+"""Launchless runner: a scenario's nodes in ONE process, in lockstep on a simulated clock or in
+real time, every topic recorded into one MCAP file.
+
+Lockstep: the runner's node (``run_scenario``) publishes rosgraph_msgs/Clock on /clock in steps
+of ``scenario.step`` (1 ms); every node runs with ``use_sim_time``. After each step the executor
+is drained: callbacks run until none is ready and the recorder holds every message published so
+far, so a step's timers and the messages they produce are handled before time moves on. With one
+seed two runs record the same message streams.
+
+Real time: an EventsExecutor spins the nodes on the system clock for ``duration`` seconds.
+
+Ctrl-C (KeyboardInterrupt) or a failing node stops the run; the recording is closed either way
+and its ``catheter_run`` metadata says how far the run got and why it stopped.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import importlib
+import os
+import pathlib
+import sys
+import time
+import types
+from typing import Callable, Dict, List, Mapping, Optional
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import TimeoutException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+
+from catheter_bringup.recorder import McapRecorder
+from catheter_bringup.ros_recording import RecordingSink, type_name_of
+from catheter_bringup.scenario import NodeInstance, load_scenario, resolve_nodes
+from catheter_common import topics as T
+from catheter_common.ros_node import declare, make_executor
+
+RUNNER_NODE = 'run_scenario'
+
+
+@dataclasses.dataclass
+class RunResult:
+    """What a run did. Times in seconds; counts per topic."""
+    scenario: str
+    status: str                  # complete | interrupted | failed
+    reason: str
+    bag: Optional[str]
+    sim_time: float              # simulated (lockstep) or elapsed (real time) seconds reached
+    wall_time: float
+    steps: int
+    nodes: List[str]
+    skipped: List[str]           # node instances that could not be imported
+    missing_outputs: List[str]   # wanted topics nobody produces
+    published: Dict[str, int]
+    recorded: Dict[str, int]
+
+    @property
+    def lost(self) -> Dict[str, int]:
+        """Per recorded topic: published in this process but not in the recording."""
+        return {t: self.published.get(t, 0) - self.recorded.get(t, 0)
+                for t in self.recorded if self.published.get(t, 0) != self.recorded.get(t, 0)}
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.sim_time / self.wall_time if self.wall_time > 0 else float('inf')
+
+
+def _to_param_value(v):
+    if isinstance(v, tuple):
+        v = list(v)
+    if isinstance(v, list) and v and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                         for x in v) and any(isinstance(x, float) for x in v):
+        v = [float(x) for x in v]
+    return v
+
+
+def load_node_class(module: str):
+    mod = importlib.import_module(module)
+    cls = getattr(mod, 'NODE_CLASS', None)
+    if cls is None:
+        raise ImportError(f'{module} defines no NODE_CLASS')
+    return cls
+
+
+def available_instances(candidates: List[NodeInstance]) -> Dict[str, object]:
+    """name -> node class for every instance whose module imports."""
+    out = {}
+    for inst in candidates:
+        try:
+            out[inst.name] = load_node_class(inst.spec.module)
+        except ImportError:
+            continue
+    return out
+
+
+class PublishCounter:
+    """Counts what every publisher of the given nodes published (per topic), by wrapping
+    each publisher's ``publish`` once."""
+
+    def __init__(self):
+        self.counts: Dict[str, int] = {}
+        self._wrapped = set()
+        self.on_publish: Optional[Callable[[str], None]] = None
+
+    def wrap_node(self, node: Node) -> List[object]:
+        new = []
+        for pub in list(node.publishers):
+            if id(pub) in self._wrapped:
+                continue
+            self._wrapped.add(id(pub))
+            topic = pub.topic_name
+            self.counts.setdefault(topic, 0)
+            orig = pub.publish
+            counts = self.counts
+
+            def publish(self_pub, msg, _orig=orig, _topic=topic):
+                _orig(msg)
+                counts[_topic] += 1
+
+            pub.publish = types.MethodType(publish, pub)
+            new.append(pub)
+        return new
+
+
+class DeliveryTracker:
+    """Counts what every subscription of the given nodes took, to know when every message
+    published in this process has been handled (lockstep drain)."""
+
+    def __init__(self, published: Dict[str, int]):
+        self.published = published
+        self.subs: List[list] = []          # [subscription, topic, base, taken]
+        self._wrapped = set()
+
+    def wrap_node(self, node: Node) -> None:
+        for sub in list(node.subscriptions):
+            if id(sub) in self._wrapped:
+                continue
+            self._wrapped.add(id(sub))
+            entry = [sub, sub.topic_name, self.published.get(sub.topic_name, 0), 0]
+            self.subs.append(entry)
+            orig = sub.callback
+
+            def callback(*args, _orig=orig, _e=entry):
+                _e[3] += 1
+                return _orig(*args)
+
+            sub.callback = callback
+
+    def pending(self) -> int:
+        """Messages published in this process that some subscription has not taken yet."""
+        n = 0
+        for sub, topic, base, taken in self.subs:
+            p = self.published.get(topic)
+            if p is not None and p - base > taken:
+                n += p - base - taken
+        return n
+
+
+class ScenarioRunner:
+    """Runs one scenario. ``scenario``: a dict from `load_scenario` (or a name/path).
+
+    >>> res = ScenarioRunner('smoke', bag='bags/smoke.mcap').run()
+    """
+
+    def __init__(self, scenario, bag: Optional[str] = None, mode: Optional[str] = None,
+                 duration: Optional[float] = None, progress: bool = True,
+                 registry=None, record: Optional[bool] = None, log=print):
+        self.scenario = load_scenario(scenario) if not isinstance(scenario, Mapping) \
+            else scenario
+        if mode is not None:
+            if mode not in ('lockstep', 'realtime'):
+                raise ValueError(f'mode must be lockstep or realtime, got {mode!r}')
+            self.scenario['mode'] = mode
+        if duration is not None:
+            if not duration >= 0:
+                raise ValueError(f'duration must be >= 0, got {duration!r}')
+            self.scenario['duration'] = float(duration)
+        self.registry = registry
+        self.progress = progress
+        self.log = log
+        do_record = self.scenario['record']['enabled'] if record is None else record
+        if do_record and bag is None:
+            root = pathlib.Path(os.environ.get('CATHETER_WS_ROOT', pathlib.Path.cwd()))
+            bag = str(root / 'bags' / f"{self.scenario['name']}.mcap")
+        self.bag = bag if do_record else None
+        self.nodes: Dict[str, Node] = {}
+        self.context: Optional[Context] = None
+        self.runner_node: Optional[Node] = None
+        self.executor = None
+        self.recorder: Optional[McapRecorder] = None
+        self.sink: Optional[RecordingSink] = None
+        self.counter = PublishCounter()
+        self.tracker = DeliveryTracker(self.counter.counts)
+        self.time_sources = []
+        self._now_ns = 0
+        self.on_step: Optional[Callable[[float], None]] = None
+
+    # ------------------------------------------------------------------ setup
+    def _params_for(self, inst: NodeInstance, lockstep: bool) -> List[Parameter]:
+        sc = self.scenario
+        params = {'use_sim_time': lockstep}
+        params.update({k: _to_param_value(v) for k, v in inst.params.items()})
+        return [Parameter(k, value=v) for k, v in params.items()]
+
+    def setup(self, context: Optional[Context] = None):
+        sc = self.scenario
+        lockstep = sc['mode'] == 'lockstep'
+        self.context = context or Context()
+        self._own_context = context is None
+        if self._own_context:
+            rclpy.init(context=self.context, args=[])
+        self.runner_node = rclpy.create_node(RUNNER_NODE, context=self.context)
+        declare(self.runner_node, 'scenario', sc['name'], 'scenario being run (read only)',
+                read_only=True)
+        self.clock_pub = self.runner_node.create_publisher(Clock, T.CLOCK, T.QOS_DEFAULT)
+        from catheter_bringup.scenario import instances
+        cands = list(instances(sc, self.registry).values())
+        classes = available_instances(cands)
+        chosen, missing = resolve_nodes(sc, set(classes), self.registry)
+        wanted_all, _ = resolve_nodes(sc, None, self.registry)
+        self.skipped = sorted({i.name for i in wanted_all} - {i.name for i in chosen})
+        self.missing = missing
+        self.executor = make_executor('single' if lockstep else 'events', context=self.context)
+        self.executor.add_node(self.runner_node)
+        for inst in chosen:
+            cli = []
+            if inst.name != inst.spec.executable:
+                cli += ['-r', f'__node:={inst.name}']
+            for a, b in inst.remap.items():
+                cli += ['-r', f'{a}:={b}']
+            kwargs = dict(context=self.context,
+                          parameter_overrides=self._params_for(inst, lockstep))
+            if cli:
+                kwargs['cli_args'] = ['--ros-args'] + cli
+            node = classes[inst.name](**kwargs)
+            self.nodes[inst.name] = node
+            self.executor.add_node(node)
+            self.counter.wrap_node(node)
+            if lockstep:
+                self._drive_clock_of(node)
+        if self.bag:
+            self.recorder = McapRecorder(self.bag)
+            self.sink = RecordingSink(self.runner_node, self.recorder,
+                                      exclude=sc['record']['exclude'])
+            self.sink.now_ns = (lambda: self._now_ns) if lockstep else None
+            self.sink.buffered = lockstep
+            self._record_publishers()
+        self._track()
+        return self
+
+    def _drive_clock_of(self, node: Node):
+        """Lockstep: the runner sets the node's sim time directly each step (what its /clock
+        subscription would do, but immediately and in order, so a step's timers are ready in
+        the same step). The node's own /clock subscription is removed so a late /clock sample
+        can never move its time back. /clock is still published for everyone else."""
+        ts = getattr(node, '_time_source', None)
+        if ts is None:
+            return
+        if ts._clock_sub is not None:
+            node.destroy_subscription(ts._clock_sub)
+            ts._clock_sub = None
+        self.time_sources.append(ts)
+
+    def _track(self):
+        for node in list(self.nodes.values()) + [self.runner_node]:
+            self.tracker.wrap_node(node)
+
+    def _record_publishers(self):
+        """Subscribe the recorder to every publisher of the scenario's nodes (known up front:
+        no discovery delay, nothing lost at start)."""
+        for node in self.nodes.values():
+            self.counter.wrap_node(node)
+            for pub in list(node.publishers):
+                if self.sink.wants(pub.topic_name):
+                    self.sink.add(pub.topic_name, type_name_of(pub.msg_type), [pub.qos_profile])
+
+    # ------------------------------------------------------------------ run
+    def drain(self, max_callbacks: int = 100000) -> int:
+        """Run ready callbacks until none is ready and the recorder has caught up."""
+        n = 0
+        ex = self.executor
+        for _ in range(10):
+            while n < max_callbacks:
+                try:
+                    handler, _, _ = ex.wait_for_ready_callbacks(timeout_sec=0.0)
+                except TimeoutException:
+                    break
+                handler()
+                exc = handler.exception()
+                if exc is not None:
+                    raise exc
+                n += 1
+            if self._caught_up():
+                if self.sink is not None:
+                    self.sink.flush()
+                return n
+            # delivery still in flight (not intra-process): wait briefly for it
+            try:
+                handler, _, _ = ex.wait_for_ready_callbacks(timeout_sec=0.002)
+                handler()
+                if handler.exception() is not None:
+                    raise handler.exception()
+                n += 1
+            except TimeoutException:
+                pass
+        if self.sink is not None:
+            self.sink.flush()
+        return n
+
+    def _caught_up(self) -> bool:
+        return self.tracker.pending() == 0
+
+    def run(self) -> RunResult:
+        if self.runner_node is None:
+            self.setup()
+        sc = self.scenario
+        status, reason = 'complete', ''
+        t0 = time.perf_counter()
+        steps = 0
+        sim = 0.0
+        bar = None
+        try:
+            if self.progress:
+                from tqdm import tqdm
+                bar = tqdm(total=round(sc['duration'], 3), unit='s', desc=sc['name'],
+                           bar_format='{desc}: {percentage:3.0f}%|{bar}| {n:.2f}/{total:.2f} s '
+                                      '[{elapsed}<{remaining}{postfix}]', file=sys.stderr)
+            if sc['mode'] == 'lockstep':
+                steps, sim = self._run_lockstep(bar)
+            else:
+                steps, sim = self._run_realtime(bar)
+        except KeyboardInterrupt:
+            status, reason = 'interrupted', 'KeyboardInterrupt (Ctrl-C)'
+        except Exception as exc:  # a node failed: stop, close the recording, report
+            status, reason = 'failed', f'{type(exc).__name__}: {exc}'
+        finally:
+            if bar is not None:
+                bar.close()
+            wall = time.perf_counter() - t0
+            sim = self._sim_reached if hasattr(self, '_sim_reached') else sim
+            result = self._finish(status, reason, sim, wall, steps)
+        return result
+
+    def _run_lockstep(self, bar):
+        sc = self.scenario
+        dt_ns = int(round(sc['step'] * 1e9))
+        n_steps = int(round(sc['duration'] / sc['step']))
+        msg = Clock()
+        self._sim_reached = 0.0
+        self._publish_clock(0, msg)
+        self.drain()
+        last_bar = 0
+        for k in range(1, n_steps + 1):
+            self._publish_clock(k * dt_ns, msg)
+            self.drain()
+            self._sim_reached = k * dt_ns * 1e-9
+            if k % 64 == 0:
+                self._rescan()
+            if self.on_step is not None:
+                self.on_step(self._sim_reached)
+            if bar is not None and (k - last_bar >= 100 or k == n_steps):
+                bar.update(round((k - last_bar) * sc['step'], 6))
+                last_bar = k
+        return n_steps, self._sim_reached
+
+    def _publish_clock(self, t_ns: int, msg: Clock):
+        self._now_ns = t_ns
+        msg.clock.sec = t_ns // 1_000_000_000
+        msg.clock.nanosec = t_ns % 1_000_000_000
+        for ts in self.time_sources:
+            ts.clock_callback(msg)
+        self.clock_pub.publish(msg)
+
+    def _rescan(self):
+        if self.sink is not None:
+            self._record_publishers()
+        for node in self.nodes.values():
+            self.counter.wrap_node(node)
+        self._track()
+
+    def _run_realtime(self, bar):
+        sc = self.scenario
+        clock = self.runner_node.get_clock()
+        start = clock.now().nanoseconds
+        end = start + int(sc['duration'] * 1e9)
+        last = 0.0
+        self._sim_reached = 0.0
+        next_scan = start
+        while True:
+            now = clock.now().nanoseconds
+            self._now_ns = now
+            if now >= end:
+                break
+            self.executor.spin_once(timeout_sec=min(0.05, (end - now) * 1e-9))
+            el = (clock.now().nanoseconds - start) * 1e-9
+            self._sim_reached = min(el, sc['duration'])
+            if now >= next_scan:
+                self._rescan()
+                next_scan = now + 200_000_000
+            if bar is not None and el - last >= 0.1:
+                bar.update(round(min(el, sc['duration']) - last, 3))
+                last = min(el, sc['duration'])
+        # let the recorder take what is still in flight
+        t_end = time.perf_counter() + 0.5
+        while not self._caught_up() and time.perf_counter() < t_end:
+            self.executor.spin_once(timeout_sec=0.01)
+        return 0, self._sim_reached
+
+    # ------------------------------------------------------------------ teardown
+    def _finish(self, status, reason, sim, wall, steps) -> RunResult:
+        if self.sink is not None:
+            self.sink.flush()
+        recorded = dict(self.sink.received) if self.sink else {}
+        published = dict(self.counter.counts)
+        for name, node in self.nodes.items():
+            close = getattr(node, 'close', None)
+            if callable(close):
+                try:
+                    close()
+                except Exception as exc:  # noqa: BLE001 - keep shutting down
+                    self.log(f'[run] error closing {name}: {exc!r}')
+        if self.recorder is not None:
+            self.recorder.close(status, reason, extra={
+                'scenario': self.scenario['name'],
+                'mode': self.scenario['mode'],
+                'seed': self.scenario['seed'],
+                'duration_s': self.scenario['duration'],
+                'sim_time_reached_s': round(sim, 6),
+                'steps': steps,
+                'nodes': sorted(self.nodes),
+                'skipped_nodes': self.skipped,
+                'published': published,
+                'scenario_yaml': _scenario_text(self.scenario),
+            })
+        res = RunResult(self.scenario['name'], status, reason, self.bag, sim, wall, steps,
+                        sorted(self.nodes), self.skipped, self.missing, published, recorded)
+        self.close()
+        return res
+
+    def close(self):
+        if self.executor is not None:
+            for n in list(self.nodes.values()) + [self.runner_node]:
+                try:
+                    self.executor.remove_node(n)
+                except Exception:  # noqa: BLE001
+                    pass
+        for n in list(self.nodes.values()) + ([self.runner_node] if self.runner_node else []):
+            try:
+                n.destroy_node()
+            except Exception:  # noqa: BLE001
+                pass
+        self.nodes = {}
+        self.runner_node = None
+        if self.executor is not None:
+            self.executor.shutdown()
+            self.executor = None
+        if self.context is not None and self._own_context:
+            rclpy.try_shutdown(context=self.context)
+        self.context = None
+
+
+def _scenario_text(sc) -> str:
+    import yaml
+    return yaml.safe_dump({k: v for k, v in sc.items() if k != 'source'}, sort_keys=True)
+
+
+def run_scenario(scenario, **kwargs) -> RunResult:
+    """Load, set up, run and close: the one-call API."""
+    return ScenarioRunner(scenario, **kwargs).run()

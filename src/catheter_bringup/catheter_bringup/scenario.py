@@ -1,0 +1,248 @@
+"""Scenarios (no rclpy): the YAML files in ros_ws/config/, the node registry and the resolution
+of which nodes a scene needs.
+
+A scenario file::
+
+    name: experiment_ii
+    duration: 12.0            # simulated seconds
+    step: 0.001               # lockstep clock step, s
+    mode: lockstep            # lockstep | realtime
+    seed: 7
+    force_source: load_cell   # load_cell | image  (force the identifier fits)
+    link: {delay: 0.2, jitter: 0.0, loss: 0.0, outages: [[4.0, 1.0], [8.0, 1.0]]}
+    operator: {trajectory: experiment_ii}
+    outputs: [/master/rendered_force, /slave/force]   # what the scene consumes
+    record: {exclude: [/clock]}
+    nodes:                    # parameters per node instance (and optional registry fields)
+      ima_master_node: {params: {mode: ima}}
+      dfr_shadow: {executable: ima_master_node, remap: {/master/rendered_force: /master/dfr/rendered_force},
+                   params: {mode: dfr}, optional: true}
+
+Only nodes whose outputs the scene consumes are started: the wanted ``outputs`` pull in their
+producers, whose inputs pull in theirs, and so on (`resolve_nodes`). Entries listed under
+``nodes`` with ``always: true`` are started regardless.
+"""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import os
+import pathlib
+from typing import Dict, List, Mapping, Optional, Tuple
+
+import yaml
+
+from catheter_common import topics as T
+
+
+@dataclasses.dataclass
+class NodeSpec:
+    """What the runner needs to start a node and to know its place in the graph."""
+    executable: str                 # console_script / node name
+    module: str                     # python module defining NODE_CLASS
+    consumes: Tuple[str, ...] = ()  # topics it subscribes to (the scene's data flow)
+    produces: Tuple[str, ...] = ()  # topics it publishes
+    kind: str = 'node'
+
+    def remapped(self, remap: Mapping[str, str]) -> 'NodeSpec':
+        return dataclasses.replace(
+            self, consumes=tuple(remap.get(t, t) for t in self.consumes),
+            produces=tuple(remap.get(t, t) for t in self.produces))
+
+
+#: The project's nodes. consumes/produces follow DESIGN section 4 and catheter_common.topics;
+#: a scenario may override any field (e.g. for nodes of its own).
+REGISTRY: Dict[str, NodeSpec] = {s.executable: s for s in [
+    NodeSpec('sim_haptic_node', 'impedance_master.sim_haptic_node',
+             consumes=(T.MASTER_RENDERED_FORCE, T.SLAVE_IMPEDANCE, T.SLAVE_FORCE),
+             produces=(T.MASTER_COMMAND, T.MASTER_LINK_IMPEDANCE, T.MASTER_LINK_FORCE)),
+    NodeSpec('ima_master_node', 'impedance_master.ima_master_node',
+             consumes=(T.MASTER_LINK_IMPEDANCE, T.MASTER_LINK_FORCE, T.MASTER_COMMAND),
+             produces=(T.MASTER_RENDERED_FORCE,)),
+    NodeSpec('impedance_identifier_node', 'impedance_master.impedance_identifier_node',
+             consumes=(T.SLAVE_JOINT_STATE,),
+             produces=(T.SLAVE_IMPEDANCE,)),
+    NodeSpec('sim_slave_node', 'sim_slave.sim_slave_node',
+             consumes=(T.MASTER_COMMAND,),
+             produces=(T.SLAVE_JOINT_STATE, T.SLAVE_FORCE)),
+    NodeSpec('camera_node', 'sim_slave.camera_node',
+             consumes=(T.SLAVE_JOINT_STATE,),
+             produces=(T.CAMERA_IMAGE,)),
+    NodeSpec('shape_node', 'catheter_shape.shape_node',
+             consumes=(T.CAMERA_IMAGE,),
+             produces=(T.CONTROL_POINTS, T.SHAPE)),
+    NodeSpec('force_estimator_node', 'force_estimator.force_estimator_node',
+             consumes=(T.CONTROL_POINTS,),
+             produces=(T.TIP_WRENCH,)),
+    NodeSpec('fam_solver_node', 'fam_solver.fam_solver_node',
+             consumes=(T.TIP_LOAD,),
+             produces=(T.SHAPE, T.SHAPE_MARKER)),
+]}
+
+MODES = ('lockstep', 'realtime')
+FORCE_SOURCES = ('load_cell', 'image')
+
+
+@dataclasses.dataclass
+class NodeInstance:
+    """One node to start: its spec (after remapping), instance name, parameters, remaps."""
+    name: str
+    spec: NodeSpec
+    params: Dict[str, object]
+    remap: Dict[str, str]
+    optional: bool = False
+    always: bool = False
+
+
+def config_dir() -> pathlib.Path:
+    """ros_ws/config of this checkout (or $CATHETER_WS_ROOT/ros_ws/config)."""
+    root = os.environ.get('CATHETER_WS_ROOT')
+    if root:
+        return pathlib.Path(root) / 'ros_ws' / 'config'
+    return pathlib.Path(__file__).resolve().parents[3] / 'ros_ws' / 'config'
+
+
+def _num(d: Mapping, key: str, default, lo=None, hi=None, where='scenario'):
+    v = d.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ValueError(f'{where}.{key} must be a finite number, got {v!r}')
+    if lo is not None and v < lo or hi is not None and v > hi:
+        raise ValueError(f'{where}.{key}={v} outside [{lo}, {hi}]')
+    return float(v) if isinstance(default, float) else int(v)
+
+
+def load_scenario(name_or_path) -> dict:
+    """Load and validate a scenario: a path to a YAML file or a name in ros_ws/config/.
+
+    Returns a plain dict with defaults filled in (see the module docstring for the fields).
+    """
+    p = pathlib.Path(str(name_or_path))
+    if not p.suffix:
+        p = config_dir() / f'{name_or_path}.yaml'
+    if not p.exists():
+        avail = sorted(x.stem for x in config_dir().glob('*.yaml'))
+        raise ValueError(f'scenario {name_or_path!r} not found (available: {avail})')
+    with open(p) as f:
+        data = yaml.safe_load(f) or {}
+    data.setdefault('name', p.stem)
+    data['source'] = str(p)
+    return validate_scenario(data)
+
+
+def validate_scenario(data: Mapping) -> dict:
+    """Fill defaults and refuse bad values with ValueError naming the field."""
+    if not isinstance(data, Mapping):
+        raise ValueError(f'scenario must be a mapping, got {type(data).__name__}')
+    s = copy.deepcopy(dict(data))
+    s.setdefault('name', 'scenario')
+    s['duration'] = _num(s, 'duration', 1.0, 0.0, 3600.0)
+    s['step'] = _num(s, 'step', 0.001, 1e-5, 1.0)
+    s['seed'] = _num(s, 'seed', 0, 0, 2**31 - 1)
+    s.setdefault('mode', 'lockstep')
+    if s['mode'] not in MODES:
+        raise ValueError(f'scenario.mode must be one of {MODES}, got {s["mode"]!r}')
+    s.setdefault('force_source', 'load_cell')
+    if s['force_source'] not in FORCE_SOURCES:
+        raise ValueError(f'scenario.force_source must be one of {FORCE_SOURCES}, '
+                         f'got {s["force_source"]!r}')
+    link = dict(s.get('link') or {})
+    link['delay'] = _num(link, 'delay', 0.2, 0.0, 10.0, 'link')
+    link['jitter'] = _num(link, 'jitter', 0.0, 0.0, 10.0, 'link')
+    link['loss'] = _num(link, 'loss', 0.0, 0.0, 1.0, 'link')
+    outages = link.get('outages') or []
+    clean = []
+    for o in outages:
+        if not isinstance(o, (list, tuple)) or len(o) != 2:
+            raise ValueError(f'link.outages entries must be [start, duration], got {o!r}')
+        a, b = float(o[0]), float(o[1])
+        if not (math.isfinite(a) and math.isfinite(b)) or a < 0 or b < 0:
+            raise ValueError(f'link.outages entry must be finite and >= 0, got {o!r}')
+        clean.append([a, b])
+    link['outages'] = clean
+    s['link'] = link
+    s['operator'] = dict(s.get('operator') or {})
+    outs = s.get('outputs') or []
+    if not isinstance(outs, (list, tuple)) or not all(isinstance(t, str) for t in outs):
+        raise ValueError(f'scenario.outputs must be a list of topic names, got {outs!r}')
+    s['outputs'] = list(outs)
+    rec = dict(s.get('record') or {})
+    rec.setdefault('enabled', True)
+    rec.setdefault('exclude', ['/clock', '/rosout', '/parameter_events'])
+    s['record'] = rec
+    nodes = s.get('nodes') or {}
+    if not isinstance(nodes, Mapping):
+        raise ValueError('scenario.nodes must be a mapping of instance name -> settings')
+    s['nodes'] = {str(k): dict(v or {}) for k, v in nodes.items()}
+    s.setdefault('global_params', {})
+    s.setdefault('metrics', {})
+    return s
+
+
+def instances(scenario: Mapping, registry: Optional[Mapping[str, NodeSpec]] = None
+              ) -> Dict[str, NodeInstance]:
+    """Every node instance the scenario could start: the registry's nodes (with the scenario's
+    parameters) plus the scenario's own entries (shadow instances, nodes of tests)."""
+    reg = dict(REGISTRY if registry is None else registry)
+    out: Dict[str, NodeInstance] = {}
+    for name, spec in reg.items():
+        if name not in scenario['nodes']:
+            out[name] = NodeInstance(name, spec, dict(scenario['global_params']), {})
+    for name, cfg in scenario['nodes'].items():
+        exe = cfg.get('executable', name)
+        base = reg.get(exe)
+        if base is None and 'module' not in cfg:
+            raise ValueError(f'nodes.{name}: unknown executable {exe!r} and no module given')
+        spec = NodeSpec(
+            executable=exe,
+            module=cfg.get('module', base.module if base else ''),
+            consumes=tuple(cfg.get('consumes', base.consumes if base else ())),
+            produces=tuple(cfg.get('produces', base.produces if base else ())),
+            kind=cfg.get('kind', 'node'))
+        remap = {str(k): str(v) for k, v in (cfg.get('remap') or {}).items()}
+        params = dict(scenario['global_params'])
+        params.update(cfg.get('params') or {})
+        if cfg.get('enabled', True) is False:
+            continue
+        out[name] = NodeInstance(name, spec.remapped(remap), params, remap,
+                                 optional=bool(cfg.get('optional', False)),
+                                 always=bool(cfg.get('always', False)))
+    return out
+
+
+def resolve_nodes(scenario: Mapping, available: Optional[set] = None,
+                  registry: Optional[Mapping[str, NodeSpec]] = None
+                  ) -> Tuple[List[NodeInstance], List[str]]:
+    """The node instances a scene needs, in start order (producers first), and the wanted
+    topics nobody available can produce.
+
+    ``available``: instance names that can be started (importable); None = all.
+    """
+    cands = instances(scenario, registry)
+    if available is not None:
+        cands = {k: v for k, v in cands.items() if k in available}
+    chosen: Dict[str, NodeInstance] = {}
+    missing: List[str] = []
+    wanted = list(scenario['outputs'])
+    for inst in cands.values():
+        if inst.always:
+            chosen[inst.name] = inst
+            wanted += list(inst.spec.consumes)
+    seen_topics = set()
+    while wanted:
+        topic = wanted.pop(0)
+        if topic in seen_topics:
+            continue
+        seen_topics.add(topic)
+        producers = [i for i in cands.values() if topic in i.spec.produces]
+        if not producers:
+            if topic in scenario['outputs']:
+                missing.append(topic)
+            continue
+        for inst in producers:
+            if inst.name not in chosen:
+                chosen[inst.name] = inst
+                wanted += list(inst.spec.consumes)
+    # start order: upstream first (reverse of discovery is a good, deterministic order)
+    order = sorted(chosen.values(), key=lambda i: i.name)
+    return order, missing

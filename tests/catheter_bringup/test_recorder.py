@@ -1,0 +1,120 @@
+"""The MCAP recorder read back by independent readers (rosbags, mcap_ros2)."""
+import pathlib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from rclpy.serialization import serialize_message
+
+from catheter_bringup.recorder import (SEPARATOR, McapRecorder, message_definition,
+                                       read_run_metadata)
+
+
+def _wrench(fx, sec=0):
+    from geometry_msgs.msg import WrenchStamped
+    m = WrenchStamped()
+    m.header.frame_id = 'catheter_base'
+    m.header.stamp.sec = sec
+    m.wrench.force.x = float(fx)
+    return m
+
+
+def test_message_definition_has_dependencies_once_in_rosbag2_layout():
+    text = message_definition('geometry_msgs/msg/WrenchStamped')
+    blocks = text.split(SEPARATOR + '\n')
+    assert blocks[0].rstrip().endswith('Wrench wrench')
+    names = [b.splitlines()[0] for b in blocks[1:]]
+    assert names == ['MSG: std_msgs/Header', 'MSG: builtin_interfaces/Time',
+                     'MSG: geometry_msgs/Wrench', 'MSG: geometry_msgs/Vector3']
+    with pytest.raises(ValueError, match='type_name'):
+        message_definition('no_pkg/msg/Nothing')
+    with pytest.raises(ValueError, match='type_name'):
+        message_definition('bad')
+
+
+def test_rosbags_and_mcap_ros2_read_what_was_written(tmp_path):
+    from geometry_msgs.msg import WrenchStamped
+    from sensor_msgs.msg import Image
+    path = tmp_path / 'run.mcap'
+    rec = McapRecorder(path)
+    rec.add_topic('/slave/force', 'geometry_msgs/msg/WrenchStamped',
+                  [{'reliability': 'best_effort', 'depth': 1}])
+    rec.add_topic('/camera/image_raw', 'sensor_msgs/msg/Image')
+    forces = np.linspace(0, 0.4, 250)
+    for i, f in enumerate(forces):
+        rec.write('/slave/force', serialize_message(_wrench(f)), i * 1_000_000)
+        if i % 33 == 0:
+            img = Image(height=4, width=5, encoding='mono8', step=5, data=bytes(range(20)))
+            rec.write('/camera/image_raw', serialize_message(img), i * 1_000_000)
+    rec.close('complete', 'test', extra={'scenario': 'unit'})
+
+    from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import QosReliability
+    with AnyReader([pathlib.Path(path)]) as reader:
+        conns = {c.topic: c for c in reader.connections}
+        assert conns['/slave/force'].msgtype == 'geometry_msgs/msg/WrenchStamped'
+        assert conns['/slave/force'].msgcount == 250
+        qos = conns['/slave/force'].ext.offered_qos_profiles[0]
+        assert qos.reliability == QosReliability.BEST_EFFORT and qos.depth == 1
+        got = [reader.deserialize(raw, c.msgtype).wrench.force.x
+               for c, t, raw in reader.messages([conns['/slave/force']])]
+        imgs = [reader.deserialize(raw, c.msgtype)
+                for c, t, raw in reader.messages([conns['/camera/image_raw']])]
+    np.testing.assert_array_equal(got, forces)
+    assert len(imgs) == 8 and bytes(imgs[0].data) == bytes(range(20))
+
+    from mcap_ros2.reader import read_ros2_messages
+    got2 = [m.ros_msg.wrench.force.x for m in read_ros2_messages(str(path), ['/slave/force'])]
+    np.testing.assert_array_equal(got2, forces)
+    meta = read_run_metadata(path)
+    assert meta['status'] == 'complete' and meta['scenario'] == 'unit'
+    assert meta['messages'] == '258' and meta['last_log_time_ns'] == str(249 * 1_000_000)
+
+
+def test_bad_arguments_are_refused(tmp_path):
+    with pytest.raises(ValueError, match='path'):
+        McapRecorder(tmp_path / 'x.bag')
+    rec = McapRecorder(tmp_path / 'x.mcap')
+    with pytest.raises(ValueError, match='topic'):
+        rec.add_topic('relative', 'std_msgs/msg/String')
+    with pytest.raises(ValueError, match='not registered'):
+        rec.write('/nope', b'', 0)
+    rec.add_topic('/a', 'std_msgs/msg/String')
+    with pytest.raises(ValueError, match='log_time_ns'):
+        rec.write('/a', b'', -1)
+    with pytest.raises(ValueError, match='status'):
+        rec.close('weird')
+    rec.close('failed', 'because')
+    rec.close('complete')      # idempotent: the first close wins
+    assert read_run_metadata(tmp_path / 'x.mcap')['status'] == 'failed'
+
+
+def test_exception_inside_with_block_leaves_readable_failed_file(tmp_path):
+    path = tmp_path / 'crash.mcap'
+    with pytest.raises(RuntimeError):
+        with McapRecorder(path) as rec:
+            rec.add_topic('/slave/force', 'geometry_msgs/msg/WrenchStamped')
+            rec.write('/slave/force', serialize_message(_wrench(0.1)), 5)
+            raise RuntimeError('node died')
+    meta = read_run_metadata(path)
+    assert meta['status'] == 'failed' and 'node died' in meta['reason']
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(['/a', '/b', '/c']),
+                          st.integers(0, 10**12),
+                          st.floats(-1e6, 1e6, allow_nan=False)), max_size=60))
+def test_every_written_message_comes_back_in_time_order(tmp_path_factory, items):
+    path = tmp_path_factory.mktemp('h') / 'p.mcap'
+    rec = McapRecorder(path, chunk_size=512)
+    for t in ('/a', '/b', '/c'):
+        rec.add_topic(t, 'geometry_msgs/msg/WrenchStamped')
+    for topic, t, f in items:
+        rec.write(topic, serialize_message(_wrench(f)), t)
+    rec.close()
+    from mcap_ros2.reader import read_ros2_messages
+    back = [(m.channel.topic, m.log_time_ns, m.ros_msg.wrench.force.x)
+            for m in read_ros2_messages(str(path))]
+    assert sorted(back, key=lambda x: x[1]) == back
+    assert sorted(back) == sorted(items)

@@ -1,0 +1,118 @@
+"""The launchless runner on the tests' own small nodes: node selection, lockstep timing,
+determinism, recording counts, failure and interruption handling."""
+import json
+
+import pytest
+from mcap_ros2.reader import read_ros2_messages
+
+from catheter_bringup.recorder import read_run_metadata
+from catheter_bringup.runner import ScenarioRunner
+from catheter_bringup.scenario import resolve_nodes
+
+
+def _messages(path):
+    return [(m.channel.topic, m.log_time_ns, bytes(m.message.data) if False else m.log_time_ns)
+            for m in read_ros2_messages(str(path))]
+
+
+def _raw(path):
+    from mcap.reader import make_reader
+    with open(path, 'rb') as f:
+        r = make_reader(f)
+        return [(c.topic, m.log_time, m.data) for _, c, m in r.iter_messages(log_time_order=True)]
+
+
+def test_resolution_starts_only_needed_nodes(make_scenario, test_registry):
+    sc = make_scenario(outputs=['/test/relayed'])
+    order, missing = resolve_nodes(sc, None, test_registry)
+    assert [i.name for i in order] == ['relay', 'talker']
+    assert missing == []
+    sc = make_scenario(outputs=['/test/relayed', '/test/missing'])
+    order, missing = resolve_nodes(sc, {'relay', 'talker'}, test_registry)
+    assert missing == ['/test/missing']
+
+
+def test_lockstep_run_records_every_message(tmp_path, make_scenario, test_registry):
+    bag = tmp_path / 'run.mcap'
+    res = ScenarioRunner(make_scenario(), bag=str(bag), registry=test_registry,
+                         progress=False).run()
+    assert res.status == 'complete', res.reason
+    assert res.nodes == ['fake_camera', 'relay', 'talker']   # not 'unused', not 'failing'
+    assert res.steps == 300
+    # 1 kHz timer on a 1 ms lockstep clock: one message per step (t = 1..300 ms)
+    assert res.published['/test/force'] == 300
+    assert res.published['/test/relayed'] == 300
+    assert res.published['/test/image'] == 9                 # 30 Hz over 0.3 s
+    assert res.lost == {}
+    meta = read_run_metadata(bag)
+    assert meta['status'] == 'complete'
+    assert json.loads(meta['counts'])['/test/force'] == 300
+    msgs = _raw(bag)
+    force_times = [t for topic, t, _ in msgs if topic == '/test/force']
+    assert force_times == [k * 1_000_000 for k in range(1, 301)]
+
+
+def test_two_runs_with_one_seed_record_identical_streams(tmp_path, make_scenario,
+                                                          test_registry):
+    a, b, c = (tmp_path / f'{n}.mcap' for n in 'abc')
+    ScenarioRunner(make_scenario(), bag=str(a), registry=test_registry, progress=False).run()
+    ScenarioRunner(make_scenario(), bag=str(b), registry=test_registry, progress=False).run()
+    ScenarioRunner(make_scenario(seed=4, global_params={'seed': 4}), bag=str(c),
+                   registry=test_registry, progress=False).run()
+    assert _raw(a) == _raw(b)
+    sc = make_scenario(global_params={'seed': 5})
+    ScenarioRunner(sc, bag=str(c), registry=test_registry, progress=False).run()
+    assert _raw(a) != _raw(c)
+
+
+def test_failing_node_stops_run_and_closes_recording(tmp_path, make_scenario, test_registry):
+    bag = tmp_path / 'fail.mcap'
+    sc = make_scenario(duration=2.0, outputs=['/test/failing', '/test/relayed'],
+                       nodes={'failing': {'params': {'fail_at': 0.25}}})
+    res = ScenarioRunner(sc, bag=str(bag), registry=test_registry, progress=False).run()
+    assert res.status == 'failed'
+    assert 'simulated node failure' in res.reason
+    assert 0.2 <= res.sim_time <= 0.3
+    meta = read_run_metadata(bag)
+    assert meta['status'] == 'failed' and 'simulated node failure' in meta['reason']
+    assert 0.2 <= float(meta['sim_time_reached_s']) <= 0.3
+    assert len(_raw(bag)) > 0
+
+
+def test_interrupt_closes_recording(tmp_path, make_scenario, test_registry):
+    bag = tmp_path / 'int.mcap'
+    r = ScenarioRunner(make_scenario(duration=2.0), bag=str(bag), registry=test_registry,
+                       progress=False)
+
+    def stop(t):
+        if t >= 0.1:
+            raise KeyboardInterrupt
+    r.on_step = stop
+    res = r.run()
+    assert res.status == 'interrupted'
+    meta = read_run_metadata(bag)
+    assert meta['status'] == 'interrupted'
+    assert abs(float(meta['sim_time_reached_s']) - 0.1) < 0.0015
+    assert int(meta['last_log_time_ns']) <= 100_000_000
+    assert len([m for m in _raw(bag) if m[0] == '/test/force']) == 100
+
+
+def test_realtime_run(tmp_path, make_scenario, test_registry):
+    bag = tmp_path / 'rt.mcap'
+    sc = make_scenario(mode='realtime', duration=0.5, outputs=['/test/relayed'])
+    res = ScenarioRunner(sc, bag=str(bag), registry=test_registry, progress=False).run()
+    assert res.status == 'complete', res.reason
+    assert res.published['/test/force'] > 100     # a 1 kHz timer on 2 shared cores
+    assert res.lost == {}
+    assert read_run_metadata(bag)['mode'] == 'realtime'
+
+
+def test_bad_scenario_values_are_refused(make_scenario):
+    with pytest.raises(ValueError, match='duration'):
+        make_scenario(duration=float('nan'))
+    with pytest.raises(ValueError, match='mode'):
+        make_scenario(mode='fast')
+    with pytest.raises(ValueError, match='force_source'):
+        make_scenario(force_source='magic')
+    with pytest.raises(ValueError, match='outages'):
+        make_scenario(link={'outages': [[1.0]]})
