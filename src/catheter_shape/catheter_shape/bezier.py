@@ -133,6 +133,10 @@ def _solve_ls(B: np.ndarray, p: np.ndarray, c0: np.ndarray, M: np.ndarray) -> np
     return (c0 + M @ x).reshape(n1, D)
 
 
+#: weight of the tangential residual in the Gauss-Newton step (0 = pure TDM)
+_TANGENT_WEIGHT = 0.03
+
+
 def _tdm_step(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, c0: np.ndarray,
               M: np.ndarray) -> np.ndarray:
     """One tangent-distance-minimisation (Gauss-Newton on the perpendicular distances)
@@ -146,11 +150,16 @@ def _tdm_step(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, c0: np.ndarray,
     t = t / np.where(tn > 0, tn, 1.0)
     if D == 2:
         # one normal per point: scalar signed distances e_i = n_i . r_i
+        # plus the tangential part with a small weight: it keeps the step well-posed when
+        # the normals are nearly parallel (an almost straight catheter), where pure TDM
+        # cannot place the inner control points along the line
         nrm = np.stack([-t[:, 1], t[:, 0]], axis=1)
-        A = (B[:, :, None] * nrm[:, None, :]).reshape(N, (n + 1) * D)
-        rhs = -np.sum(nrm * r, axis=1)
+        tw = _TANGENT_WEIGHT * t
+        A = np.vstack([(B[:, :, None] * nrm[:, None, :]).reshape(N, (n + 1) * D),
+                       (B[:, :, None] * tw[:, None, :]).reshape(N, (n + 1) * D)])
+        rhs = -np.concatenate([np.sum(nrm * r, axis=1), np.sum(tw * r, axis=1)])
     else:
-        P = np.eye(D)[None] - t[:, :, None] * t[:, None, :]        # (N, D, D) normal projectors
+        P = np.eye(D)[None] - (1.0 - _TANGENT_WEIGHT ** 2) * t[:, :, None] * t[:, None, :]
         A = np.einsum('ij,ide->idje', B, P).reshape(N * D, (n + 1) * D)
         rhs = -np.einsum('ide,ie->id', P, r).reshape(-1)
     # the first and last points keep s = 0 and s = 1: their full distance counts, so the

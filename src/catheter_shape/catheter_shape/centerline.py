@@ -1,0 +1,203 @@
+"""Ordered centreline of a segmented catheter: skeleton -> longest geodesic path on the
+8-connected pixel graph (two Dijkstra passes, which ignores spurs) -> base/tip orientation
+-> ends restored along their tangents (a skeleton stops about half a width short of each
+end) -> light smoothing of the pixel staircase.
+
+Pure numpy/scipy/scikit-image; no rclpy. Pixel coordinates are (u, v) = (column, row).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+from skimage.morphology import skeletonize
+
+__all__ = ['Centerline', 'skeleton_path', 'extend_end', 'smooth_path']
+
+_OFFS = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
+
+
+@dataclass
+class Centerline:
+    """status 'ok' or a reason; pixels (N, 2) float (u, v) ordered base -> tip;
+    base_cut True when the path was cut at base_px (the clamp was in the mask)."""
+    status: str
+    pixels: Optional[np.ndarray] = None
+    base_cut: bool = False
+    skeleton_px: int = 0
+    message: str = ''
+
+
+def _graph(skel: np.ndarray):
+    ys, xs = np.nonzero(skel)
+    n = ys.size
+    h, w = skel.shape
+    idx = np.full((h + 2, w + 2), -1, np.int32)          # padded: no bounds checks
+    idx[ys + 1, xs + 1] = np.arange(n, dtype=np.int32)
+    rows, cols, wts = [], [], []
+    for dy, dx, wt in _OFFS:
+        nb = idx[ys + 1 + dy, xs + 1 + dx]
+        ok = nb >= 0
+        rows.append(np.nonzero(ok)[0])
+        cols.append(nb[ok])
+        wts.append(np.full(int(ok.sum()), wt))
+    r = np.concatenate(rows)
+    c = np.concatenate(cols)
+    wv = np.concatenate(wts)
+    g = csr_matrix((np.concatenate([wv, wv]), (np.concatenate([r, c]), np.concatenate([c, r]))),
+                   shape=(n, n))
+    return g, np.stack([xs, ys], axis=1).astype(float)
+
+
+def _path(pred: np.ndarray, start: int, end: int) -> np.ndarray:
+    out = [end]
+    k = end
+    while k != start and k >= 0:
+        k = pred[k]
+        out.append(k)
+    return np.array(out[::-1], dtype=np.int64)
+
+
+def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
+                  image_shape: Optional[Tuple[int, int]] = None,
+                  min_length_px: float = 10.0) -> Centerline:
+    """Longest geodesic path of the skeleton of `mask` (uint8/bool ROI at `offset` (u0, v0)),
+    in full-frame pixels, ordered base -> tip.
+
+    base_px: (u, v) of the clamp. Given: the tip is the skeleton end farthest (along the
+    skeleton) from the pixel nearest base_px, the base the end farthest from that tip; if
+    base_px lies inside the image and the path passes it well before its end (the clamp is
+    part of the mask), the path is cut at the pixel nearest base_px. Not given: the base is
+    the path end nearest the image border (image_shape (H, W) needed)."""
+    skel = skeletonize(mask.astype(bool))
+    n = int(np.count_nonzero(skel))
+    if n < 2:
+        return Centerline('bad_skeleton', skeleton_px=n, message=f'skeleton has {n} pixel(s)')
+    g, xy = _graph(skel)
+    off = np.asarray(offset, dtype=float)
+    xy += off
+    if base_px is not None:
+        b = np.asarray(base_px, dtype=float)
+        s0 = int(np.argmin(np.sum((xy - b) ** 2, axis=1)))
+    else:
+        s0 = 0
+    d1 = dijkstra(g, indices=s0)
+    d1[~np.isfinite(d1)] = -1.0                              # other skeleton pieces: ignore
+    a = int(np.argmax(d1))
+    d2, pred = dijkstra(g, indices=a, return_predecessors=True)
+    d2[~np.isfinite(d2)] = -1.0
+    bnd = int(np.argmax(d2))
+    length = float(d2[bnd])
+    if length < min_length_px:
+        return Centerline('too_short', skeleton_px=n,
+                          message=f'longest skeleton path {length:.1f} px < {min_length_px:.1f}')
+    path = _path(pred, a, bnd)                                 # a -> bnd
+    px = xy[path]
+    base_cut = False
+    if base_px is not None:
+        # a was found as the farthest from the base: it is the tip; orient base -> tip
+        px = px[::-1]
+        H, W = image_shape if image_shape is not None else (np.inf, np.inf)
+        if 0 <= b[0] <= W - 1 and 0 <= b[1] <= H - 1:
+            k = int(np.argmin(np.sum((px - b) ** 2, axis=1)))
+            seg = np.sqrt(np.sum(np.diff(px[:k + 1], axis=0) ** 2, axis=1)).sum() if k else 0.0
+            dist_b = float(np.sqrt(np.sum((px[k] - b) ** 2)))
+            # the mask runs past the base (clamp): cut there
+            if k > 0 and seg > dist_b + 3.0:
+                px = px[k:]
+                base_cut = True
+    elif image_shape is not None:
+        H, W = image_shape
+
+        def border(p):
+            return min(p[0], p[1], W - 1 - p[0], H - 1 - p[1])
+        if border(px[-1]) < border(px[0]):
+            px = px[::-1]
+    if px.shape[0] < 2:
+        return Centerline('too_short', skeleton_px=n, message='path has fewer than 2 pixels')
+    return Centerline('ok', pixels=px, base_cut=base_cut, skeleton_px=n)
+
+
+def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    H, W = img.shape
+    x = np.clip(pts[:, 0], 0, W - 1.000001)
+    y = np.clip(pts[:, 1], 0, H - 1.000001)
+    x0 = x.astype(np.int64)
+    y0 = y.astype(np.int64)
+    fx = x - x0
+    fy = y - y0
+    i = img
+    return ((i[y0, x0] * (1 - fx) + i[y0, x0 + 1] * fx) * (1 - fy)
+            + (i[y0 + 1, x0] * (1 - fx) + i[y0 + 1, x0 + 1] * fx) * fy)
+
+
+def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
+               trim_px: float, at_start: bool = False) -> Tuple[np.ndarray, float]:
+    """Restore one end of an ordered path (N, 2): drop the last trim_px of it (a skeleton
+    curls into a corner of a flat end), then walk along the end tangent (principal axis of
+    the preceding ~2 widths) until the darkness `score` falls below `level` (bilinear,
+    sub-pixel crossing) or the image border, at most 1.5 widths + trim beyond the cut.
+    Returns (new path, extension length px)."""
+    if at_start:
+        p, ext = extend_end(px[::-1], score, level, width_px, trim_px, False)
+        return p[::-1], ext
+    H, W = score.shape
+    seg = np.sqrt(np.sum(np.diff(px, axis=0) ** 2, axis=1))
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    L = s[-1]
+    if L < 3 * max(trim_px, 1.0) + 4:
+        return px, 0.0
+    keep = s <= L - trim_px
+    body = px[keep]
+    sb = s[keep]
+    span = max(2.0 * width_px, 6.0)
+    tail = body[sb >= sb[-1] - span]
+    if tail.shape[0] < 3:
+        return px, 0.0
+    c = tail.mean(axis=0)
+    _, _, vt = np.linalg.svd(tail - c, full_matrices=False)
+    d = vt[0]
+    if np.dot(d, tail[-1] - tail[0]) < 0:
+        d = -d
+    # project the end onto the fitted tangent line so the extension starts on the axis
+    e = c + np.dot(body[-1] - c, d) * d
+    max_t = trim_px + 1.5 * width_px + 2.0
+    t = np.arange(0.0, max_t, 0.25)
+    pts = e + t[:, None] * d
+    inside_img = (pts[:, 0] >= 0) & (pts[:, 0] <= W - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= H - 1)
+    if not np.isnan(level):
+        vals = _bilinear(score.astype(np.float32) if score.dtype != np.float32 else score, pts)
+        below = (vals <= level) | ~inside_img
+    else:
+        below = ~inside_img
+    j = int(np.argmax(below)) if below.any() else t.size - 1
+    if j == 0:
+        t_end = 0.0
+    elif not inside_img[j]:
+        t_end = t[j - 1]
+    else:
+        v0, v1 = vals[j - 1], vals[j]
+        f = (v0 - level) / (v0 - v1) if v0 != v1 else 0.0
+        t_end = t[j - 1] + f * (t[j] - t[j - 1])
+    # new points every pixel up to the sub-pixel end (no near-duplicate before the end)
+    steps = np.arange(1.0, t_end - 0.1)
+    new = e + np.append(steps, t_end)[:, None] * d if t_end > 0 else np.empty((0, 2))
+    return np.vstack([body[:-1], e[None, :], new]), float(t_end)
+
+
+def smooth_path(px: np.ndarray, window: int = 5) -> np.ndarray:
+    """Moving average along the path (odd window), ends kept, to remove the pixel staircase."""
+    if window < 3 or px.shape[0] < window + 2:
+        return px
+    k = window // 2
+    c = np.cumsum(np.vstack([np.zeros((1, 2)), px]), axis=0)
+    out = px.copy()
+    out[k:-k] = (c[2 * k + 1:] - c[:-2 * k - 1]) / (2 * k + 1)
+    # taper the window towards the ends
+    for i in range(1, k):
+        out[i] = px[:2 * i + 1].mean(axis=0)
+        out[-1 - i] = px[-2 * i - 1:].mean(axis=0)
+    return out

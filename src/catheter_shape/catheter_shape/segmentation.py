@@ -1,0 +1,161 @@
+"""Segmentation of a dark catheter in an 8-bit frame (thesis section 2.4: background
+removal and a greyscale threshold of 132), cleanup and the catheter's connected component.
+
+Pure numpy/OpenCV; no rclpy. Images are uint8 (H, W); masks are uint8 0/255.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import cv2
+import numpy as np
+
+__all__ = ['METHODS', 'Segmentation', 'to_gray', 'threshold_frame', 'catheter_component']
+
+#: thresholding methods: 'fixed' (the thesis: grey < threshold, after background removal when
+#: a background is given), 'otsu' (global Otsu level, for frames without background),
+#: 'adaptive' (local mean minus an offset, robust to uneven illumination)
+METHODS = ('fixed', 'otsu', 'adaptive')
+
+
+def to_gray(frame: np.ndarray) -> np.ndarray:
+    """uint8 (H, W) or (H, W, 1) -> itself; (H, W, 3) BGR or (H, W, 4) BGRA -> grey.
+
+    Raises ValueError with the reason for any other array (the caller maps it to a status)."""
+    if frame.dtype != np.uint8:
+        raise ValueError(f'frame must be uint8, got {frame.dtype}')
+    if frame.size == 0:
+        raise ValueError(f'frame is empty (shape {frame.shape})')
+    if frame.ndim == 2:
+        return frame
+    if frame.ndim == 3 and frame.shape[2] == 1:
+        return frame[:, :, 0]
+    if frame.ndim == 3 and frame.shape[2] == 3:
+        return cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+    if frame.ndim == 3 and frame.shape[2] == 4:
+        return cv2.cvtColor(frame, cv2.COLOR_BGRA2GRAY)
+    raise ValueError(f'frame must be (H, W), (H, W, 3) BGR or (H, W, 4) BGRA, got {frame.shape}')
+
+
+def threshold_frame(gray: np.ndarray, threshold: int = 132,
+                    background: Optional[np.ndarray] = None, method: str = 'fixed',
+                    block: int = 51, offset: float = 25.0) -> Tuple[np.ndarray, np.ndarray, float]:
+    """Binary mask of dark pixels.
+
+    With a background (uint8, same shape), the frame is flat-fielded first:
+    g = 255 - max(background - frame, 0), so the static scene becomes white, and 'fixed'
+    keeps g < threshold (the catheter is at least 255 - threshold grey levels darker than
+    the scene behind it). Without a background, 'fixed' keeps gray < threshold.
+    'otsu' picks the level by Otsu's method on g; 'adaptive' keeps pixels darker than the
+    local mean (block x block pixels) minus `offset`.
+
+    Returns (mask uint8 0/255, score uint8, level): score = 255 - g is the darkness image and
+    mask == score > level (used for sub-pixel edge search; level is NaN for 'adaptive').
+    """
+    if background is not None:
+        score = cv2.subtract(background, gray)          # saturating: max(bg - frame, 0)
+    else:
+        score = cv2.bitwise_not(gray)                   # 255 - gray
+    if method == 'fixed':
+        level = 255.0 - float(threshold)
+        _, mask = cv2.threshold(score, level, 255, cv2.THRESH_BINARY)
+    elif method == 'otsu':
+        t, mask = cv2.threshold(score, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
+        level = float(t)
+    elif method == 'adaptive':
+        g = cv2.bitwise_not(score)
+        mask = cv2.adaptiveThreshold(g, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY_INV,
+                                     int(block) | 1, float(offset))
+        level = float('nan')
+    else:
+        raise ValueError(f'method must be one of {METHODS}, got {method!r}')
+    return mask, score, level
+
+
+@dataclass
+class Segmentation:
+    """The catheter's component: mask (uint8 0/1) of the region of interest at offset
+    (u0, v0) of the full frame; area in pixels; n_objects = large components seen;
+    bridged = gaps joined; status 'ok' or the reason it failed."""
+    status: str
+    mask: Optional[np.ndarray] = None
+    offset: Tuple[int, int] = (0, 0)
+    area: int = 0
+    n_objects: int = 0
+    bridged: int = 0
+    message: str = ''
+
+
+def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
+                       width_px: float, second_ratio: float = 0.25,
+                       max_fill: float = 0.5) -> Segmentation:
+    """Clean a binary mask and keep the catheter: the largest connected component plus
+    fragments within max_gap_px of it (joined by a bar of the catheter's width: gaps from
+    occlusion or low contrast); fails with 'multiple_objects' when another component of at
+    least second_ratio of the largest's area remains (two catheters), 'no_catheter' when
+    the largest is below min_area pixels, 'bad_segmentation' when more than max_fill of the
+    frame is dark."""
+    H, W = mask.shape
+    u0, v0, w, h = cv2.boundingRect(mask)
+    if w == 0 or h == 0:
+        return Segmentation('no_catheter', message='nothing darker than the threshold')
+    roi = mask[v0:v0 + h, u0:u0 + w]
+    n_dark = cv2.countNonZero(roi)
+    if n_dark > max_fill * H * W:
+        return Segmentation('bad_segmentation',
+                            message=f'{n_dark / (H * W):.0%} of the frame is below the threshold')
+    # morphology: open removes isolated noise pixels, close fills pinholes
+    k3 = np.ones((3, 3), np.uint8)
+    if width_px >= 6:
+        roi = cv2.morphologyEx(roi, cv2.MORPH_OPEN, k3)
+    roi = cv2.morphologyEx(roi, cv2.MORPH_CLOSE, k3)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(roi, connectivity=8)
+    if n <= 1:
+        return Segmentation('no_catheter', message='nothing left after cleanup')
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    order = np.argsort(areas)[::-1] + 1
+    main = int(order[0])
+    if stats[main, cv2.CC_STAT_AREA] < min_area:
+        return Segmentation('no_catheter', area=int(stats[main, cv2.CC_STAT_AREA]),
+                            message=f'largest dark region has {stats[main, cv2.CC_STAT_AREA]} px'
+                                    f' < {min_area:.0f}')
+    keep = [main]
+    bars = []
+    frag_min = max(4.0, 0.5 * width_px * width_px)
+    for k in order[1:]:
+        a = stats[k, cv2.CC_STAT_AREA]
+        if a < frag_min:
+            break
+        # nearest pixels between the fragment and the kept region (in a window around it)
+        x, y, fw, fh = (int(stats[k, i]) for i in range(4))
+        g = int(np.ceil(max_gap_px)) + 1
+        wx0, wy0 = max(x - g, 0), max(y - g, 0)
+        wx1, wy1 = min(x + fw + g, w), min(y + fh + g, h)
+        win = labels[wy0:wy1, wx0:wx1]
+        fy, fx = np.nonzero(win == k)
+        my, mx = np.nonzero(np.isin(win, keep))
+        joined = False
+        if my.size and fy.size:
+            fs = max(1, fy.size // 400)
+            ms = max(1, my.size // 400)
+            F = np.stack([fx[::fs], fy[::fs]], 1).astype(np.float32)
+            M = np.stack([mx[::ms], my[::ms]], 1).astype(np.float32)
+            d2 = (np.sum(F * F, 1)[:, None] - 2 * F @ M.T + np.sum(M * M, 1)[None, :])
+            i, j = np.unravel_index(int(np.argmin(d2)), d2.shape)
+            if d2[i, j] <= max_gap_px ** 2:
+                keep.append(int(k))
+                bars.append(((int(F[i, 0]) + wx0, int(F[i, 1]) + wy0),
+                             (int(M[j, 0]) + wx0, int(M[j, 1]) + wy0)))
+                joined = True
+        if not joined and a >= second_ratio * stats[main, cv2.CC_STAT_AREA]:
+            return Segmentation('multiple_objects', n_objects=2,
+                                message=f'a second dark object of {a} px beside one of '
+                                        f'{stats[main, cv2.CC_STAT_AREA]} px')
+    out = np.isin(labels, keep).astype(np.uint8) if len(keep) > 1 else \
+        (labels == main).astype(np.uint8)
+    t = max(1, int(round(0.6 * width_px)))
+    for p, q in bars:
+        cv2.line(out, p, q, 1, t)
+    return Segmentation('ok', mask=out, offset=(u0, v0), area=int(out.sum()),
+                        n_objects=1, bridged=len(bars))

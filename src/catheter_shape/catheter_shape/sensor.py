@@ -1,0 +1,245 @@
+"""ShapeSensor: camera frame -> mask -> ordered centreline -> Bezier control points
+(thesis section 2.2.2, Eqs. 1-5). Pure numpy/OpenCV/scikit-image; no rclpy.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Dict, Optional
+
+import numpy as np
+
+from catheter_shape.bezier import _dist, _newton_params, _project_global, fit_bezier_detailed
+from catheter_shape.camera import BLAZER_DIAMETER, _check_psi
+from catheter_shape.centerline import extend_end, skeleton_path, smooth_path
+from catheter_shape.segmentation import METHODS, catheter_component, threshold_frame, to_gray
+
+__all__ = ['Observation', 'ShapeSensor', 'STATUSES']
+
+#: every status an Observation can carry
+STATUSES = ('ok', 'bad_input', 'low_contrast', 'no_catheter', 'bad_segmentation',
+            'multiple_objects', 'bad_skeleton', 'too_short', 'fit_failed')
+
+
+@dataclass
+class Observation:
+    """What the sensor saw in one frame.
+
+    ok: True when control points are valid. status: one of STATUSES; message: details.
+    points: (N, 3) m, catheter_base, ordered base -> tip ((0, 3) when not ok).
+    control_points: (degree + 1, 3) m, p0 at the base, p_n at the tip (NaN when not ok).
+    residual: mean perpendicular distance of the points to the curve, m (NaN when not ok).
+    max_distance: largest perpendicular distance, m.
+    pixels: (N, 2) the ordered centreline in pixels (u, v).
+    tip_px, base_px: (2,) pixel of the tip and base ends found.
+    timings: seconds per stage ('gray', 'threshold', 'component', 'skeleton', 'ends',
+    'fit', 'total').
+    area_px: catheter pixels; bridged: gaps joined; base_cut: path cut at the clamp.
+    """
+    ok: bool
+    status: str
+    message: str = ''
+    points: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
+    control_points: np.ndarray = field(default_factory=lambda: np.full((4, 3), np.nan))
+    residual: float = float('nan')
+    max_distance: float = float('nan')
+    pixels: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    tip_px: Optional[np.ndarray] = None
+    base_px: Optional[np.ndarray] = None
+    timings: Dict[str, float] = field(default_factory=dict)
+    area_px: int = 0
+    bridged: int = 0
+    base_cut: bool = False
+    roi: Optional[tuple] = None
+    mask: Optional[np.ndarray] = None
+
+
+class ShapeSensor:
+    """Camera frame -> Bezier control points of the catheter centreline.
+
+    psi: (3, 4) calibration matrix (Eq. 1), pixels -> metres in catheter_base (or 12 numbers
+        row-major).
+    threshold: grey level (0-255); the catheter is darker (after background removal when a
+        background is given), 132 in the thesis.
+    background: optional uint8 (H, W) (or BGR) frame of the scene without the catheter.
+    base_px: optional (u, v) pixel of the clamp; without it the base is the path end
+        nearest the image border.
+    method: 'fixed' (thesis), 'otsu' or 'adaptive' (see segmentation.threshold_frame).
+    degree: Bezier degree (3 = the thesis's 4 control points).
+    refine: parameter-correction rounds of the fit (0 = the thesis's chord-length fit).
+    base_constraint: 'none', 'point' (p0 fixed at base_px) or 'tangent' (p0 fixed and the
+        base tangent along +x of catheter_base, the clamp's direction); needs base_px.
+    diameter: catheter diameter, m (sets size limits). max_gap: largest gap joined, m.
+    min_length: shortest catheter accepted, m. smooth: moving-average window (pixels) on
+        the ordered path (0 or 1 = off). max_fit_points: points used by the fit (evenly
+        subsampled; the residual uses all points).
+    """
+
+    def __init__(self, psi, threshold: int = 132, background: Optional[np.ndarray] = None,
+                 base_px=None, method: str = 'fixed', degree: int = 3, refine: int = 10,
+                 base_constraint: str = 'none', diameter: float = BLAZER_DIAMETER,
+                 max_gap: float = 0.003, min_length: float = 0.005, smooth: int = 5,
+                 max_fit_points: int = 160, keep_mask: bool = False):
+        self.psi = _check_psi(psi)
+        if isinstance(threshold, bool) or not isinstance(threshold, (int, np.integer, float)) \
+                or not np.isfinite(threshold) or not (1 <= threshold <= 255):
+            raise ValueError(f'threshold must be a number in [1, 255], got {threshold!r}')
+        self.threshold = int(round(threshold))
+        if method not in METHODS:
+            raise ValueError(f'method must be one of {METHODS}, got {method!r}')
+        self.method = method
+        if int(degree) != degree or not (1 <= degree <= 10):
+            raise ValueError(f'degree must be an integer in [1, 10], got {degree!r}')
+        self.degree = int(degree)
+        if int(refine) != refine or refine < 0:
+            raise ValueError(f'refine must be a non-negative integer, got {refine!r}')
+        self.refine = int(refine)
+        for name, v in (('diameter', diameter), ('max_gap', max_gap), ('min_length', min_length)):
+            if not (np.isfinite(v) and v >= 0) or (name == 'diameter' and v <= 0):
+                raise ValueError(f'{name} must be a non-negative finite length (m), got {v!r}')
+        if base_constraint not in ('none', 'point', 'tangent'):
+            raise ValueError(f"base_constraint must be 'none', 'point' or 'tangent', "
+                             f'got {base_constraint!r}')
+        if base_px is not None:
+            b = np.asarray(base_px, dtype=float).reshape(-1)
+            if b.shape != (2,) or not np.all(np.isfinite(b)):
+                raise ValueError(f'base_px must be (u, v) pixels, got {base_px!r}')
+            base_px = b
+        if base_constraint != 'none' and base_px is None:
+            raise ValueError('base_constraint needs base_px')
+        self.base_px = base_px
+        self.base_constraint = base_constraint
+        self.diameter = float(diameter)
+        self.max_gap = float(max_gap)
+        self.min_length = float(min_length)
+        self.smooth = int(smooth)
+        self.max_fit_points = max(int(max_fit_points), self.degree + 2)
+        self.keep_mask = bool(keep_mask)
+        # metres per pixel (the similarity part of psi) and an orthonormal basis of its plane
+        A = self.psi[:, :2]
+        self._m_per_px = float(np.sqrt(abs(np.linalg.det(A.T @ A)) ** 0.5))
+        q, _ = np.linalg.qr(A)
+        self._plane = q                                       # (3, 2)
+        self._origin = self.psi[:, 3]
+        self.background = None
+        if background is not None:
+            self.set_background(background)
+
+    def set_background(self, background: Optional[np.ndarray]) -> None:
+        """Set (or clear with None) the background frame (uint8 grey or BGR)."""
+        if background is None:
+            self.background = None
+            return
+        if not isinstance(background, np.ndarray):
+            raise ValueError(f'background must be a numpy array, got {type(background).__name__}')
+        self.background = to_gray(background).copy()
+
+    @property
+    def width_px(self) -> float:
+        """Catheter diameter in pixels."""
+        return self.diameter / self._m_per_px
+
+    def to_metres(self, uv: np.ndarray) -> np.ndarray:
+        """Eq. 1 for pixels (N, 2) -> (N, 3) m."""
+        return uv @ self.psi[:, :2].T + self._origin
+
+    def process(self, frame: np.ndarray) -> Observation:
+        """Measure the catheter in one frame: uint8 (H, W) grey, (H, W, 3) BGR or
+        (H, W, 4) BGRA. Returns an Observation (ok False with a status for a bad frame);
+        raises ValueError only if `frame` is not a numpy array."""
+        if not isinstance(frame, np.ndarray):
+            raise ValueError(f'frame must be a numpy array, got {type(frame).__name__}')
+        t0 = time.perf_counter()
+        tm: Dict[str, float] = {}
+        fail = self._fail
+        try:
+            gray = to_gray(frame)
+        except ValueError as exc:
+            return fail('bad_input', str(exc), tm, t0)
+        if gray.ndim != 2 or min(gray.shape) < 8:
+            return fail('bad_input', f'frame too small: {gray.shape}', tm, t0)
+        bg = self.background
+        if bg is not None and bg.shape != gray.shape:
+            return fail('bad_input', f'frame {gray.shape} does not match the background '
+                                     f'{bg.shape}', tm, t0)
+        t1 = time.perf_counter()
+        tm['gray'] = t1 - t0
+        lo, hi = int(gray.min()), int(gray.max())
+        if hi - lo < 16:
+            return fail('low_contrast', f'grey range {lo}..{hi}', tm, t0)
+        mask, score, level = threshold_frame(gray, self.threshold, bg, self.method,
+                                             block=int(4 * self.width_px) | 1)
+        t2 = time.perf_counter()
+        tm['threshold'] = t2 - t1
+        w_px = self.width_px
+        min_area = max(8.0, 0.5 * self.min_length / self._m_per_px * w_px)
+        seg = catheter_component(mask, min_area=min_area, max_gap_px=self.max_gap / self._m_per_px,
+                                 width_px=w_px)
+        t3 = time.perf_counter()
+        tm['component'] = t3 - t2
+        if seg.status != 'ok':
+            return fail(seg.status, seg.message, tm, t0)
+        cl = skeleton_path(seg.mask, seg.offset, self.base_px, gray.shape,
+                           min_length_px=max(3.0, 0.5 * self.min_length / self._m_per_px))
+        t4 = time.perf_counter()
+        tm['skeleton'] = t4 - t3
+        if cl.status != 'ok':
+            return fail(cl.status, cl.message, tm, t0)
+        px = cl.pixels
+        # restore the ends the skeleton lost (half a width): the tip always, the base when
+        # it is free (not cut at the clamp and not on the image border)
+        half = 0.5 * w_px
+        H, W = gray.shape
+        px, _ = extend_end(px, score, level, w_px, trim_px=half)
+        b0 = px[0]
+        on_border = min(b0[0], b0[1], W - 1 - b0[0], H - 1 - b0[1]) <= 1.5
+        if not cl.base_cut and not on_border:
+            px, _ = extend_end(px, score, level, w_px, trim_px=half, at_start=True)
+        if self.smooth >= 3:
+            px = smooth_path(px, self.smooth | 1)
+        t5 = time.perf_counter()
+        tm['ends'] = t5 - t4
+        pts3 = self.to_metres(px)
+        if pts3.shape[0] < self.degree + 2:
+            return fail('too_short', f'{pts3.shape[0]} centreline points', tm, t0)
+        # fit in orthonormal coordinates of the image plane (exact for any psi), on an
+        # evenly subsampled set of points; the residual uses all points
+        p2 = (pts3 - self._origin) @ self._plane
+        n = p2.shape[0]
+        sel = np.unique(np.linspace(0, n - 1, min(n, self.max_fit_points)).round().astype(int))
+        start = tangent = None
+        if self.base_constraint != 'none':
+            start = (self.to_metres(self.base_px[None, :])[0] - self._origin) @ self._plane
+            if self.base_constraint == 'tangent':
+                tangent = np.array([1.0, 0.0, 0.0]) @ self._plane
+        try:
+            fit = fit_bezier_detailed(p2[sel], self.degree, refine=self.refine, start=start,
+                                      start_tangent=tangent)
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            return fail('fit_failed', str(exc), tm, t0)
+        ctrl2 = fit.control_points
+        if not np.all(np.isfinite(ctrl2)):
+            return fail('fit_failed', 'non-finite control points', tm, t0)
+        s_all = np.interp(np.arange(n), sel, fit.params)
+        s_loc = _newton_params(ctrl2, p2, s_all, 3)
+        d = _dist(ctrl2, p2, s_loc)
+        far = d > 3.0 * (np.median(d) + 1e-12)
+        if far.any():
+            s_g = _project_global(ctrl2, p2[far], 8 * (self.degree + 1), 4)
+            d[far] = np.minimum(d[far], _dist(ctrl2, p2[far], s_g))
+        ctrl3 = ctrl2 @ self._plane.T + self._origin
+        t6 = time.perf_counter()
+        tm['fit'] = t6 - t5
+        tm['total'] = t6 - t0
+        return Observation(ok=True, status='ok', points=pts3, control_points=ctrl3,
+                           residual=float(d.mean()), max_distance=float(d.max()), pixels=px,
+                           tip_px=px[-1].copy(), base_px=px[0].copy(), timings=tm,
+                           area_px=seg.area, bridged=seg.bridged, base_cut=cl.base_cut,
+                           roi=(seg.offset[0], seg.offset[1], seg.mask.shape[1],
+                                seg.mask.shape[0]),
+                           mask=seg.mask if self.keep_mask else None)
+
+    def _fail(self, status: str, message: str, tm: Dict[str, float], t0: float) -> Observation:
+        tm['total'] = time.perf_counter() - t0
+        return Observation(ok=False, status=status, message=message,
+                           control_points=np.full((self.degree + 1, 3), np.nan), timings=tm)
