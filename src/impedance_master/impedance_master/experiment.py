@@ -1,0 +1,267 @@
+"""Closed-loop teleoperation experiment, pure Python at 1 kHz (thesis Ch. 4, Experiments I/II).
+
+Per control period k (t = k dt):
+
+1. the operator's hand (scripted) and the haptic device (motor, current loop, Eq. 36 PID)
+   give the master state (x_m, x_m', x_m'') and the force at the hand;
+2. the master sends its position over the master->slave link (delay, jitter, loss,
+   outages, latest wins); the slave robot follows the newest delivered command (and holds
+   still while nothing arrives);
+3. the vessel gives the true force, the sensor the measured one; the slave's identifier
+   (mode ima: `make_identifier`; ima_thesis: `SlidingWindowIdentifier`) updates;
+4. the slave sends (model, measured force) over the slave->master link;
+5. the master's renderer (ImaRenderer or DfrRenderer) computes the desired force for the
+   next period from what has arrived and (IMA) the local trajectory.
+
+Error metric (documented choice): the reference at master time t is the TRUE (noise-free)
+vessel force that the master's motion produces at the slave, time-aligned by the command
+delay: a twin VesselModel with the slave's parameters and seed is driven by the master's
+trajectory at time t + delay. In normal intervals this equals the slave's own force at
+t + delay up to the robot's tracking error (reported as `reference_check`); during outages,
+when the slave holds still, it is the force the operator's motion would have produced. The
+error is e(t) = f_hand(t) - reference(t), evaluated from t_eval0 = 1.5 s + 2 delay (time for
+the first model to be identified and delivered). Outage intervals: for each outage
+(start, length) the span [start + delay, start + length + 2 delay) in which the master's
+feedback is missing or stale; normal: the rest.
+
+Every mode of a comparison uses the same seeds (trajectory, links, vessel, sensor, device).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Dict, Optional, Tuple
+
+import numpy as np
+
+from impedance_master._check import finite, nonneg, positive
+from impedance_master.haptic import DeviceParams, HapticDevice
+from impedance_master.identification import SlidingWindowIdentifier, make_identifier
+from impedance_master.operator import experiment_trajectory
+from impedance_master.rendering import DfrRenderer, ImaRenderer
+
+MODES = ('ima', 'ima_thesis', 'dfr')
+EXPERIMENT_II_OUTAGES = ((4.0, 1.0), (8.0, 1.0))
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """One closed-loop run.
+
+    experiment: 'I' (20 s) or 'II' (12 s) scripted hand; mode: 'ima' | 'ima_thesis' | 'dfr';
+    delay s, jitter s, loss probability, outages ((start s, length s), ...) of BOTH link
+    directions; seed (trajectory, links, vessel, sensor, device noise); rate Hz;
+    compliant_hand (spring-damper hand of hand_stiffness N/m and hand_damping N s/m around
+    the script);
+    impedance_rate Hz (model packets per second; the force goes at `rate`);
+    limit N (renderer clamp); duration s (None: the experiment's);
+    pretrain: None, or 'I' / 'II': before the run the slave's identifier learns from that
+    experiment's motion on the same phantom (seed + 1000), as when Experiment II follows
+    Experiment I in the thesis; the renderer starts without a model either way;
+    thesis_offset: the ima_thesis identifier fits the constant term (True) or exactly the
+    thesis's Eq. 29 f = m x'' + c x' + k x (False).
+    """
+    experiment: str = 'II'
+    mode: str = 'ima'
+    delay: float = 0.2
+    jitter: float = 0.0
+    loss: float = 0.0
+    outages: Tuple[Tuple[float, float], ...] = EXPERIMENT_II_OUTAGES
+    seed: int = 0
+    rate: float = 1000.0
+    compliant_hand: bool = False
+    hand_stiffness: float = 300.0
+    hand_damping: float = 15.0
+    impedance_rate: float = 1000.0
+    limit: float = 2.0
+    duration: Optional[float] = None
+    pretrain: Optional[str] = None
+    thesis_offset: bool = True
+
+    def __post_init__(self):
+        if self.mode not in MODES:
+            raise ValueError(f'mode must be one of {MODES}, got {self.mode!r}')
+        if self.experiment not in ('I', 'II'):
+            raise ValueError(f"experiment must be 'I' or 'II', got {self.experiment!r}")
+        nonneg('delay', self.delay)
+        nonneg('jitter', self.jitter)
+        if not 0.0 <= finite('loss', self.loss) <= 1.0:
+            raise ValueError(f'loss must be in [0, 1], got {self.loss!r}')
+        positive('rate', self.rate)
+        positive('impedance_rate', self.impedance_rate)
+        positive('limit', self.limit)
+        if self.duration is not None:
+            positive('duration', self.duration)
+        if self.pretrain not in (None, 'I', 'II'):
+            raise ValueError(f"pretrain must be None, 'I' or 'II', got {self.pretrain!r}")
+
+
+@dataclass
+class ExperimentResult:
+    """Time series (arrays of shape (n,)) and metrics of one run.
+
+    t s; x_hand, x_master, x_slave m; f_hand N (force at the operator's hand); f_desired N
+    (renderer output); reference N (see module doc); f_slave_true, f_slave_meas N (the
+    slave's forces at t); outage bool (in an outage interval); evaluated bool.
+    metrics: {'normal': {...}, 'outage': {...}, 'all': {...}} with mae, rmse, max (N), n;
+    plus 'reference_check' (|reference(t) - f_slave_true(t + delay)| in normal intervals),
+    'max_reference' N, 'id_status' counts, 'renderer' counters.
+    """
+    config: ExperimentConfig
+    series: Dict[str, np.ndarray]
+    metrics: Dict[str, object] = field(default_factory=dict)
+
+
+def _stats(err: np.ndarray) -> Dict[str, float]:
+    if err.size == 0:
+        return {'mae': float('nan'), 'rmse': float('nan'), 'max': float('nan'), 'n': 0}
+    a = np.abs(err)
+    return {'mae': float(a.mean()), 'rmse': float(np.sqrt(np.mean(err * err))),
+            'max': float(a.max()), 'n': int(err.size)}
+
+
+def outage_mask(t: np.ndarray, outages, delay: float) -> np.ndarray:
+    """Boolean mask of the outage intervals [start + delay, start + length + 2 delay)."""
+    m = np.zeros(t.shape, dtype=bool)
+    for start, length in outages:
+        m |= (t >= start + delay) & (t < start + length + 2.0 * delay)
+    return m
+
+
+def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> ExperimentResult:
+    """Run one closed-loop experiment (see module doc); keyword overrides patch `config`."""
+    from sim_slave.link import Link, LinkConfig
+    from sim_slave.robot import SlaveRobot
+    from sim_slave.sensor import ForceSensor
+    from sim_slave.slave import SlaveSimulation
+    from sim_slave.vessel import VesselModel, VesselParams
+
+    cfg = config or ExperimentConfig()
+    if overrides:
+        cfg = replace(cfg, **overrides)
+    seed = cfg.seed
+    dt = 1.0 / cfg.rate
+    traj = experiment_trajectory(cfg.experiment, seed=seed)
+    duration = cfg.duration or traj.duration
+    n = int(round(duration * cfg.rate))
+    x0 = traj.sample(0.0)[0]
+
+    link_cfg = LinkConfig(delay=cfg.delay, jitter=cfg.jitter, loss=cfg.loss,
+                          outages=tuple(cfg.outages))
+    to_slave = Link(link_cfg, seed=2 * seed + 1)
+    to_master = Link(link_cfg, seed=2 * seed + 2)
+    vparams = VesselParams()
+    robot = SlaveRobot(rate=cfg.rate, x0=x0)
+    slave = SlaveSimulation(vessel=VesselModel(vparams, seed=seed),
+                            sensor=ForceSensor(noise_std=0.01, seed=seed), robot=robot)
+    twin = VesselModel(vparams, seed=seed)
+    device = HapticDevice(DeviceParams(), dt=dt,
+                          hand_stiffness=cfg.hand_stiffness if cfg.compliant_hand else None,
+                          hand_damping=cfg.hand_damping,
+                          seed=seed)
+    ident = None
+    if cfg.mode == 'ima':
+        ident = make_identifier(window=1.0, rate=cfg.rate)
+    elif cfg.mode == 'ima_thesis':
+        ident = SlidingWindowIdentifier(window=1.0, rate=cfg.rate, offset=cfg.thesis_offset)
+    if ident is not None and cfg.pretrain is not None:
+        pretrain_identifier(ident, cfg.pretrain, seed + 1000, cfg.rate)
+    if cfg.mode == 'dfr':
+        renderer = DfrRenderer(limit=cfg.limit)
+    else:
+        renderer = ImaRenderer(limit=cfg.limit, dt=dt)
+    imp_every = max(1, int(round(cfg.rate / cfg.impedance_rate)))
+
+    keys = ('t', 'x_hand', 'x_master', 'x_slave', 'f_hand', 'f_desired', 'reference',
+            'f_slave_true', 'f_slave_meas')
+    S = {k: np.zeros(n) for k in keys}
+    id_status: Dict[str, int] = {}
+    cmd = x0
+    f_des = 0.0
+    imp = None
+    ima = cfg.mode != 'dfr'
+    delay = cfg.delay
+    for k in range(n):
+        t = k * dt
+        xh, vh, ah = traj.sample(t)
+        dev = device.step(f_des, xh, vh, ah)
+        to_slave.send(t, dev.x)
+        got = to_slave.receive(t)
+        if got is not None:
+            cmd = got
+        s = slave.step(t, cmd)
+        if ident is not None:
+            out = ident.update(s.x, s.xd, s.xdd, s.f_meas)
+            if out is not None:
+                imp = out
+            id_status[ident.status] = id_status.get(ident.status, 0) + 1
+        to_master.send(t, (imp if (k % imp_every == 0) else None, s.f_meas))
+        pkt = to_master.receive(t)
+        if pkt is not None:
+            if ima:
+                if pkt[0] is not None:
+                    renderer.set_impedance(pkt[0])
+            else:
+                renderer.set_force(pkt[1])
+        f_des = (renderer.desired_force(dev.x, dev.xd, dev.xdd) if ima
+                 else renderer.desired_force())
+        ref = twin.force(t + delay, dev.x, dev.xd)
+        S['t'][k] = t
+        S['x_hand'][k] = xh
+        S['x_master'][k] = dev.x
+        S['x_slave'][k] = s.x
+        S['f_hand'][k] = dev.f_hand
+        S['f_desired'][k] = f_des
+        S['reference'][k] = ref
+        S['f_slave_true'][k] = s.f_true
+        S['f_slave_meas'][k] = s.f_meas
+
+    t = S['t']
+    out_m = outage_mask(t, cfg.outages, delay)
+    evaluated = t >= 1.5 + 2.0 * delay
+    S['outage'] = out_m
+    S['evaluated'] = evaluated
+    err = S['f_hand'] - S['reference']
+    metrics: Dict[str, object] = {
+        'normal': _stats(err[evaluated & ~out_m]),
+        'outage': _stats(err[evaluated & out_m]),
+        'all': _stats(err[evaluated]),
+        'max_reference': float(np.abs(S['reference']).max()),
+    }
+    # reference check: twin (master motion, t + delay) vs the slave's own true force at t + delay
+    d = int(round(delay * cfg.rate))
+    if d < n:
+        chk = S['reference'][:n - d] - S['f_slave_true'][d:]
+        sel = (evaluated & ~out_m)[:n - d]
+        metrics['reference_check'] = _stats(chk[sel])
+    metrics['id_status'] = id_status
+    if ima:
+        metrics['renderer'] = {'switches': renderer.n_switches, 'ignored': renderer.n_ignored,
+                               'clamped': renderer.n_clamped}
+    else:
+        metrics['renderer'] = {'updates': renderer.n_updates, 'clamped': renderer.n_clamped}
+    metrics['link'] = {'to_slave': to_slave.stats.as_dict(),
+                       'to_master': to_master.stats.as_dict()}
+    return ExperimentResult(cfg, S, metrics)
+
+
+def pretrain_identifier(ident, experiment: str, seed: int, rate: float = 1000.0) -> None:
+    """Feed `ident` the slave data of a scripted experiment on the default phantom (no link)."""
+    from sim_slave.robot import SlaveRobot
+    from sim_slave.sensor import ForceSensor
+    from sim_slave.slave import SlaveSimulation
+    from sim_slave.vessel import VesselModel, VesselParams
+
+    traj = experiment_trajectory(experiment, seed=seed)
+    slave = SlaveSimulation(vessel=VesselModel(VesselParams(), seed=seed),
+                            sensor=ForceSensor(noise_std=0.01, seed=seed),
+                            robot=SlaveRobot(rate=rate, x0=traj.sample(0.0)[0]))
+    for k in range(int(round(traj.duration * rate))):
+        t = k / rate
+        s = slave.step(t, traj.sample(t)[0])
+        ident.update(s.x, s.xd, s.xdd, s.f_meas)
+
+
+def compare_modes(modes=MODES, **config) -> Dict[str, ExperimentResult]:
+    """Run the same configuration (same seeds) for each mode."""
+    return {m: run_experiment(ExperimentConfig(mode=m, **config)) for m in modes}

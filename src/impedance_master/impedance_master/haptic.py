@@ -1,0 +1,192 @@
+"""Simulated master haptic device: a DC motor on a capstan drive with a current loop and the
+PID force loop of thesis Eq. 36, pushing against the operator's hand.
+
+Sign convention (same as the slave's force): x is the insertion (m, + inserting); a positive
+force at the hand resists insertion (the device pushes the hand back, -x).
+
+Model (SI):
+* motor force on the handle ``F_mot = (kt / r) i``; electrical ``L di/dt = V - R i + (ke/r) x'``
+  (back-EMF of the capstan's rotation), voltage saturated to +-v_max, current to +-i_max;
+* current loop: PI at the substep rate (``substeps`` per control period), anti-windup;
+* force loop (Eq. 36), once per control period on the handle force sensor f_m:
+  ``i_ref = kp e + kd de/dt + ki int e  (+ f_d r / kt feed-forward)``, e = f_d - f_m
+  (the thesis writes e = f_m - f_d with the opposite current sign);
+* handle: moving mass M (handle + reflected rotor inertia), Coulomb + viscous friction;
+* the hand: RIGID (the handle follows the scripted trajectory; the force at the hand is
+  ``M x'' + F_mot + friction``) or COMPLIANT (a spring-damper of stiffness hand_stiffness
+  and damping hand_damping around the scripted trajectory drives the handle, which then
+  moves under the net force).
+"""
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import dataclass, fields
+from typing import NamedTuple, Optional
+
+from impedance_master._check import finite, nonneg, positive, seed as check_seed
+
+
+@dataclass(frozen=True)
+class DeviceParams:
+    """Parameters of the simulated haptic device (a small capstan-driven DC motor).
+
+    moving_mass kg 0.15; coulomb_friction N 0.01; viscous_friction N s/m 0.05;
+    kt N m/A 0.025 (ke V s/rad equal); radius m 0.0125 (force constant 2 N/A);
+    resistance ohm 1.5; inductance H 6e-4 (electrical time constant 0.4 ms);
+    v_max V 12; i_max A 2 (4 N peak); current loop kp_i V/A 3.8, ki_i V/(A s) 9400
+    (about 1 kHz bandwidth); force loop (Eq. 36) kp A/N 0.2, ki A/(N s) 60, kd A s/N 0.0,
+    feedforward True; force-sensor noise N 0.002; substeps 10 per control period.
+    """
+
+    moving_mass: float = 0.15
+    coulomb_friction: float = 0.01
+    viscous_friction: float = 0.05
+    kt: float = 0.025
+    radius: float = 0.0125
+    resistance: float = 1.5
+    inductance: float = 6e-4
+    v_max: float = 12.0
+    i_max: float = 2.0
+    kp_i: float = 3.8
+    ki_i: float = 9400.0
+    kp: float = 0.35
+    ki: float = 150.0
+    kd: float = 0.0
+    feedforward: bool = True
+    sensor_noise: float = 0.002
+    substeps: int = 10
+
+    def __post_init__(self):
+        for f in fields(self):
+            if f.name in ('feedforward', 'substeps'):
+                continue
+            nonneg(f.name, getattr(self, f.name))
+        for name in ('moving_mass', 'kt', 'radius', 'resistance', 'inductance', 'v_max',
+                     'i_max'):
+            positive(name, getattr(self, name))
+        if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) \
+                or not 1 <= self.substeps <= 1000:
+            raise ValueError(f'substeps must be an int in 1..1000, got {self.substeps!r}')
+
+
+class DeviceSample(NamedTuple):
+    """One control period of the device: force at the hand (N, true), handle position (m),
+    velocity (m/s), acceleration (m/s^2), motor current (A), measured handle force (N)."""
+    f_hand: float
+    x: float
+    xd: float
+    xdd: float
+    current: float
+    f_measured: float
+
+
+class HapticDevice:
+    """DC-motor haptic device with current loop and PID force loop (thesis Eq. 36).
+
+    Args:
+        params: DeviceParams (defaults if None).
+        dt: s, control period (1 kHz).
+        hand_stiffness: N/m; None = rigid hand (handle follows the script exactly).
+        hand_damping: N s/m (compliant hand only; 15 N s/m, a firm grasp: with much less the
+            force loop rings against the hand-handle resonance).
+        seed: force-sensor noise seed.
+    """
+
+    def __init__(self, params: Optional[DeviceParams] = None, dt: float = 1e-3,
+                 hand_stiffness: Optional[float] = None, hand_damping: float = 15.0,
+                 seed: Optional[int] = 0):
+        self.p = params or DeviceParams()
+        if not isinstance(self.p, DeviceParams):
+            raise ValueError(f'params must be a DeviceParams, got {type(params).__name__}')
+        self.dt = positive('dt', dt)
+        self.hand_stiffness = None if hand_stiffness is None else positive(
+            'hand_stiffness', hand_stiffness)
+        self.hand_damping = nonneg('hand_damping', hand_damping)
+        self.seed = check_seed('seed', seed)
+        self.reset()
+
+    def reset(self, x: float = 0.0) -> None:
+        self.i = 0.0
+        self._int_i = 0.0
+        self._int_f = 0.0
+        self._e_last = 0.0
+        self._f_meas = 0.0
+        self.x = finite('x', x)
+        self.xd = 0.0
+        self.xdd = 0.0
+        self._started = False
+        self._rng = random.Random(self.seed)
+
+    def _friction(self, v: float) -> float:
+        p = self.p
+        return p.coulomb_friction * math.tanh(v / 1e-3) + p.viscous_friction * v
+
+    def step(self, f_desired: float, x_hand: float, xd_hand: float, xdd_hand: float = 0.0
+             ) -> DeviceSample:
+        """Advance one control period tracking f_desired (N) against the hand.
+
+        x_hand, xd_hand, xdd_hand: the scripted hand trajectory at this period (m, m/s, m/s^2).
+        Returns the DeviceSample at the end of the period.
+        """
+        fd = finite('f_desired', f_desired)
+        xh = finite('x_hand', x_hand)
+        vh = finite('xd_hand', xd_hand)
+        ah = finite('xdd_hand', xdd_hand)
+        p = self.p
+        if not self._started:
+            self.x, self.xd = xh, vh
+            self._started = True
+        kf = p.kt / p.radius
+        # --- force loop, Eq. 36 (on the last measured handle force) ---
+        e = fd - self._f_meas
+        de = (e - self._e_last) / self.dt
+        self._e_last = e
+        i_ref = p.kp * e + p.kd * de + self._int_f
+        if p.feedforward:
+            i_ref += fd / kf
+        if i_ref > p.i_max or i_ref < -p.i_max:
+            i_ref = max(-p.i_max, min(p.i_max, i_ref))  # saturated: no integration (anti-windup)
+        else:
+            self._int_f += p.ki * e * self.dt
+        # --- current loop and mechanics, substeps ---
+        n = p.substeps
+        h = self.dt / n
+        decay = math.exp(-p.resistance * h / p.inductance)
+        gain = (1.0 - decay) / p.resistance
+        rigid = self.hand_stiffness is None
+        x, v = self.x, self.xd
+        f_hand = 0.0
+        a = 0.0
+        for s in range(n):
+            ei = i_ref - self.i
+            volt = p.kp_i * ei + self._int_i
+            if volt > p.v_max or volt < -p.v_max:
+                volt = max(-p.v_max, min(p.v_max, volt))
+            else:
+                self._int_i += p.ki_i * ei * h
+            if rigid:
+                frac = (s + 1) / n
+                v = self.xd + (vh - self.xd) * frac
+            emf = p.kt * v / p.radius
+            # exact step of L di/dt = V - R i + emf for a held voltage
+            self.i = self.i * decay + (volt + emf) * gain
+            if self.i > p.i_max:
+                self.i = p.i_max
+            elif self.i < -p.i_max:
+                self.i = -p.i_max
+            f_mot = kf * self.i
+            if rigid:
+                a = ah
+                f_hand = p.moving_mass * a + f_mot + self._friction(v)
+            else:
+                f_hand = self.hand_stiffness * (xh - x) + self.hand_damping * (vh - v)
+                a = (f_hand - f_mot - self._friction(v)) / p.moving_mass
+                v += a * h
+                x += v * h
+        if rigid:
+            x, v = xh, vh
+        self.x, self.xd, self.xdd = x, v, a
+        noise = self._rng.gauss(0.0, p.sensor_noise) if p.sensor_noise > 0 else 0.0
+        self._f_meas = f_hand + noise
+        return DeviceSample(f_hand, x, v, a, self.i, self._f_meas)
