@@ -136,7 +136,10 @@ def run_node(node_factory: Callable[..., Node], args=None, executor: str = 'even
         exe = make_executor(executor)
         exe.add_node(node)
         node.get_logger().info('running; Ctrl-C to stop')
-        exe.spin()
+        # spin_once in a loop, not spin(): EventsExecutor.spin() stays inside C++ and never
+        # sees Ctrl-C (KeyboardInterrupt is only raised when control returns to Python).
+        while rclpy.ok():
+            exe.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:  # a failing node says why and exits non-zero
