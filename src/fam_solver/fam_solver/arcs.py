@@ -59,14 +59,12 @@ _COEF = _coef_matrix()
 _POW = np.arange(_K, dtype=float)
 
 
+_CCOEF = _COEF[:, 0::2] + 1j * _COEF[:, 1::2]   # (K, 4) complex: g, q, g', q'
+
+
 def _series(phi):
-    V = phi[..., None] ** _POW
-    R = V @ _COEF
-    g = R[..., 0] + 1j * R[..., 1]
-    q = R[..., 2] + 1j * R[..., 3]
-    gp = R[..., 4] + 1j * R[..., 5]
-    qp = R[..., 6] + 1j * R[..., 7]
-    return g, q, gp, qp
+    R = (phi[..., None] ** _POW) @ _CCOEF
+    return R[..., 0], R[..., 1], R[..., 2], R[..., 3]
 
 
 def _closed(phi):

@@ -117,8 +117,9 @@ def solve_elastica(cat: Catheter, loads: Loads, rtol: float = 1e-12, atol: float
     else:
         M0, Th = 0.0, 0.0
         s = 0.0
-        ds = min(1.0, 2.0 / max(alpha, 1e-300)) if alpha > 2 else 1.0
+        ds = min(1.0, 0.6 / alpha)
         prev = None
+        th_tip = 0.0
         total = 0
         conv = True
         while s < 1.0:
@@ -150,14 +151,15 @@ def solve_elastica(cat: Catheter, loads: Loads, rtol: float = 1e-12, atol: float
                 x = x + dx
                 if it >= 12 and ds > 1e-4:
                     break
-            if ok and (s > 0 and abs(x[0] - M0) > 3.0 * mscale and ds > 1e-3):
-                ok = False  # too large a jump: possibly another branch
+            if ok and abs(yend[0] - th_tip) > 0.4 and ds > 1e-3:
+                ok = False  # too large a jump of the tip angle: possibly another branch
             if ok:
+                th_tip = yend[0]
                 prev = (s, M0, Th)
                 M0 = x[0]
                 Th = x[1] if follower else 0.0
                 s = s_new
-                ds = min(ds * 1.5, 0.25 if alpha > 2 else 1.0)
+                ds = min(ds * 1.5, 0.25)
             else:
                 ds *= 0.5
                 if ds < 1e-7:

@@ -91,15 +91,13 @@ class _Load:
 def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True):
     """Residual r (B, N) of the exact arc model and the Jacobian factors.
 
-    Returns r, (A, Bd, C, e), extras where dMbar_i/dphi_j = A_i (j < i), Bd_i (j = i),
-    C_j + e_i (j > i). ``extras`` holds theta_end and per-load (force, lever at arc) for
-    the stability check.
+    Returns r, (A, Bd, C, e), th_end where dMbar_i/dphi_j = A_i (j < i), Bd_i (j = i),
+    C_j + e_i (j > i); Im(conj(X) F) is written -Im(X conj(F)) (fewer numpy calls).
     """
     B, N = phi.shape
     th_end = np.cumsum(phi, axis=1)
-    E = np.exp(1j * (th_end - phi))
+    lE = l * np.exp(1j * (th_end - phi))
     G, Q, GP, QP = arc_funcs(phi)
-    lE = l * E
     d = lE * G
     P_end = np.cumsum(d, axis=1)
     lEq = lE * Q
@@ -117,39 +115,36 @@ def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True):
             if tip_rot is None:
                 tip_rot = np.exp(1j * th_end[:, -1])
             F = F * tip_rot
-        Fc = F[:, None]
+        Fs = np.conj(F)[:, None]
         if tau >= 1.0:
-            pk = P_end[:, a]
-            z_a = lEq[:, a]
+            k = a + 1
+            rel = P_end[:, a:a + 1] - P_end[:, :k]     # p_k - P_end,i for i <= a (0 at a)
+            Z = rel + lEq[:, :k]
+            ZF = Z * Fs                                  # Im(conj(Z) F) = -Im(Z conj F)
+            Mbar[:, :k] -= ZF.imag
             if jac:
-                zp_a = lE[:, a] * QP[:, a]
-                gp_a = lE[:, a] * GP[:, a]
-        else:
-            gt, qt, gpt, qpt = arc_funcs(phi[:, a] * tau)
-            pk = P_end[:, a] - d[:, a] + lE[:, a] * tau * gt
-            z_a = lE[:, a] * (tau * tau) * qt
-            if jac:
-                zp_a = lE[:, a] * (tau ** 3) * qpt
-                gp_a = lE[:, a] * (tau * tau) * gpt
-        rel = pk[:, None] - P_end[:, :a]           # (B, a): p_k - P_end,i for i < a
+                if ld.follower:
+                    e[:, :k] += ZF.real
+                    Bd[:, :k] += ZF.real
+                else:
+                    A[:, :k] -= ZF.real
+                Bd[:, :k] -= ((1j * rel + lE[:, :k] * QP[:, :k]) * Fs).imag
+                C[:, :k] -= ((lE[:, :k] * GP[:, :k] + 1j * rel) * Fs).imag
+            continue
+        gt, qt, gpt, qpt = arc_funcs(phi[:, a] * tau)
+        pk = P_end[:, a] - d[:, a] + lE[:, a] * tau * gt
+        rel = pk[:, None] - P_end[:, :a]
         Z = np.empty((B, a + 1), dtype=complex)
         Z[:, :a] = rel + lEq[:, :a]
-        Z[:, a] = z_a
-        Zc = np.conj(Z)
-        Mbar[:, :a + 1] += (Zc * Fc).imag
+        Z[:, a] = lE[:, a] * (tau * tau) * qt
+        ZF = Z * Fs
+        Mbar[:, :a + 1] -= ZF.imag
         if jac:
-            dot = (Zc * Fc).real                    # Re(conj(Z) F) = Z . F
-            if ld.follower:
-                e[:, :a + 1] += dot
-                Bd[:, :a + 1] += dot
-            else:
-                A[:, :a + 1] -= dot
-            # diagonal: rows i < a rotate the distal lever, plus the arc's own mean point
-            Bd[:, :a] += (np.conj(1j * rel + lE[:, :a] * QP[:, :a]) * Fc).imag
-            Bd[:, a] += (np.conj(zp_a) * F).imag
-            # columns j <= a (for rows i < j)
-            C[:, :a] += (np.conj(lE[:, :a] * GP[:, :a] + 1j * rel) * Fc).imag
-            C[:, a] += (np.conj(gp_a) * F).imag
+            A[:, :a + 1] -= ZF.real
+            Bd[:, :a] -= ((1j * rel + lE[:, :a] * QP[:, :a]) * Fs).imag
+            Bd[:, a] -= (lE[:, a] * (tau ** 3) * qpt * Fs[:, 0]).imag
+            C[:, :a] -= ((lE[:, :a] * GP[:, :a] + 1j * rel) * Fs).imag
+            C[:, a] -= (lE[:, a] * (tau * tau) * gpt * Fs[:, 0]).imag
     r = phi - w * Mbar
     if jac:
         return r, (A, Bd, C, e), th_end
@@ -187,20 +182,14 @@ def _structured_solve(w, fac, rhs):
         P += xi
         U -= C[:, i, None] * xi
         S -= xi
-    # final U, S must vanish: U0 + u U1 + s U2 = 0, S0 + u S1 + s S2 = 0
-    a11, a12, a21, a22 = U[:, 1] - U[:, 0] * 0, U[:, 2], S[:, 1], S[:, 2]
-    # runs 1 and 2 include the particular part (rhs): subtract run 0 to get homogeneous parts
-    a11 = U[:, 1] - U[:, 0]
-    a12 = U[:, 2] - U[:, 0]
-    a21 = S[:, 1] - S[:, 0]
-    a22 = S[:, 2] - S[:, 0]
-    b1 = -U[:, 0]
-    b2 = -S[:, 0]
+    # final U, S must vanish; run 0 is the particular part, runs 1 and 2 are homogeneous
+    a11, a12, a21, a22 = U[:, 1], U[:, 2], S[:, 1], S[:, 2]
+    b1, b2 = -U[:, 0], -S[:, 0]
     det = a11 * a22 - a12 * a21
     det = np.where(det == 0, 1e-300, det)
     u = (b1 * a22 - a12 * b2) / det
     s = (a11 * b2 - a21 * b1) / det
-    x = X[:, :, 0] + u[:, None] * (X[:, :, 1] - X[:, :, 0]) + s[:, None] * (X[:, :, 2] - X[:, :, 0])
+    x = X[:, :, 0] + u[:, None] * X[:, :, 1] + s[:, None] * X[:, :, 2]
     return x
 
 
@@ -245,93 +234,186 @@ class _Problem:
         return out, self.tip_moment * scale
 
 
-def _tol(phi):
-    return 1e-13 + 1e-12 * np.max(np.abs(phi), axis=1)
-
-
-def _newton(prob: _Problem, phi, scale, max_iter, step_limit=0.6, bezier=None):
-    """Damped Newton at a fixed load scale. Returns phi, converged (B,), iterations, r."""
-    loads, m = prob.loads(scale)
-    B, N = phi.shape
-    conv = np.zeros(B, dtype=bool)
-    best = phi.copy()
-    best_res = np.full(B, np.inf)
-    it = 0
-    J = None
-    fac = None
-    for it in range(max_iter + 1):
-        r, fac, _ = _evaluate(phi, prob.l, prob.w, loads, m, jac=True)
-        if bezier is not None:
-            r = bezier.residual(phi, loads, m)
-        res = np.max(np.abs(r), axis=1) if N else np.zeros(B)
-        res = np.where(np.isfinite(res), res, np.inf)
-        improve = res < best_res
-        best = np.where(improve[:, None], phi, best)
-        best_res = np.where(improve, res, best_res)
-        conv = res <= _tol(phi)
-        if np.all(conv) or it == max_iter:
-            break
-        dx, J = _newton_step(prob.w, fac, r)
-        dx = np.where(np.isfinite(dx), dx, 0.0)
-        mx = np.max(np.abs(dx), axis=1)
-        scale_dx = np.where(mx > step_limit, step_limit / np.maximum(mx, 1e-300), 1.0)
-        dx = dx * scale_dx[:, None]
-        dx[conv] = 0.0
-        phi = phi + dx
-    conv = best_res <= _tol(best)
-    return best, conv, it, best_res, fac
-
-
-def _build_problem(cat: Catheter, n: int, tip_force, follower, tip_moment, point_forces):
-    l = cat.length / n
-    w = l / cat.ei
+def _make_problem(n, L, EI, tip_force, follower, tip_moment, point_forces):
+    """Core problem of n equal arcs; point_forces: list of (s fraction, complex (B,))."""
+    l = L / n
+    w = l / EI
     pfs = []
     for s, F in point_forces:
         x = s * n
-        a = min(int(math.ceil(x)) - 1, n - 1)
-        a = max(a, 0)
-        tau = x - a
-        if tau >= 1.0 - 1e-12:
+        a = min(max(int(math.ceil(x - 1e-9)) - 1, 0), n - 1)
+        tau = min(max(x - a, 0.0), 1.0)
+        if tau >= 1.0 - 1e-9:
             tau = 1.0
         pfs.append((a, tau, F))
     return _Problem(n, l, w, tip_force, follower, tip_moment, pfs)
 
 
-def _solve(prob: _Problem, B, arc_model='exact', max_iter=60):
-    """Globalised solve (direct damped Newton, continuation fallback) for B cases."""
-    N = prob.n
-    bez = None
-    if arc_model == 'bezier':
-        from .bezier import BezierModel
-        bez = BezierModel(prob)
-    phi0 = np.zeros((B, N))
-    iters = np.zeros(B, dtype=int)
-    zero = np.zeros(B, dtype=bool)
-    tf = np.abs(prob.tip_force) + np.abs(prob.tip_moment)
+def _build_problem(cat: Catheter, n: int, tip_force, follower, tip_moment, point_forces):
+    return _make_problem(n, cat.length, cat.ei, tip_force, follower, tip_moment, point_forces)
+
+
+def _tol(phi):
+    return 1e-13 + 1e-12 * np.max(np.abs(phi), axis=1)
+
+
+def _alpha(prob: _Problem, cat_len_over_ei_l2=None):
+    """Dimensionless load size per case: sum |F| L^2/EI + |m| L/EI, (B,)."""
+    L = prob.l * prob.n
+    EI = prob.l / prob.w
+    f = np.abs(prob.tip_force)
     for _, _, F in prob.point_forces:
-        tf = tf + np.abs(F)
-    zero = tf == 0
-    # direct attempt
-    phi, conv, it, res, fac = _newton(prob, phi0, 1.0, 12 if bez is None else 25, bezier=bez)
+        f = f + np.abs(F)
+    return f * L * L / EI + np.abs(prob.tip_moment) * L / EI
+
+
+def _repeat(prob: _Problem, k):
+    rep = lambda x: np.repeat(x, k)  # noqa: E731
+    return _Problem(prob.n, prob.l, prob.w, rep(prob.tip_force), prob.follower,
+                    rep(prob.tip_moment), [(a, t, rep(F)) for a, t, F in prob.point_forces])
+
+
+class _BezierResidual:
+    """Bezier residual and (for small N) its finite-difference Jacobian."""
+    FD_MAX_N = 24
+
+    def __init__(self, prob):
+        from .bezier import BezierModel
+        self.prob = prob
+        self.model = BezierModel(prob)
+        self._rep = None
+
+    def residual(self, phi, loads, m):
+        return self.model.residual(phi, loads, m)
+
+    def jacobian(self, phi, scale):
+        B, N = phi.shape
+        if N > self.FD_MAX_N:
+            return None
+        if self._rep is None or self._rep[0] != B:
+            rp = _repeat(self.prob, N + 1)
+            self._rep = (B, rp, BezierModel_for(rp))
+        _, rp, model = self._rep
+        h = 1e-7 * np.maximum(1.0, np.abs(phi))
+        P = np.repeat(phi, N + 1, axis=0).reshape(B, N + 1, N)
+        idx = np.arange(N)
+        P[:, idx + 1, idx] += h
+        loads, m = rp.loads(scale)
+        R = model.residual(P.reshape(B * (N + 1), N), loads, m).reshape(B, N + 1, N)
+        return np.transpose((R[:, 1:, :] - R[:, :1, :]) / h[:, :, None], (0, 2, 1))
+
+
+def BezierModel_for(prob):
+    from .bezier import BezierModel
+    return BezierModel(prob)
+
+
+def _newton(prob: _Problem, phi, scale, max_iter, step_limit=0.6, bezier=None):
+    """Damped Newton at a fixed load scale.
+
+    Returns phi (best iterate), converged (B,), iterations, max|r| (B,), Jacobian factors
+    of the exact model at the returned phi (for the branch check).
+    """
+    loads, m = prob.loads(scale)
+    B, N = phi.shape
+    best = phi.copy()
+    best_res = np.full(B, np.inf)
+    it = 0
+    fac = fac_best = None
+    for it in range(max_iter + 1):
+        r, fac, _ = _evaluate(phi, prob.l, prob.w, loads, m, jac=True)
+        if bezier is not None:
+            r = bezier.residual(phi, loads, m)
+        res = np.max(np.abs(r), axis=1)
+        res = np.where(np.isfinite(res), res, np.inf)
+        improve = res < best_res
+        if np.all(improve):
+            best, best_res, fac_best = phi, res, fac
+        else:
+            best = np.where(improve[:, None], phi, best)
+            best_res = np.where(improve, res, best_res)
+            fac_best = tuple(np.where(improve[:, None], x, y) for x, y in zip(fac, fac_best))
+        conv = res <= _tol(phi)
+        if np.all(conv) or it == max_iter:
+            break
+        Jb = bezier.jacobian(phi, scale) if bezier is not None else None
+        if Jb is not None:
+            try:
+                dx = np.linalg.solve(Jb, -r[:, :, None])[:, :, 0]
+            except np.linalg.LinAlgError:
+                dx, _ = _newton_step(prob.w, fac, r)
+        else:
+            dx, _ = _newton_step(prob.w, fac, r)
+        dx = np.where(np.isfinite(dx), dx, 0.0)
+        mx = np.max(np.abs(dx), axis=1)
+        dx *= np.where(mx > step_limit, step_limit / np.maximum(mx, 1e-300), 1.0)[:, None]
+        dx[conv] = 0.0
+        phi = phi + dx
+    conv = best_res <= _tol(best)
+    return best, conv, it, best_res, fac_best
+
+
+def _principal_ok(prob: _Problem, fac):
+    """Branch check for a directly solved case: every eigenvalue of the Newton Jacobian has a
+    positive real part (J = I at zero load; reaching another branch means an eigenvalue
+    crossed zero). (B,) bool; N <= DENSE_MAX_N only."""
+    J = _dense_jacobian(prob.w, fac)
+    ev = np.linalg.eigvals(J)
+    return np.min(ev.real, axis=1) > 1e-9
+
+
+COARSE_N = 32
+
+
+def _solve(prob: _Problem, B, arc_model='exact'):
+    """Globalised solve for B cases.
+
+    1. zero load -> exactly straight;
+    2. N <= 64: damped Newton from the straight shape with the full load; accepted when it
+       converges and (load parameter <= 2, or the branch check passes);
+       N > 64: Newton from the coarse (N = 32) solution interpolated onto the arcs;
+    3. otherwise load continuation from zero (per case).
+    """
+    N = prob.n
+    bez = _BezierResidual(prob) if arc_model == 'bezier' else None
+    alpha = _alpha(prob)
+    zero = alpha == 0
+    iters = np.zeros(B, dtype=int)
+    if N <= DENSE_MAX_N:
+        phi0 = np.zeros((B, N))
+    else:
+        L = prob.l * N
+        coarse = _make_problem(COARSE_N, L, prob.l / prob.w, prob.tip_force, prob.follower,
+                               prob.tip_moment, [((a + t) / N, F) for a, t, F in prob.point_forces])
+        pc, cc, ic, _ = _solve(coarse, B, 'exact')
+        iters += ic
+        # curvature at the coarse midpoints -> fine arcs (piecewise linear), phi = kappa l
+        sc = (np.arange(COARSE_N) + 0.5) / COARSE_N
+        sf = (np.arange(N) + 0.5) / N
+        phi0 = np.stack([np.interp(sf, sc, pc[b]) for b in range(B)]) * (COARSE_N / N)
+    maxit = 10 if bez is None else 30
+    phi, conv, it, res, fac = _newton(prob, phi0, 1.0, maxit, bezier=bez)
     iters += it
-    ok = conv.copy()
-    if N <= 400 and np.any(ok):
-        # guard against having jumped to another branch: det(J) must stay positive
-        sd = _sign_det(prob.w, fac, None)
-        if sd is not None:
-            ok &= sd > 0
-    ok |= zero
+    ok = conv & ~zero
+    check = ok & (alpha > 2.0)
+    if np.any(check) and N <= DENSE_MAX_N:
+        idx = np.nonzero(check)[0]
+        good = _principal_ok(prob, tuple(x[idx] for x in fac))
+        ok[idx[~good]] = False
     phi[zero] = 0.0
+    res[zero] = 0.0
+    conv |= zero
+    ok |= zero
     if not np.all(ok):
         idx = np.nonzero(~ok)[0]
         sub = _subproblem(prob, idx)
-        p2, c2, it2, r2 = _continuation(sub, len(idx), arc_model, bez_cls=bez is not None)
-        phi[idx] = p2
-        conv[idx] = c2
-        res[idx] = r2
+        p2, c2, it2, r2 = _continuation(sub, len(idx), arc_model)
+        # keep the continuation result unless it failed and the direct one converged
+        take = c2 | ~conv[idx]
+        phi[idx[take]] = p2[take]
+        conv[idx[take]] = c2[take]
+        res[idx[take]] = r2[take]
         iters[idx] += it2
-    res = np.where(zero, 0.0, res)
-    conv = conv | zero
     return phi, conv, iters, res
 
 
@@ -340,11 +422,12 @@ def _subproblem(prob: _Problem, idx):
                     prob.tip_moment[idx], [(a, t, F[idx]) for a, t, F in prob.point_forces])
 
 
-def _continuation(prob: _Problem, B, arc_model, bez_cls=False):
-    """Load the catheter from zero in adaptive steps (secant predictor); per case."""
-    bez = None
-    if bez_cls:
-        from .bezier import BezierModel
+MAX_CONTINUATION_ITERS = 600
+
+
+def _continuation(prob: _Problem, B, arc_model):
+    """Load each case from zero in adaptive steps (secant predictor, at most 0.8 rad change
+    of the tip angle per step, at most MAX_CONTINUATION_ITERS Newton iterations)."""
     N = prob.n
     out = np.zeros((B, N))
     conv = np.zeros(B, dtype=bool)
@@ -352,51 +435,48 @@ def _continuation(prob: _Problem, B, arc_model, bez_cls=False):
     res_out = np.zeros(B)
     for b in range(B):
         sub = _subproblem(prob, np.array([b]))
-        if bez_cls:
-            bez = BezierModel(sub)
-        s = 0.0
-        ds = 0.125
+        bez = _BezierResidual(sub) if arc_model == 'bezier' else None
+        # first step: the linear (small deflection) tip angle at full load sets its size
+        loads, m = sub.loads(1.0)
+        r0, fac0, _ = _evaluate(np.zeros((1, N)), sub.l, sub.w, loads, m)
+        lin, _ = _newton_step(sub.w, fac0, r0)
+        th_lin = float(np.max(np.abs(np.cumsum(lin[0]))))
+        s, ds = 0.0, min(0.25, 0.3 / max(th_lin, 1e-12))
         phi = np.zeros((1, N))
-        prev = None
-        prev_s = 0.0
-        total_it = 0
-        sign0 = 1.0
-        ok_all = True
+        prev, prev_s = None, 0.0
+        total = 0
         res = np.array([0.0])
-        while s < 1.0 and ds > 1e-5:
+        unstable = False
+        while s < 1.0 and ds >= 1e-5 and total < MAX_CONTINUATION_ITERS:
             s_new = min(1.0, s + ds)
-            guess = phi
-            if prev is not None and s > prev_s:
+            if prev is not None:
                 guess = phi + (phi - prev) * ((s_new - s) / (s - prev_s))
-            p, c, it, r, fac = _newton(sub, guess, s_new, 15, bezier=bez)
-            total_it += it
-            okstep = bool(c[0])
-            if okstep and N <= 400:
-                sd = _sign_det(sub.w, fac, None)
-                if sd is not None and sd[0] != sign0:
-                    # crossed a critical point: accept only with small steps
-                    if ds > 1e-3:
-                        okstep = False
+            else:
+                guess = lin * s_new
+            p, c, it, r, fac = _newton(sub, guess, s_new, 8 if bez is None else 20, bezier=bez)
+            total += it
+            okstep = bool(c[0]) and (abs(float(np.sum(p - phi))) <= 0.5 or ds < 1e-3)
+            if okstep and N <= DENSE_MAX_N and not unstable:
+                if not _principal_ok(sub, fac)[0]:
+                    if ds < 1e-3:
+                        unstable = True       # crossed a critical load: keep following
                     else:
-                        sign0 = sd[0]
-            if okstep and np.max(np.abs(np.cumsum(p - phi))) > 0.8 and ds > 1e-3:
-                okstep = False
+                        okstep = False
             if okstep:
                 prev, prev_s = phi, s
-                phi, s = p, s_new
-                res = r
+                phi, s, res = p, s_new, r
                 ds = min(ds * 2.0, 0.5)
             else:
                 ds *= 0.5
-        if s < 1.0:
-            ok_all = False
-            p, c, it, r, _ = _newton(sub, phi, 1.0, 40, bezier=bez)
-            total_it += it
-            phi, res = p, r
-            ok_all = bool(c[0])
+        ok = s >= 1.0
+        if not ok:
+            p, c, it, r, _ = _newton(sub, phi, 1.0, 30, bezier=bez)
+            total += it
+            if np.isfinite(r[0]):
+                phi, res, ok = p, r, bool(c[0])
         out[b] = phi[0]
-        conv[b] = ok_all
-        iters[b] = total_it
+        conv[b] = ok
+        iters[b] = total
         res_out[b] = res[0]
     return out, conv, iters, res_out
 
