@@ -18,6 +18,9 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'impedance_identifier_node = impedance_master.impedance_identifier_node:main',
+            'ima_master_node = impedance_master.ima_master_node:main',
+            'sim_haptic_node = impedance_master.sim_haptic_node:main',
         ],
     },
 )

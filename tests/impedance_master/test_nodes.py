@@ -1,0 +1,168 @@
+"""In-process tests of the three impedance_master nodes (private ROS context per test)."""
+import math
+
+import pytest
+from geometry_msgs.msg import WrenchStamped
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+
+from catheter_common.topics import (IMPEDANCE_FIELDS, MASTER_COMMAND, MASTER_LINK_FORCE,
+                                    MASTER_LINK_IMPEDANCE, MASTER_RENDERED_FORCE, QOS_FAST,
+                                    SLAVE_FORCE, SLAVE_IMPEDANCE, SLAVE_JOINT_STATE)
+from impedance_master.ima_master_node import ImaMasterNode, fields_from_msg
+from impedance_master.impedance import Impedance
+from impedance_master.impedance_identifier_node import ImpedanceIdentifierNode
+from impedance_master.sim_haptic_node import MASTER_HAND_FORCE, SimHapticNode
+
+pytestmark = pytest.mark.ros
+
+
+def params(**kw):
+    return [Parameter(k, value=v) for k, v in kw.items()]
+
+
+def collect(node, msg_type, topic):
+    got = []
+    node.create_subscription(msg_type, topic, got.append, QOS_FAST)
+    return got
+
+
+def impedance_msg(imp):
+    d = imp.to_fields()
+    m = JointState()
+    m.name = list(d)
+    m.position = list(d.values())
+    return m
+
+
+def test_identifier_node_publishes_named_models_and_survives_bad_messages(ros):
+    node = ros.add(ImpedanceIdentifierNode(
+        context=ros.context, parameter_overrides=params(identifier='thesis', window=0.1,
+                                                        publish_rate=100.0)))
+    probe = ros.node('probe_ident')
+    got = collect(probe, JointState, SLAVE_IMPEDANCE)
+    pub = probe.create_publisher(JointState, SLAVE_JOINT_STATE, QOS_FAST)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    bad = JointState()
+    bad.position = [float('nan')]
+    bad.effort = [0.1]
+    for n, m in enumerate((bad, JointState())):   # one at a time: depth-1 best effort
+        assert ros.spin_until(lambda: (pub.publish(m), node.diag.get('bad_messages') > n)[1],
+                              5.0)
+    k = [0]
+
+    def feed():
+        for _ in range(20):           # f = 2 x' + 30 x, a sinusoidal insertion
+            t = k[0] * 1e-3
+            k[0] += 1
+            x = 0.03 + 0.01 * math.sin(3.0 * t)
+            xd = 0.03 * math.cos(3.0 * t)
+            m = JointState()
+            m.position = [x, 0.0]
+            m.velocity = [xd, 0.0]
+            m.effort = [2.0 * xd + 30.0 * x, 0.0]
+            pub.publish(m)
+            ros.executor.spin_once(timeout_sec=0.001)
+        return bool(got) and node.diag.get('samples') > 300
+
+    assert ros.spin_until(feed, 30.0)
+    msg = got[-1]
+    assert tuple(msg.name[:5]) == IMPEDANCE_FIELDS
+    assert msg.header.frame_id == 'catheter_base'
+    imp = Impedance.from_fields(fields_from_msg(msg))
+    assert imp.kind == 0 and imp.valid
+    assert node.diag.get('bad_messages') >= 2
+
+
+def test_ima_master_node_renders_the_model_on_the_local_command(ros):
+    node = ros.add(ImaMasterNode(context=ros.context, parameter_overrides=params(
+        mode='ima', rate=200.0, blend_time=0.0, max_rate=1e6)))
+    probe = ros.node('probe_ima')
+    got = collect(probe, WrenchStamped, MASTER_RENDERED_FORCE)
+    pub_cmd = probe.create_publisher(JointState, MASTER_COMMAND, QOS_FAST)
+    pub_imp = probe.create_publisher(JointState, MASTER_LINK_IMPEDANCE, QOS_FAST)
+    assert ros.spin_until(lambda: pub_imp.get_subscription_count() > 0 and got, 10.0)
+    assert got[-1].wrench.force.x == 0.0                     # no model yet
+    imp = Impedance(0.0, 2.0, 5.0, 0.01)
+    expect = imp.force(0.03, 0.01, 0.0)
+
+    def send():
+        cmd = JointState()
+        cmd.position, cmd.velocity, cmd.effort = [0.03, 0.0], [0.01, 0.0], [0.0, 0.0]
+        pub_cmd.publish(cmd)
+        pub_imp.publish(impedance_msg(imp))
+        return got and abs(got[-1].wrench.force.x - expect) < 1e-9
+
+    assert ros.spin_until(send, 10.0)
+    bad = JointState()
+    bad.name = ['m', 'c']
+    bad.position = [1.0]
+    pub_imp.publish(bad)
+    ros.spin_until(lambda: node.diag.get('bad_messages') > 0, 5.0)
+    assert node.diag.get('bad_messages') == 1
+    n = len(got)
+    assert ros.spin_until(lambda: len(got) > n + 5, 5.0)     # keeps rendering
+    assert abs(got[-1].wrench.force.x - expect) < 1e-9
+
+
+def test_ima_master_node_dfr_mode_reflects_the_link_force_clamped(ros):
+    ros.add(ImaMasterNode(context=ros.context,
+                          parameter_overrides=params(mode='dfr', rate=200.0, limit=0.5)))
+    probe = ros.node('probe_dfr')
+    got = collect(probe, WrenchStamped, MASTER_RENDERED_FORCE)
+    pub = probe.create_publisher(WrenchStamped, MASTER_LINK_FORCE, QOS_FAST)
+
+    def send(f, expect):
+        def cond():
+            w = WrenchStamped()
+            w.wrench.force.x = f
+            pub.publish(w)
+            return got and got[-1].wrench.force.x == expect
+        return ros.spin_until(cond, 10.0)
+
+    assert send(0.25, 0.25)
+    assert send(3.0, 0.5)
+
+
+def test_ima_master_node_refuses_an_unknown_mode(ros):
+    with pytest.raises(ValueError, match='mode'):
+        ImaMasterNode(context=ros.context, parameter_overrides=params(mode='pid'))
+
+
+def test_sim_haptic_node_commands_and_delays_the_slave_streams(ros):
+    node = ros.add(SimHapticNode(context=ros.context, parameter_overrides=params(
+        rate=200.0, **{'link.delay': 0.3, 'link.outages': [0.0, 0.0]})))
+    probe = ros.node('probe_haptic')
+    cmds = collect(probe, JointState, MASTER_COMMAND)
+    hand = collect(probe, WrenchStamped, MASTER_HAND_FORCE)
+    delivered = collect(probe, WrenchStamped, MASTER_LINK_FORCE)
+    imps = collect(probe, JointState, MASTER_LINK_IMPEDANCE)
+    pub_f = probe.create_publisher(WrenchStamped, SLAVE_FORCE, QOS_FAST)
+    pub_i = probe.create_publisher(JointState, SLAVE_IMPEDANCE, QOS_FAST)
+    pub_r = probe.create_publisher(WrenchStamped, MASTER_RENDERED_FORCE, QOS_FAST)
+    assert ros.spin_until(lambda: len(cmds) > 5 and pub_f.get_subscription_count() > 0, 10.0)
+    c = cmds[-1]
+    assert c.name[0] == 'insertion' and 0.0 <= c.position[0] <= 0.06
+    assert len(c.effort) == 2 and c.header.frame_id == 'catheter_base'
+    w = WrenchStamped()
+    w.wrench.force.x = 0.123
+    t_send = node.get_clock().now()
+    pub_f.publish(w)
+    pub_i.publish(impedance_msg(Impedance(0.0, 1.0, 2.0, 0.0)))
+    assert ros.spin_until(lambda: delivered and imps, 10.0)
+    waited = (node.get_clock().now() - t_send).nanoseconds * 1e-9
+    assert waited >= 0.3 - 0.02                      # not before the link's delay
+    assert delivered[-1].wrench.force.x == 0.123
+    assert Impedance.from_fields(fields_from_msg(imps[-1])).c == 1.0
+    # the device tracks the rendered force at the hand
+    r = WrenchStamped()
+    r.wrench.force.x = 0.2
+
+    def tracked():
+        pub_r.publish(r)
+        return hand and abs(hand[-1].wrench.force.x - 0.2) < 0.02
+    assert ros.spin_until(tracked, 10.0)
+    bad = WrenchStamped()
+    bad.wrench.force.x = float('nan')
+    pub_r.publish(bad)
+    assert ros.spin_until(lambda: node.diag.get('bad_messages') == 1, 5.0)
