@@ -18,6 +18,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'fam_solver_node = fam_solver.fam_solver_node:main',
         ],
     },
 )

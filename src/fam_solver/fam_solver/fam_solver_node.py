@@ -1,0 +1,137 @@
+"""ROS 2 node ``fam_solver_node``: tip load in, FAM centreline out.
+
+Subscribes ``/catheter/tip_load`` (geometry_msgs/WrenchStamped; force x, y [N] and torque z
+[N m] in ``catheter_base``; with ``follower:=true`` the force is in the tip frame).
+Publishes ``/catheter/shape`` (nav_msgs/Path in ``catheter_base``, the input's stamp,
+``path_points`` poses base -> tip, orientation = tangent) and ``/catheter/shape_marker``
+(visualization_msgs/Marker LINE_STRIP). Solves only when the load changed and someone
+subscribes to an output (a load that arrives while nobody listens is solved when a
+subscriber appears). Bad (non-finite) wrenches are logged, counted and dropped.
+
+Parameters (read at start): length [m], ei [N m^2], n_arcs, arc_model, follower,
+path_points, line_width [m]. Diagnostics: solves, non_converged, unstable, bad_messages,
+last solve time. The physics lives in ``fam_solver.fam``; this module only converts.
+"""
+from __future__ import annotations
+
+import math
+
+from geometry_msgs.msg import Point, PoseStamped, WrenchStamped
+from nav_msgs.msg import Path
+from rclpy.node import Node
+from visualization_msgs.msg import Marker
+
+from catheter_common.ros_node import Diagnostics, declare, run_node, wall_time
+from catheter_common.topics import (FRAME_CATHETER_BASE, QOS_DEFAULT, SHAPE, SHAPE_MARKER,
+                                    TIP_LOAD)
+from fam_solver import ARC_MODELS, DEFAULT_ARC_MODEL, Catheter, Loads, solve_fam
+
+
+class FamSolverNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__('fam_solver_node', **kwargs)
+        length = declare(self, 'length', 0.065, 'catheter length [m] (Blazer II-XP: 0.065)', 1e-4, 10.0)
+        ei = declare(self, 'ei', 6.0e-5, 'flexural rigidity EI [N m^2] (Blazer II-XP: 6e-5)', 1e-9, 1e3)
+        self.n_arcs = declare(self, 'n_arcs', 12, 'number of FAM arcs', 1, 5000)
+        self.arc_model = declare(self, 'arc_model', DEFAULT_ARC_MODEL,
+                                 'arc model: exact (circular arcs) or bezier (thesis)',
+                                 choices=ARC_MODELS)
+        self.follower = declare(self, 'follower', False,
+                                'true: the tip force turns with the tip (tendon pull, tip frame)')
+        self.path_points = declare(self, 'path_points', 50, 'poses in the published Path', 2, 10000)
+        self.line_width = declare(self, 'line_width', 0.0023, 'marker line width [m] (7 Fr)', 1e-5, 0.1)
+        self.cat = Catheter(length=length, ei=ei)
+        self.path_pub = self.create_publisher(Path, SHAPE, QOS_DEFAULT)
+        self.marker_pub = self.create_publisher(Marker, SHAPE_MARKER, QOS_DEFAULT)
+        self.sub = self.create_subscription(WrenchStamped, TIP_LOAD, self._on_load, QOS_DEFAULT)
+        self.diag = Diagnostics(self)
+        self._pending = None        # (stamp, loads) not yet solved
+        self._last_loads = None     # loads of the last published shape
+        self._poll = self.create_timer(0.1, self._flush)
+        self.get_logger().info(
+            f'FAM solver: L={length} m, EI={ei} N m^2, N={self.n_arcs}, model={self.arc_model}, '
+            f'follower={self.follower}; {TIP_LOAD} -> {SHAPE}, {SHAPE_MARKER}')
+
+    def _listeners(self) -> int:
+        return self.path_pub.get_subscription_count() + self.marker_pub.get_subscription_count()
+
+    def _on_load(self, msg: WrenchStamped) -> None:
+        self.diag.count('loads_received')
+        f, t = msg.wrench.force, msg.wrench.torque
+        try:
+            loads = Loads(tip_force=(f.x, f.y), tip_moment=t.z, follower=self.follower)
+        except ValueError as exc:
+            self.diag.count('bad_messages')
+            self.diag.error(f'bad wrench: {exc}')
+            self.get_logger().warning(f'dropping bad tip load ({exc})', throttle_duration_sec=1.0)
+            return
+        if msg.header.frame_id and msg.header.frame_id != FRAME_CATHETER_BASE:
+            self.get_logger().warning(f'tip load in frame {msg.header.frame_id!r}, treated as '
+                                      f'{FRAME_CATHETER_BASE!r}', throttle_duration_sec=5.0)
+        if loads == self._last_loads:
+            self.diag.count('unchanged_loads')
+            return
+        self._pending = (msg.header.stamp, loads)
+        self._flush()
+
+    def _flush(self) -> None:
+        if self._pending is None or self._listeners() == 0:
+            return
+        stamp, loads = self._pending
+        self._pending = None
+        t0 = wall_time()
+        shape = solve_fam(self.cat, loads, n_arcs=self.n_arcs, arc_model=self.arc_model)
+        dt = wall_time() - t0
+        self.diag.count('solves')
+        self.diag.set('last_solve_ms', dt * 1e3)
+        self.diag.set('last_iterations', shape.iterations)
+        if not shape.converged:
+            self.diag.count('non_converged')
+            self.diag.error(shape.warning or 'not converged')
+            self.get_logger().warning(f'FAM did not converge: {shape.warning}')
+        if not shape.stable:
+            self.diag.count('unstable')
+            self.get_logger().warning(shape.warning, throttle_duration_sec=5.0)
+        self._last_loads = loads
+        if stamp.sec == 0 and stamp.nanosec == 0:
+            stamp = self.get_clock().now().to_msg()
+        self._publish(stamp, shape)
+
+    def _publish(self, stamp, shape) -> None:
+        import numpy as np
+        s = np.linspace(0.0, 1.0, self.path_points)
+        pts = shape.points_at(s)
+        ang = shape.angles_at(s)
+        path = Path()
+        path.header.stamp = stamp
+        path.header.frame_id = FRAME_CATHETER_BASE
+        for (x, y), a in zip(pts.tolist(), ang.tolist()):
+            ps = PoseStamped()
+            ps.header = path.header
+            ps.pose.position.x, ps.pose.position.y = x, y
+            ps.pose.orientation.z = math.sin(0.5 * a)
+            ps.pose.orientation.w = math.cos(0.5 * a)
+            path.poses.append(ps)
+        self.path_pub.publish(path)
+        mk = Marker()
+        mk.header = path.header
+        mk.ns = 'fam_solver'
+        mk.id = 0
+        mk.type = Marker.LINE_STRIP
+        mk.action = Marker.ADD
+        mk.pose.orientation.w = 1.0
+        mk.scale.x = self.line_width
+        mk.color.r, mk.color.g, mk.color.b, mk.color.a = 0.1, 0.6, 1.0, 1.0
+        mk.points = [Point(x=x, y=y, z=0.0) for x, y in pts.tolist()]
+        self.marker_pub.publish(mk)
+
+
+NODE_CLASS = FamSolverNode
+
+
+def main(args=None):
+    return run_node(NODE_CLASS, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,81 @@
+"""fam_solver_node in-process: load in, Path and Marker out; lazy; robust to bad input."""
+import math
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Path
+from visualization_msgs.msg import Marker
+
+from catheter_common.topics import QOS_DEFAULT, SHAPE, SHAPE_MARKER, TIP_LOAD
+from fam_solver import Catheter, Loads, solve_fam
+from fam_solver.fam_solver_node import FamSolverNode
+
+pytestmark = pytest.mark.ros
+
+
+def _wrench(fx, fy, mz=0.0, sec=7):
+    m = WrenchStamped()
+    m.header.frame_id = 'catheter_base'
+    m.header.stamp.sec = sec
+    m.wrench.force.x, m.wrench.force.y, m.wrench.torque.z = fx, fy, mz
+    return m
+
+
+def _setup(ros, **params):
+    from rclpy.parameter import Parameter
+    overrides = [Parameter(k, value=v) for k, v in params.items()]
+    node = ros.add(FamSolverNode(context=ros.context, parameter_overrides=overrides))
+    client = ros.node('fam_test_client')
+    pub = client.create_publisher(WrenchStamped, TIP_LOAD, QOS_DEFAULT)
+    return node, client, pub
+
+
+def test_publishes_path_and_marker(ros):
+    node, client, pub = _setup(ros, path_points=21)
+    paths, markers = [], []
+    client.create_subscription(Path, SHAPE, paths.append, QOS_DEFAULT)
+    client.create_subscription(Marker, SHAPE_MARKER, markers.append, QOS_DEFAULT)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0 and node._listeners() >= 2, 10)
+    pub.publish(_wrench(0.05, 0.2, 1e-4))
+    assert ros.spin_until(lambda: paths and markers, 10)
+    p = paths[-1]
+    assert p.header.frame_id == 'catheter_base' and p.header.stamp.sec == 7
+    assert len(p.poses) == 21 and len(markers[-1].points) == 21
+    assert markers[-1].type == Marker.LINE_STRIP
+    ref = solve_fam(Catheter(0.065, 6e-5), Loads(tip_force=(0.05, 0.2), tip_moment=1e-4), n_arcs=12)
+    tip = p.poses[-1].pose
+    assert abs(tip.position.x - ref.tip[0]) < 1e-12 and abs(tip.position.y - ref.tip[1]) < 1e-12
+    ang = 2 * math.atan2(tip.orientation.z, tip.orientation.w)
+    assert abs(ang - ref.tip_angle) < 1e-9
+    # unchanged load: no new solve
+    n = node.diag.get('solves')
+    pub.publish(_wrench(0.05, 0.2, 1e-4))
+    ros.spin_until(lambda: node.diag.get('unchanged_loads') > 0, 5)
+    assert node.diag.get('solves') == n
+
+
+def test_no_solve_without_subscribers_then_solves_when_one_appears(ros):
+    node, client, pub = _setup(ros)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10)
+    pub.publish(_wrench(0.0, 0.1))
+    assert ros.spin_until(lambda: node.diag.get('loads_received') > 0, 10)
+    ros.spin_for(0.3)
+    assert node.diag.get('solves') == 0
+    paths = []
+    client.create_subscription(Path, SHAPE, paths.append, QOS_DEFAULT)
+    assert ros.spin_until(lambda: paths, 10)
+    assert node.diag.get('solves') == 1
+
+
+def test_bad_wrench_is_counted_and_node_keeps_running(ros):
+    node, client, pub = _setup(ros)
+    paths = []
+    client.create_subscription(Path, SHAPE, paths.append, QOS_DEFAULT)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0 and node._listeners() > 0, 10)
+    pub.publish(_wrench(float('nan'), 0.1))
+    assert ros.spin_until(lambda: node.diag.get('bad_messages') == 1, 10)
+    assert not paths
+    pub.publish(_wrench(0.0, 0.1))
+    assert ros.spin_until(lambda: paths, 10)
+    assert np.isfinite(paths[-1].poses[-1].pose.position.y)
