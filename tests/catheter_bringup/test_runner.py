@@ -10,8 +10,10 @@ from catheter_bringup.runner import ScenarioRunner
 from catheter_bringup.scenario import resolve_nodes
 
 
-def _messages(path):
-    return [(m.channel.topic, m.log_time_ns, bytes(m.message.data) if False else m.log_time_ns)
+def _decoded(path):
+    """(topic, log time, decoded message as text): CDR alignment padding bytes written by
+    rclpy's serializer are not initialised, so streams are compared decoded."""
+    return [(m.channel.topic, m.log_time_ns, repr(m.ros_msg))
             for m in read_ros2_messages(str(path))]
 
 
@@ -57,12 +59,12 @@ def test_two_runs_with_one_seed_record_identical_streams(tmp_path, make_scenario
     a, b, c = (tmp_path / f'{n}.mcap' for n in 'abc')
     ScenarioRunner(make_scenario(), bag=str(a), registry=test_registry, progress=False).run()
     ScenarioRunner(make_scenario(), bag=str(b), registry=test_registry, progress=False).run()
-    ScenarioRunner(make_scenario(seed=4, global_params={'seed': 4}), bag=str(c),
-                   registry=test_registry, progress=False).run()
-    assert _raw(a) == _raw(b)
+    da = _decoded(a)
+    assert len(da) > 600
+    assert da == _decoded(b)
     sc = make_scenario(global_params={'seed': 5})
     ScenarioRunner(sc, bag=str(c), registry=test_registry, progress=False).run()
-    assert _raw(a) != _raw(c)
+    assert da != _decoded(c)
 
 
 def test_failing_node_stops_run_and_closes_recording(tmp_path, make_scenario, test_registry):

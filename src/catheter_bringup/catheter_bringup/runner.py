@@ -124,6 +124,75 @@ class PublishCounter:
         return new
 
 
+class LocalBus:
+    """Lockstep transport between the runner's nodes: every publish is serialised once, counted
+    and queued; `deliver_all` hands each queued message, in publish order, to every in-process
+    subscription of its topic (raw subscriptions get the bytes, the others a fresh deserialised
+    copy). Deterministic and without DDS delivery latency. The nodes' own DDS subscriptions
+    stay (subscription counts, "work only while subscribed" keep working) but what DDS delivers
+    to them is dropped. With ``dds=True`` every message is also published on DDS, for tools
+    outside the process."""
+
+    def __init__(self, dds: bool = False):
+        import collections
+        self.queue = collections.deque()
+        self.counts: Dict[str, int] = {}
+        self.delivered = 0
+        self.dds = dds
+        self.subs: Dict[str, list] = {}
+        self._pubs = set()
+        self._subs = set()
+
+    def wrap_node(self, node: Node, publishers: bool = True) -> None:
+        from rclpy.serialization import serialize_message
+        for pub in list(node.publishers) if publishers else ():
+            if id(pub) in self._pubs:
+                continue
+            self._pubs.add(id(pub))
+            topic = pub.topic_name
+            self.counts.setdefault(topic, 0)
+            orig = pub.publish
+            bus = self
+
+            def publish(self_pub, msg, _orig=orig, _topic=topic, _type=pub.msg_type):
+                data = msg if isinstance(msg, bytes) else serialize_message(msg)
+                if bus.dds:
+                    _orig(msg)
+                bus.counts[_topic] += 1
+                bus.queue.append((_topic, data))
+
+            pub.publish = types.MethodType(publish, pub)
+        for sub in list(node.subscriptions):
+            if id(sub) in self._subs:
+                continue
+            self._subs.add(id(sub))
+            with_info = getattr(sub, '_callback_type', None) is not None and \
+                sub._callback_type.name != 'MessageOnly'
+            self.subs.setdefault(sub.topic_name, []).append(
+                (sub.callback, bool(sub.raw), sub.msg_type, with_info))
+            sub.callback = _drop
+
+    def deliver_all(self) -> int:
+        from rclpy.serialization import deserialize_message
+        n = 0
+        q = self.queue
+        while q:
+            topic, data = q.popleft()
+            for cb, raw, msg_type, with_info in self.subs.get(topic, ()):
+                msg = data if raw else deserialize_message(data, msg_type)
+                if with_info:
+                    cb(msg, {})
+                else:
+                    cb(msg)
+                n += 1
+        self.delivered += n
+        return n
+
+
+def _drop(*_args):
+    """Callback of a DDS delivery that the lockstep bus already delivered."""
+
+
 class DeliveryTracker:
     """Counts what every subscription of the given nodes took, to know when every message
     published in this process has been handled (lockstep drain)."""
@@ -193,6 +262,7 @@ class ScenarioRunner:
         self.sink: Optional[RecordingSink] = None
         self.counter = PublishCounter()
         self.tracker = DeliveryTracker(self.counter.counts)
+        self.bus: Optional[LocalBus] = None
         self.time_sources = []
         self._now_ns = 0
         self.on_step: Optional[Callable[[float], None]] = None
@@ -224,6 +294,9 @@ class ScenarioRunner:
         self.missing = missing
         self.executor = make_executor('single' if lockstep else 'events', context=self.context)
         self.executor.add_node(self.runner_node)
+        if lockstep:
+            self.bus = LocalBus(dds=bool(sc.get('dds', False)))
+            self.counter = self.bus       # the bus counts what was published
         for inst in chosen:
             cli = []
             if inst.name != inst.spec.executable:
@@ -237,7 +310,8 @@ class ScenarioRunner:
             node = classes[inst.name](**kwargs)
             self.nodes[inst.name] = node
             self.executor.add_node(node)
-            self.counter.wrap_node(node)
+            if not lockstep:
+                self.counter.wrap_node(node)
             if lockstep:
                 self._drive_clock_of(node)
         if self.bag:
@@ -265,13 +339,17 @@ class ScenarioRunner:
 
     def _track(self):
         for node in list(self.nodes.values()) + [self.runner_node]:
-            self.tracker.wrap_node(node)
+            if self.bus is not None:
+                self.bus.wrap_node(node, publishers=node is not self.runner_node)
+            else:
+                self.tracker.wrap_node(node)
 
     def _record_publishers(self):
         """Subscribe the recorder to every publisher of the scenario's nodes (known up front:
         no discovery delay, nothing lost at start)."""
         for node in self.nodes.values():
-            self.counter.wrap_node(node)
+            if self.bus is None:
+                self.counter.wrap_node(node)
             for pub in list(node.publishers):
                 if self.sink.wants(pub.topic_name):
                     self.sink.add(pub.topic_name, type_name_of(pub.msg_type), [pub.qos_profile])
@@ -281,6 +359,24 @@ class ScenarioRunner:
         """Run ready callbacks until none is ready and the recorder has caught up."""
         n = 0
         ex = self.executor
+        if self.bus is not None:
+            bus = self.bus
+            while n < max_callbacks:
+                bus.deliver_all()
+                try:
+                    handler, _, _ = ex.wait_for_ready_callbacks(timeout_sec=0.0)
+                except TimeoutException:
+                    if not bus.queue:
+                        break
+                    continue
+                handler()
+                exc = handler.exception()
+                if exc is not None:
+                    raise exc
+                n += 1
+            if self.sink is not None:
+                self.sink.flush()
+            return n
         for _ in range(10):
             while n < max_callbacks:
                 try:
@@ -376,8 +472,9 @@ class ScenarioRunner:
     def _rescan(self):
         if self.sink is not None:
             self._record_publishers()
-        for node in self.nodes.values():
-            self.counter.wrap_node(node)
+        if self.bus is None:
+            for node in self.nodes.values():
+                self.counter.wrap_node(node)
         self._track()
 
     def _run_realtime(self, bar):

@@ -179,15 +179,36 @@ def validate_scenario(data: Mapping) -> dict:
     return s
 
 
+def common_params(scenario: Mapping) -> Dict[str, object]:
+    """Parameters every node gets (a node ignores those it does not declare): the seed, the
+    link (``link.delay``, ``link.jitter``, ``link.loss``, ``link.outages`` as a flat list
+    start, length, ...), the operator (``operator.<key>``), the identification force source,
+    then the scenario's ``global_params``."""
+    link = scenario['link']
+    flat = [float(x) for o in link['outages'] for x in o] or [0.0, 0.0]
+    p = {'seed': int(scenario['seed']), 'link.delay': float(link['delay']),
+         'link.jitter': float(link['jitter']), 'link.loss': float(link['loss']),
+         'link.outages': flat, 'force_source': scenario['force_source']}
+    for k, v in scenario['operator'].items():
+        p[f'operator.{k}'] = v
+    p.update(scenario['global_params'])
+    return p
+
+
 def instances(scenario: Mapping, registry: Optional[Mapping[str, NodeSpec]] = None
               ) -> Dict[str, NodeInstance]:
     """Every node instance the scenario could start: the registry's nodes (with the scenario's
     parameters) plus the scenario's own entries (shadow instances, nodes of tests)."""
     reg = dict(REGISTRY if registry is None else registry)
+    if registry is None and scenario['force_source'] == 'image':
+        ident = reg['impedance_identifier_node']
+        reg['impedance_identifier_node'] = dataclasses.replace(
+            ident, consumes=tuple(ident.consumes) + (T.TIP_WRENCH,))
+    common = common_params(scenario)
     out: Dict[str, NodeInstance] = {}
     for name, spec in reg.items():
         if name not in scenario['nodes']:
-            out[name] = NodeInstance(name, spec, dict(scenario['global_params']), {})
+            out[name] = NodeInstance(name, spec, dict(common), {})
     for name, cfg in scenario['nodes'].items():
         exe = cfg.get('executable', name)
         base = reg.get(exe)
@@ -200,7 +221,7 @@ def instances(scenario: Mapping, registry: Optional[Mapping[str, NodeSpec]] = No
             produces=tuple(cfg.get('produces', base.produces if base else ())),
             kind=cfg.get('kind', 'node'))
         remap = {str(k): str(v) for k, v in (cfg.get('remap') or {}).items()}
-        params = dict(scenario['global_params'])
+        params = dict(common)
         params.update(cfg.get('params') or {})
         if cfg.get('enabled', True) is False:
             continue
