@@ -18,6 +18,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'shape_node = catheter_shape.shape_node:main',
         ],
     },
 )

@@ -40,8 +40,8 @@ def bernstein(s, degree: int) -> np.ndarray:
     """Bernstein basis matrix (len(s), degree + 1): B[i, j] = C(n, j) s_i^j (1 - s_i)^(n - j).
 
     For degree 3 its transpose is the thesis's Lambda (Eq. 5)."""
-    if int(degree) != degree or degree < 1:
-        raise ValueError(f'degree must be an integer >= 1, got {degree!r}')
+    if int(degree) != degree or degree < 0:
+        raise ValueError(f'degree must be an integer >= 0, got {degree!r}')
     degree = int(degree)
     s = np.asarray(s, dtype=float).reshape(-1)
     j = np.arange(degree + 1)
@@ -138,7 +138,7 @@ _TANGENT_WEIGHT = 0.03
 
 
 def _tdm_step(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, c0: np.ndarray,
-              M: np.ndarray) -> np.ndarray:
+              M: np.ndarray, tw: float = _TANGENT_WEIGHT) -> np.ndarray:
     """One tangent-distance-minimisation (Gauss-Newton on the perpendicular distances)
     update of the control points for points p at their foot-point parameters s."""
     n = ctrl.shape[0] - 1
@@ -154,12 +154,12 @@ def _tdm_step(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, c0: np.ndarray,
         # the normals are nearly parallel (an almost straight catheter), where pure TDM
         # cannot place the inner control points along the line
         nrm = np.stack([-t[:, 1], t[:, 0]], axis=1)
-        tw = _TANGENT_WEIGHT * t
+        tw = tw * t
         A = np.vstack([(B[:, :, None] * nrm[:, None, :]).reshape(N, (n + 1) * D),
                        (B[:, :, None] * tw[:, None, :]).reshape(N, (n + 1) * D)])
         rhs = -np.concatenate([np.sum(nrm * r, axis=1), np.sum(tw * r, axis=1)])
     else:
-        P = np.eye(D)[None] - (1.0 - _TANGENT_WEIGHT ** 2) * t[:, :, None] * t[:, None, :]
+        P = np.eye(D)[None] - (1.0 - tw ** 2) * t[:, :, None] * t[:, None, :]
         A = np.einsum('ij,ide->idje', B, P).reshape(N * D, (n + 1) * D)
         rhs = -np.einsum('ide,ie->id', P, r).reshape(-1)
     # the first and last points keep s = 0 and s = 1: their full distance counts, so the
@@ -287,23 +287,27 @@ def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 1
     s = _anchored(_newton_params(ctrl, p, s, 2))
     dist = np.sqrt(np.sum((bernstein(s, degree) @ ctrl - p) ** 2, axis=1))
     err = float(np.mean(dist ** 2))
+    # Levenberg-Marquardt-like control of the tangential weight: smaller after a good
+    # step (towards pure TDM, fast convergence), larger after a bad one (towards a plain
+    # point-distance step, safe). Every trial counts as a round.
+    tw = _TANGENT_WEIGHT
     for _ in range(int(refine)):
         if err <= 1e-30:
             break
-        trial = _tdm_step(ctrl, p, s, c0, M)
+        trial = _tdm_step(ctrl, p, s, c0, M, tw)
         if not np.all(np.isfinite(trial)):
-            break
-        s_t = _anchored(_newton_params(trial, p, s, 2))
+            tw *= 10.0
+            continue
+        s_t = _anchored(_newton_params(trial, p, s, 3))
         e_t = float(np.mean(np.sum((bernstein(s_t, degree) @ trial - p) ** 2, axis=1)))
-        if e_t > err:
-            # fall back to a plain parameter-correction round (Hoschek), always safe
-            trial = _solve_ls(bernstein(s, degree), p, c0, M)
-            s_t = _anchored(_newton_params(trial, p, s, 2))
-            e_t = float(np.mean(np.sum((bernstein(s_t, degree) @ trial - p) ** 2, axis=1)))
-            if e_t > err:
+        if e_t >= err:
+            if tw >= 1.0:
                 break
+            tw = min(1.0, tw * 10.0)
+            continue
         improved = err - e_t
         ctrl, s, err = trial, s_t, e_t
+        tw = max(tw / 3.0, 1e-6)
         if improved <= tol * err:
             break
     # final residual: the closest point, from the fit's parameters and from a coarse global

@@ -1,0 +1,286 @@
+"""shape_node: camera frames -> catheter control points (PoseArray), centreline (Path) and a
+debug overlay. Thin: decodes messages, owns parameters/timers/diagnostics and calls
+catheter_shape.ShapeSensor.
+
+Subscribes  /camera/image_raw          sensor_msgs/Image (mono8, bgr8, rgb8, bgra8, rgba8)
+Publishes   /catheter/control_points   geometry_msgs/PoseArray, 4 poses base -> tip, catheter_base,
+                                       stamped with the image's stamp
+            /catheter/shape            nav_msgs/Path (measured centreline), only while subscribed
+            /catheter/debug_image      sensor_msgs/Image bgr8 overlay, only while subscribed
+            /diagnostics
+
+Frames are never queued: the callback keeps only the newest frame and a timer on the node
+clock (period `period`) processes it; a frame replaced before it was processed counts as
+dropped.
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import cv2
+import numpy as np
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped
+from nav_msgs.msg import Path
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from sensor_msgs.msg import Image
+
+from catheter_common import topics as T
+from catheter_common.ros_node import Diagnostics, declare, run_node, wall_time
+from catheter_shape.bezier import bezier_derivative, bezier_eval
+from catheter_shape.camera import make_psi
+from catheter_shape.segmentation import METHODS
+from catheter_shape.sensor import STATUSES, ShapeSensor
+
+#: default calibration: the default SyntheticCamera (640x480, 0.15 mm/px, base at (51.2, 240))
+DEFAULT_PSI = [float(x) for x in make_psi(0.15, (0.08 * 640, 240.0)).reshape(-1)]
+
+_CHANNELS = {'mono8': 1, '8UC1': 1, 'bgr8': 3, 'rgb8': 3, 'bgra8': 4, 'rgba8': 4, '8UC3': 3}
+
+
+def image_to_array(msg: Image) -> np.ndarray:
+    """sensor_msgs/Image -> uint8 array (H, W) grey or (H, W, 3|4) in BGR(A) order.
+
+    Raises ValueError for unsupported encodings or inconsistent sizes."""
+    enc = msg.encoding
+    if enc not in _CHANNELS:
+        raise ValueError(f'unsupported image encoding {enc!r} (mono8, bgr8, rgb8, bgra8, rgba8)')
+    ch = _CHANNELS[enc]
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    if h <= 0 or w <= 0:
+        raise ValueError(f'empty image {w}x{h}')
+    if step < w * ch:
+        raise ValueError(f'step {step} < width {w} x {ch} channels')
+    try:
+        buf = np.frombuffer(msg.data, dtype=np.uint8)        # array.array / bytes: no copy
+    except (TypeError, ValueError):
+        buf = np.frombuffer(bytes(msg.data), dtype=np.uint8)
+    if buf.size < h * step:
+        raise ValueError(f'image data has {buf.size} bytes, expected {h * step}')
+    a = buf[:h * step].reshape(h, step)[:, :w * ch]
+    if ch == 1:
+        return a
+    a = a.reshape(h, w, ch)
+    if enc == 'rgb8':
+        return a[:, :, ::-1]
+    if enc == 'rgba8':
+        return a[:, :, [2, 1, 0, 3]]
+    return a
+
+
+def array_to_image(a: np.ndarray, stamp, frame_id: str) -> Image:
+    """uint8 (H, W) -> mono8 or (H, W, 3) -> bgr8 sensor_msgs/Image."""
+    msg = Image()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.height, msg.width = int(a.shape[0]), int(a.shape[1])
+    if a.ndim == 2:
+        msg.encoding, ch = 'mono8', 1
+    else:
+        msg.encoding, ch = 'bgr8', 3
+    msg.is_bigendian = 0
+    msg.step = msg.width * ch
+    msg.data = np.ascontiguousarray(a, dtype=np.uint8).tobytes()
+    return msg
+
+
+def _yaw_quaternion(yaw: float):
+    return 0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)
+
+
+def control_points_to_pose_array(control_points, stamp, frame_id: str = T.FRAME_CATHETER_BASE
+                                 ) -> PoseArray:
+    """Control points (n+1, 3) m (or (n+1, 2)) -> PoseArray, poses base -> tip.
+
+    Orientation of pose i: rotation about z to the curve's tangent at s = i / n (in the
+    catheter_base x-y plane); identity where the tangent vanishes."""
+    c = np.asarray(control_points, dtype=float)
+    if c.ndim != 2 or c.shape[1] not in (2, 3) or c.shape[0] < 2:
+        raise ValueError(f'control_points must be (n+1, 2|3), got {c.shape}')
+    if not np.all(np.isfinite(c)):
+        raise ValueError('control_points contain non-finite values')
+    if c.shape[1] == 2:
+        c = np.hstack([c, np.zeros((c.shape[0], 1))])
+    n = c.shape[0] - 1
+    tang = bezier_eval(bezier_derivative(c, 1), np.linspace(0.0, 1.0, n + 1)) if n >= 2 else \
+        np.repeat(bezier_derivative(c, 1), n + 1, axis=0)
+    msg = PoseArray()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    for p, t in zip(c, tang):
+        pose = Pose()
+        pose.position.x, pose.position.y, pose.position.z = (float(v) for v in p)
+        yaw = math.atan2(t[1], t[0]) if (t[0] ** 2 + t[1] ** 2) > 0 else 0.0
+        q = _yaw_quaternion(yaw)
+        pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = q
+        msg.poses.append(pose)
+    return msg
+
+
+def pose_array_to_control_points(msg: PoseArray) -> np.ndarray:
+    """PoseArray -> control points (len(poses), 3) m, in the message's order (base -> tip)."""
+    return np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses],
+                    dtype=float).reshape(-1, 3)
+
+
+def points_to_path(points, stamp, frame_id: str = T.FRAME_CATHETER_BASE,
+                   max_poses: int = 100) -> Path:
+    """Points (N, 3) m -> nav_msgs/Path of at most max_poses evenly subsampled poses."""
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    if p.shape[0] > max_poses:
+        p = p[np.unique(np.linspace(0, p.shape[0] - 1, max_poses).round().astype(int))]
+    msg = Path()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    for q in p:
+        ps = PoseStamped()
+        ps.header = msg.header
+        ps.pose.position.x, ps.pose.position.y, ps.pose.position.z = (float(v) for v in q)
+        ps.pose.orientation.w = 1.0
+        msg.poses.append(ps)
+    return msg
+
+
+def debug_overlay(frame: np.ndarray, obs, psi: np.ndarray) -> np.ndarray:
+    """BGR overlay: the catheter mask tinted, the ordered centreline (green), the fitted
+    curve (red), control points (yellow), base (blue) and tip (magenta) ends."""
+    img = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR) if frame.ndim == 2 else \
+        np.ascontiguousarray(frame[:, :, :3]).copy()
+    if obs.mask is not None and obs.roi is not None:
+        u0, v0, w, h = obs.roi
+        sub = img[v0:v0 + h, u0:u0 + w]
+        sub[obs.mask > 0] = (0.5 * sub[obs.mask > 0] + np.array([0, 60, 120])).astype(np.uint8)
+    if obs.ok:
+        from catheter_shape.camera import psi_to_pixels
+        pts = np.rint(obs.pixels * 4).astype(np.int32).reshape(-1, 1, 2)
+        cv2.polylines(img, [pts], False, (0, 200, 0), 1, cv2.LINE_AA, 2)
+        curve = bezier_eval(obs.control_points, np.linspace(0, 1, 100))
+        cpx = psi_to_pixels(psi, curve)
+        cv2.polylines(img, [np.rint(cpx * 4).astype(np.int32).reshape(-1, 1, 2)], False,
+                      (0, 0, 255), 1, cv2.LINE_AA, 2)
+        for q in psi_to_pixels(psi, obs.control_points):
+            cv2.circle(img, (int(round(q[0])), int(round(q[1]))), 4, (0, 220, 220), 1, cv2.LINE_AA)
+        cv2.circle(img, tuple(int(round(x)) for x in obs.base_px), 5, (255, 0, 0), 2)
+        cv2.circle(img, tuple(int(round(x)) for x in obs.tip_px), 5, (255, 0, 255), 2)
+        txt = f'ok  residual {obs.residual * 1e3:.3f} mm  {obs.timings.get("total", 0) * 1e3:.1f} ms'
+    else:
+        txt = f'{obs.status}: {obs.message}'[:80]
+    cv2.putText(img, txt, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 255, 255), 1, cv2.LINE_AA)
+    return img
+
+
+class ShapeNode(Node):
+    """Image -> control points (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__('shape_node', **kwargs)
+        psi = declare(self, 'psi', DEFAULT_PSI,
+                      'camera calibration matrix PSI (Eq. 1), 12 doubles row-major 3x4: '
+                      '(x, y, z) [m, catheter_base] = PSI (u, v, 0, 1) [pixels]')
+        threshold = declare(self, 'threshold', 132,
+                            'grey threshold (8 bit): the catheter is darker than this after '
+                            'background removal (thesis: 132)', 1, 255)
+        base_px = declare(self, 'base_px', [-1, -1],
+                          'pixel (u, v) of the clamp / catheter base; [-1, -1] = unknown '
+                          '(the base is the centreline end nearest the image border)')
+        bg_file = declare(self, 'background_file', '',
+                          'optional PNG of the scene without the catheter (background removal)')
+        method = declare(self, 'method', 'fixed', 'threshold method', choices=METHODS)
+        period = declare(self, 'period', 0.005,
+                         'processing timer period, s (node clock): the newest frame is '
+                         'processed, older unprocessed ones are dropped', 0.001, 1.0)
+        self._path_max = declare(self, 'path_poses', 100,
+                                 'largest number of poses in /catheter/shape', 2, 10000)
+        degree = declare(self, 'degree', 3, 'Bezier degree (3: the 4 control points of the '
+                                            'thesis; force_estimator expects 3)', 1, 8)
+        if len(psi) != 12:
+            raise ValueError(f'parameter psi needs 12 values, got {len(psi)}')
+        base = None
+        if len(base_px) != 2:
+            raise ValueError(f'parameter base_px needs 2 values, got {len(base_px)}')
+        if base_px[0] >= 0 and base_px[1] >= 0:
+            base = (float(base_px[0]), float(base_px[1]))
+        background = None
+        if bg_file:
+            background = cv2.imread(bg_file, cv2.IMREAD_GRAYSCALE)
+            if background is None:
+                self.get_logger().error(f'cannot read background_file {bg_file!r}: running '
+                                        'without background removal')
+        self._psi = np.asarray(psi, dtype=float).reshape(3, 4)
+        self.sensor = ShapeSensor(self._psi, threshold=threshold, background=background,
+                                  base_px=base, method=method, degree=degree)
+        self.diag = Diagnostics(self)
+        for k in ('frames', 'processed', 'dropped', 'published', 'bad_messages') + \
+                tuple('fail_' + s for s in STATUSES if s != 'ok'):
+            self.diag.count(k, 0)
+        qos_in = QoSProfile(history=T.QOS_SENSOR.history, depth=T.QOS_SENSOR.depth,
+                            reliability=T.QOS_SENSOR.reliability,
+                            durability=T.QOS_SENSOR.durability)
+        self.sub = self.create_subscription(Image, T.CAMERA_IMAGE, self._on_image, qos_in)
+        self.pub_cp = self.create_publisher(PoseArray, T.CONTROL_POINTS, T.QOS_SENSOR)
+        self.pub_path = self.create_publisher(Path, T.SHAPE, T.QOS_DEFAULT)
+        self.pub_debug = self.create_publisher(Image, T.SHAPE_DEBUG_IMAGE, T.QOS_SENSOR)
+        self._pending: Optional[Image] = None
+        self._timer = self.create_timer(period, self._process)
+        self._last_obs = None
+        self.get_logger().info(
+            f'shape_node: {T.CAMERA_IMAGE} -> {T.CONTROL_POINTS}, {T.SHAPE}; threshold '
+            f'{threshold} ({method}), base_px {base}, background '
+            f'{"yes" if self.sensor.background is not None else "no"}, '
+            f'{self.sensor._m_per_px * 1e3:.4f} mm/px')
+
+    def _on_image(self, msg: Image) -> None:
+        self.diag.count('frames')
+        if self._pending is not None:
+            self.diag.count('dropped')
+        self._pending = msg
+
+    def _process(self) -> None:
+        msg, self._pending = self._pending, None
+        if msg is None:
+            return
+        t0 = wall_time()
+        try:
+            frame = image_to_array(msg)
+        except ValueError as exc:
+            self.diag.count('bad_messages')
+            self.diag.error(f'bad image: {exc}')
+            self.get_logger().warning(f'bad image message: {exc}', throttle_duration_sec=5.0)
+            return
+        want_debug = self.pub_debug.get_subscription_count() > 0
+        self.sensor.keep_mask = want_debug
+        obs = self.sensor.process(frame)
+        self._last_obs = obs
+        self.diag.count('processed')
+        stamp = msg.header.stamp
+        if obs.ok:
+            self.pub_cp.publish(control_points_to_pose_array(obs.control_points, stamp))
+            self.diag.count('published')
+            if self.pub_path.get_subscription_count() > 0:
+                self.pub_path.publish(points_to_path(obs.points, stamp, max_poses=self._path_max))
+            self.diag.set('residual_mm', obs.residual * 1e3)
+        else:
+            self.diag.count('fail_' + obs.status)
+            self.diag.error(f'{obs.status}: {obs.message}')
+            self.get_logger().warning(f'no catheter shape: {obs.status} ({obs.message})',
+                                      throttle_duration_sec=5.0)
+        if want_debug:
+            self.pub_debug.publish(array_to_image(debug_overlay(frame, obs, self._psi), stamp,
+                                                  T.FRAME_CAMERA))
+        now = self.get_clock().now()
+        lat = (now.nanoseconds - (stamp.sec * 1_000_000_000 + stamp.nanosec)) * 1e-9
+        self.diag.set('latency_ms', lat * 1e3)
+        self.diag.set('process_ms', (wall_time() - t0) * 1e3)
+        self.diag.set('pipeline_ms', obs.timings.get('total', float('nan')) * 1e3)
+
+
+NODE_CLASS = ShapeNode
+
+
+def main(args=None):
+    return run_node(NODE_CLASS, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
