@@ -26,8 +26,8 @@ import yaml
 from catheter_bringup import metrics as M
 from catheter_bringup.recorder import read_run_metadata
 
-RENDERED = {'/master/rendered_force': None, '/master/dfr/rendered_force': 'dfr',
-            '/master/ima/rendered_force': 'ima'}
+RENDERED = '/master/rendered_force'
+HAND_FORCE = '/master/hand_force'
 SLAVE_FORCE = '/slave/force'
 TIP_WRENCH = '/catheter/tip_wrench'
 IMPEDANCE = '/master/link/impedance'
@@ -97,6 +97,26 @@ class Recording:
                            else math.nan for v in self.values.get(topic, [])], dtype=float)
 
 
+def renderer_streams(scenario: dict, topics) -> Dict[str, str]:
+    """label -> topic of every rendered force stream in a recording: the renderer the device
+    plays (label = its mode), shadow renderers (remapped /master/rendered_force, label = their
+    mode) and the force at the hand ('hand_<mode>')."""
+    nodes = scenario.get('nodes') or {}
+    active = ((nodes.get('ima_master_node') or {}).get('params') or {}).get('mode', 'ima')
+    out = {}
+    if RENDERED in topics:
+        out[active] = RENDERED
+    for name, cfg in nodes.items():
+        cfg = cfg or {}
+        target = (cfg.get('remap') or {}).get(RENDERED)
+        if target and target in topics:
+            label = (cfg.get('params') or {}).get('mode', name)
+            out[label if label not in out else name] = target
+    if HAND_FORCE in topics:
+        out[f'hand_{active}'] = HAND_FORCE
+    return out
+
+
 def _t0(rec: Recording) -> float:
     """Start of the experiment clock: the first message of the slave (its timer's first tick),
     else the first message of the run."""
@@ -121,14 +141,9 @@ def analyze(path, skip: float = 0.5) -> dict:
            'delay_s': delay, 'outages': [list(o) for o in outages],
            'sim_time_reached_s': float(rec.meta.get('sim_time_reached_s', 'nan')),
            'force_tracking': {}, 'estimation': {}, 'streams': {}}
-    renderer_mode = ((sc.get('nodes') or {}).get('ima_master_node') or {}).get('params', {}) \
-        .get('mode', 'ima')
     if rec.log.get(SLAVE_FORCE):
         ts, fs = rec.t(SLAVE_FORCE), rec.force(SLAVE_FORCE)
-        for topic, label in RENDERED.items():
-            if not rec.log.get(topic):
-                continue
-            label = label or renderer_mode
+        for label, topic in renderer_streams(sc, rec.topics).items():
             out['force_tracking'][label] = M.force_tracking(
                 rec.t(topic), rec.force(topic), ts, fs, delay, outages, t0=t0, skip=skip)
             out['force_tracking'][label]['topic'] = topic
@@ -174,7 +189,7 @@ def format_report(res: dict) -> str:
     ft = res.get('force_tracking') or {}
     if ft:
         lines += ['Force tracking at the master (rendered force vs slave force t + delay), N',
-                  f"{'renderer':<10} {'interval':<8} {'MAE':>8} {'RMSE':>8} {'max':>8} "
+                  f"{'renderer':<14} {'interval':<8} {'MAE':>8} {'RMSE':>8} {'max':>8} "
                   f"{'thesis MAE':>11} {'thesis max':>11} {'n':>7}"]
         ref = {('ima', 'normal'): (th['ima_mae_normal'], th['ima_max']),
                ('ima', 'outage'): (th['ima_mae_outage'], th['ima_max']),
@@ -188,8 +203,8 @@ def format_report(res: dict) -> str:
         for label in sorted(ft):
             for iv in ('normal', 'outage', 'all'):
                 s = ft[label][iv]
-                tm, tx = ref.get((label, iv), (None, None))
-                lines.append(f"{label:<10} {iv:<8} {_f(s['mae']):>8} {_f(s['rmse']):>8} "
+                tm, tx = ref.get((label.replace('hand_', ''), iv), (None, None))
+                lines.append(f"{label:<14} {iv:<8} {_f(s['mae']):>8} {_f(s['rmse']):>8} "
                              f"{_f(s['max']):>8} {_f(tm):>11} {_f(tx):>11} {s['n']:>7}")
         lines.append('')
     est = res.get('estimation') or {}

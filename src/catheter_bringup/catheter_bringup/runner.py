@@ -294,6 +294,7 @@ class ScenarioRunner:
         wanted_all, _ = resolve_nodes(sc, None, self.registry)
         self.skipped = sorted({i.name for i in wanted_all} - {i.name for i in chosen})
         self.missing = missing
+        self.start_errors = {}
         self.executor = make_executor('single' if lockstep else 'events', context=self.context)
         self.executor.add_node(self.runner_node)
         if lockstep:
@@ -309,7 +310,16 @@ class ScenarioRunner:
                           parameter_overrides=self._params_for(inst, lockstep))
             if cli:
                 kwargs['cli_args'] = ['--ros-args'] + cli
-            node = classes[inst.name](**kwargs)
+            try:
+                node = classes[inst.name](**kwargs)
+            except Exception as exc:  # noqa: BLE001 - a node that cannot start is left out
+                if sc.get('strict', False):
+                    raise
+                self.log(f'[run] {inst.name} failed to start, left out: '
+                         f'{type(exc).__name__}: {exc}')
+                self.skipped.append(inst.name)
+                self.start_errors[inst.name] = f'{type(exc).__name__}: {exc}'
+                continue
             self.nodes[inst.name] = node
             self.executor.add_node(node)
             if not lockstep:

@@ -56,7 +56,8 @@ class NodeSpec:
 REGISTRY: Dict[str, NodeSpec] = {s.executable: s for s in [
     NodeSpec('sim_haptic_node', 'impedance_master.sim_haptic_node',
              consumes=(T.MASTER_RENDERED_FORCE, T.SLAVE_IMPEDANCE, T.SLAVE_FORCE),
-             produces=(T.MASTER_COMMAND, T.MASTER_LINK_IMPEDANCE, T.MASTER_LINK_FORCE)),
+             produces=(T.MASTER_COMMAND, T.MASTER_LINK_IMPEDANCE, T.MASTER_LINK_FORCE,
+                       '/master/hand_force')),
     NodeSpec('ima_master_node', 'impedance_master.ima_master_node',
              consumes=(T.MASTER_LINK_IMPEDANCE, T.MASTER_LINK_FORCE, T.MASTER_COMMAND),
              produces=(T.MASTER_RENDERED_FORCE,)),
@@ -264,6 +265,18 @@ def resolve_nodes(scenario: Mapping, available: Optional[set] = None,
             if inst.name not in chosen:
                 chosen[inst.name] = inst
                 wanted += list(inst.spec.consumes)
-    # start order: upstream first (reverse of discovery is a good, deterministic order)
+    # a node none of whose inputs anybody can produce would idle: leave it out (repeat, since
+    # leaving one out can starve the next)
+    while True:
+        produced = {t for i in chosen.values() for t in i.spec.produces}
+        idle = [n for n, i in chosen.items()
+                if i.spec.consumes and not i.always
+                and not any(t in produced for t in i.spec.consumes)]
+        if not idle:
+            break
+        for n in idle:
+            del chosen[n]
+    produced = {t for i in chosen.values() for t in i.spec.produces}
+    missing = [t for t in scenario['outputs'] if t not in produced]
     order = sorted(chosen.values(), key=lambda i: i.name)
     return order, missing
