@@ -168,11 +168,10 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     t = np.arange(0.0, max_t, 0.25)
     pts = e + t[:, None] * d
     inside_img = (pts[:, 0] >= 0) & (pts[:, 0] <= W - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= H - 1)
-    if not np.isnan(level):
-        vals = _bilinear(score.astype(np.float32) if score.dtype != np.float32 else score, pts)
-        below = (vals <= level) | ~inside_img
-    else:
-        below = ~inside_img
+    if not np.isfinite(level):
+        raise ValueError(f'level must be finite, got {level!r}')
+    vals = _bilinear(score, pts)
+    below = (vals <= level) | ~inside_img
     j = int(np.argmax(below)) if below.any() else t.size - 1
     if j == 0:
         t_end = 0.0

@@ -169,6 +169,8 @@ class ShapeSensor:
             return fail('low_contrast', f'grey range {lo}..{hi}', tm, t0)
         mask, score, level = threshold_frame(gray, self.threshold, bg, self.method,
                                              block=int(4 * self.width_px) | 1)
+        if not np.isfinite(level):
+            score, level = mask, 127.5          # 'adaptive': search the edge on the mask
         t2 = time.perf_counter()
         tm['threshold'] = t2 - t1
         w_px = self.width_px
