@@ -362,3 +362,22 @@ def test_operator_trajectories_respect_the_thesis_limits(exp, dur):
     t2, x2, _, _ = experiment_trajectory(exp, seed=7).arrays()
     assert np.array_equal(x, x2)
     assert not np.array_equal(x, experiment_trajectory(exp, seed=8).arrays()[1])
+
+
+def test_default_identifier_state_round_trips_through_json(tmp_path):
+    truth = table_model(n=17).copy(x0=0.0, dx=0.005)
+    a = make_identifier()
+    for s in zip(*drive(truth, OperatorTrajectory(duration=4.0, seed=2), noise=0.005)):
+        imp_a = a.update(*s)
+    path = tmp_path / 'state.json'
+    a.save_state(str(path))
+    b = make_identifier()
+    imp_b = b.load_state(str(path))
+    assert imp_b.valid and b.n_moving == a.n_moving
+    for xx, v in ((0.01, 0.02), (0.04, -0.03), (0.055, 0.0)):
+        assert imp_b.force(xx, v, 0.0) == pytest.approx(a._solve(True).force(xx, v, 0.0))
+    with pytest.raises(ValueError, match='n_nodes'):
+        make_identifier(n_nodes=9).load_state(str(path))
+    path.write_text('{not json')
+    with pytest.raises(ValueError, match='JSON'):
+        make_identifier().load_state(str(path))

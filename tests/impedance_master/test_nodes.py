@@ -166,3 +166,23 @@ def test_sim_haptic_node_commands_and_delays_the_slave_streams(ros):
     bad.wrench.force.x = float('nan')
     pub_r.publish(bad)
     assert ros.spin_until(lambda: node.diag.get('bad_messages') == 1, 5.0)
+
+
+def test_identifier_node_writes_and_reloads_its_learned_state(ros, tmp_path):
+    from impedance_master.identification import make_identifier
+    path = tmp_path / 'ident.json'
+    ident = make_identifier(window=0.2)
+    for k in range(2000):                       # some motion so the state holds a model
+        t = k * 1e-3
+        x = 0.03 + 0.01 * math.sin(3.0 * t)
+        xd = 0.03 * math.cos(3.0 * t)
+        ident.update(x, xd, 0.0, 0.1 * math.copysign(1, xd) + 2.0 * x)
+    ident.save_state(str(path))
+    node = ImpedanceIdentifierNode(context=ros.context, parameter_overrides=params(
+        state_file=str(path)))
+    assert node.model is not None and node.model.valid and node.model.kind == 1
+    node.ident.update(0.03, 0.01, 0.0, 0.2)
+    path.unlink()
+    node.close()
+    assert path.exists()
+    node.destroy_node()

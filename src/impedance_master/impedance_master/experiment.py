@@ -59,7 +59,8 @@ class ExperimentConfig:
     experiment's motion on the same phantom (seed + 1000), as when Experiment II follows
     Experiment I in the thesis; the renderer starts without a model either way;
     thesis_offset: the ima_thesis identifier fits the constant term (True) or exactly the
-    thesis's Eq. 29 f = m x'' + c x' + k x (False).
+    thesis's Eq. 29 f = m x'' + c x' + k x (False); blend_time s and max_rate N/s of the
+    ImaRenderer (bumpless model switch and slew limit; 0 and inf: switch at once).
     """
     experiment: str = 'II'
     mode: str = 'ima'
@@ -77,6 +78,8 @@ class ExperimentConfig:
     duration: Optional[float] = None
     pretrain: Optional[str] = None
     thesis_offset: bool = True
+    blend_time: float = 0.05
+    max_rate: float = 20.0
 
     def __post_init__(self):
         if self.mode not in MODES:
@@ -169,7 +172,8 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
     if cfg.mode == 'dfr':
         renderer = DfrRenderer(limit=cfg.limit)
     else:
-        renderer = ImaRenderer(limit=cfg.limit, dt=dt)
+        renderer = ImaRenderer(limit=cfg.limit, dt=dt, blend_time=cfg.blend_time,
+                               max_rate=cfg.max_rate)
     imp_every = max(1, int(round(cfg.rate / cfg.impedance_rate)))
 
     keys = ('t', 'x_hand', 'x_master', 'x_slave', 'f_hand', 'f_desired', 'reference',

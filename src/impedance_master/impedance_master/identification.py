@@ -404,6 +404,67 @@ class HistoryIdentifier:
         self.theta = np.zeros(self.P)
         self.last: Optional[Impedance] = None
 
+    # ------------------------------------------------------------------ persistence (JSON)
+    STATE_VERSION = 1
+
+    def get_state(self) -> dict:
+        """The learned information (normal equations) as plain JSON-able values."""
+        self._flush()
+        return {'version': self.STATE_VERSION, 'kind': 'HistoryIdentifier',
+                'grid': _json_ready(self), 'n_moving': int(self.n_moving),
+                'A': self._A_mat.tolist(), 'b': self._b.tolist()}
+
+    def set_state(self, state: dict) -> Optional[Impedance]:
+        """Continue from `get_state()` output (same grid and friction hyper-parameters);
+        returns the model solved from it (None if it holds too little motion)."""
+        if not isinstance(state, dict) or state.get('kind') != 'HistoryIdentifier':
+            raise ValueError('state must be a dict from HistoryIdentifier.get_state()')
+        if state.get('version') != self.STATE_VERSION:
+            raise ValueError(f'state version must be {self.STATE_VERSION}, '
+                             f'got {state.get("version")!r}')
+        grid = state.get('grid', {})
+        mine = _json_ready(self)
+        for k, v in mine.items():
+            if k not in grid or not math.isclose(float(grid[k]), float(v), rel_tol=1e-12):
+                raise ValueError(f'state grid {k}={grid.get(k)!r} differs from this '
+                                 f'identifier\'s {v!r}')
+        A = np.asarray(state.get('A'), dtype=float)
+        b = np.asarray(state.get('b'), dtype=float)
+        if A.shape != (self.P, self.P) or b.shape != (self.P,):
+            raise ValueError(f'state A must be {self.P}x{self.P} and b {self.P}, got '
+                             f'{A.shape} and {b.shape}')
+        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(b))):
+            raise ValueError('state A and b must be finite')
+        n = state.get('n_moving')
+        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+            raise ValueError(f'state n_moving must be an int >= 0, got {n!r}')
+        self.reset()
+        self._A_mat = 0.5 * (A + A.T)
+        self._b = b
+        self.n_moving = n
+        if n >= self.window * self.rate:
+            return self._solve(moved=True)
+        return None
+
+    def save_state(self, path: str) -> None:
+        """Write `get_state()` as JSON (atomically: temporary file, then rename)."""
+        import json
+        import os
+        tmp = f'{path}.tmp'
+        with open(tmp, 'w', encoding='utf-8') as fh:
+            json.dump(self.get_state(), fh)
+        os.replace(tmp, path)
+
+    def load_state(self, path: str) -> Optional[Impedance]:
+        """Read a JSON file written by `save_state` and continue from it."""
+        import json
+        with open(path, encoding='utf-8') as fh:
+            try:
+                state = json.load(fh)
+            except json.JSONDecodeError as exc:
+                raise ValueError(f'path {path!r} is not a JSON state file: {exc}') from None
+        return self.set_state(state)
+
     def update(self, x: float, xd: float, xdd: Optional[float], f: float) -> Optional[Impedance]:
         """Add one sample (x m, x' m/s, x'' m/s^2 or None -> 0, measured force f N).
 
@@ -500,6 +561,11 @@ class HistoryIdentifier:
             S=theta[:G].tolist(), F=theta[G:2 * G].tolist(), B=theta[2 * G:3 * G].tolist(),
             C=(theta[3 * G:4 * G] / self._V).tolist(), status='ok')
         return self.last
+
+
+def _json_ready(ident: 'HistoryIdentifier') -> dict:
+    return {'x_min': ident.x_min, 'x_max': ident.x_max, 'n_nodes': ident.n_nodes,
+            'sigma': ident.sigma, 'v_s': ident.v_s, 'beta': ident.beta}
 
 
 def make_identifier(window: float = 1.0, rate: float = 1000.0, **kwargs) -> HistoryIdentifier:

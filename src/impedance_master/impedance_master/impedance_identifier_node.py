@@ -11,13 +11,16 @@ Publishes   /slave/impedance    sensor_msgs/JointState used as stamped named flo
             /diagnostics        samples, bad messages, published models, held estimates
                                 (status at_rest / ill_conditioned), solves, identifier status.
 Parameters: identifier (default | thesis), window s, rate Hz (sample rate of the joint
-states), publish_rate Hz (50-1000). Every sample is learned from, subscribed or not (the
+states), publish_rate Hz (50-1000), state_file (default identifier only: a JSON file of the
+learned information, loaded at start if it exists and written at shutdown, so the model
+keeps learning across sessions on the same phantom; '' = none). Every sample is learned from, subscribed or not (the
 default model learns from the whole history); publishing happens only while subscribed.
 Thin: the identification is impedance_master.identification.
 """
 from __future__ import annotations
 
 import math
+import os
 
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -41,11 +44,22 @@ class ImpedanceIdentifierNode(Node):
                        10.0, 10000.0)
         self.publish_rate = declare(self, 'publish_rate', 1000.0,
                                     'rate of /slave/impedance, Hz', 50.0, 1000.0)
+        self.state_file = declare(self, 'state_file', '',
+                                  'JSON file of the default identifier\'s learned state: '
+                                  'loaded at start if present, written at shutdown ("": none)')
+        self.model = None
         if self.kind == 'thesis':
             self.ident = SlidingWindowIdentifier(window=window, rate=rate)
         else:
             self.ident = make_identifier(window=window, rate=rate)
-        self.model = None
+            if self.state_file and os.path.exists(self.state_file):
+                try:
+                    self.model = self.ident.load_state(self.state_file)
+                    self.get_logger().info(f'continuing from the learned state in '
+                                           f'{self.state_file} ({self.ident.n_moving} samples '
+                                           'of motion)')
+                except (OSError, ValueError) as exc:
+                    self.get_logger().warning(f'ignoring state file {self.state_file}: {exc}')
         self._published_model = None
         self.diag = Diagnostics(self)
         self.pub = self.create_publisher(JointState, SLAVE_IMPEDANCE, QOS_FAST)
@@ -96,6 +110,15 @@ class ImpedanceIdentifierNode(Node):
         msg.position = list(fields.values())
         self.pub.publish(msg)
         self.diag.count('published')
+
+    def close(self) -> None:
+        """Write the learned state (default identifier, state_file set)."""
+        if self.state_file and self.kind == 'default':
+            try:
+                self.ident.save_state(self.state_file)
+                self.get_logger().info(f'learned state written to {self.state_file}')
+            except OSError as exc:
+                self.get_logger().error(f'could not write {self.state_file}: {exc}')
 
     def _to_diag(self) -> None:
         self.diag.set('identifier', self.kind)
