@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from typing import Optional
 
 import numpy as np
@@ -42,6 +43,12 @@ BLAZER_EI = 6.0e-5
 F_MAX = 0.3
 #: centreline samples per shape fed to the Bezier fit
 N_CENTERLINE = 200
+#: the training camera: 800 x 800 at 0.15 mm/pixel, the clamp at pixel (260, 400) and +x to
+#: the right, so every Blazer shape with |F| <= 0.3 N stays in view (FAM shapes span
+#: x in [-36, 65] mm, y in [-50, 57] mm (post-buckled shapes can cross to the other side);
+#: the view is x in [-39, 81] mm, y in [-60, 60] mm); fluoroscopy-like noise, blur and
+#: texture as catheter_shape draws them
+TRAIN_CAMERA = dict(width=800, height=800, mm_per_px=0.15, base_px=(260.0, 400.0))
 
 
 def thesis_grid(n_angles: int = 16, n_magnitudes: int = 25, f_max: float = F_MAX) -> np.ndarray:
@@ -75,7 +82,10 @@ def random_forces(n: int, f_max: float = F_MAX, seed: int = 0, angle_range=(0.0,
 
 def _fitter():
     """The camera path's Bezier fit (catheter_shape.fit_bezier)."""
-    from catheter_shape import fit_bezier
+    try:
+        from catheter_shape import fit_bezier
+    except ImportError:     # older catheter_shape without the top-level export
+        from catheter_shape.bezier import fit_bezier
     return fit_bezier
 
 
@@ -136,34 +146,45 @@ def fam_centerlines(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI
     return cls, conv
 
 
-def render_control_points(centerlines, length: float = BLAZER_LENGTH, seed: int = 0,
-                          progress: bool = False, camera_kwargs: Optional[dict] = None):
-    """Control points through the full image pipeline: synthetic camera -> ShapeSensor.
+def render_control_points(centerlines, seed: int = 0, progress: bool = False,
+                          camera_kwargs: Optional[dict] = None, sensor_kwargs: Optional[dict] = None,
+                          return_timing: bool = False):
+    """Control points through the full image pipeline: synthetic camera -> ShapeSensor
+    (background removal, threshold 132, the clamp pixel known from calibration).
 
-    centerlines: (B, k, 2) m. Returns (control_points (B, 4, 3) m, ok (B,) bool).
-    Frames where the sensor fails give ok = False (and NaN control points, to be dropped).
+    centerlines: (B, k, 2) m, catheter_base. camera_kwargs: SyntheticCamera arguments
+    (default TRAIN_CAMERA, seeded with `seed`); sensor_kwargs: extra ShapeSensor arguments.
+    Returns (control_points (B, 4, 3) m, ok (B,) bool); frames the sensor rejects or that
+    leave the view give ok = False and NaN control points. With return_timing also the
+    sensor time per frame (B,) s.
     """
     from catheter_shape import ShapeSensor, SyntheticCamera
-    kw = dict(camera_kwargs or {})
+    kw = dict(TRAIN_CAMERA)
+    kw.update(camera_kwargs or {})
     kw.setdefault('seed', seed)
     cam = SyntheticCamera(**kw)
     c = np.asarray(centerlines, dtype=float)
     out = np.full((c.shape[0], 4, 3), np.nan)
     ok = np.zeros(c.shape[0], dtype=bool)
-    sensor = None
+    times = np.full(c.shape[0], np.nan)
+    sensor = ShapeSensor(cam.psi, background=cam.background, base_px=cam.base_px,
+                         **(sensor_kwargs or {}))
+    rng = np.random.default_rng(seed + 12345)
     it = range(c.shape[0])
     if progress:
         from tqdm import tqdm
         it = tqdm(it, desc='render+sense', unit='frame', leave=False)
     for i in it:
-        frame = cam.render(c[i])
-        if sensor is None:
-            sensor = ShapeSensor(frame.psi, background=getattr(frame, 'background', None))
+        frame = cam.render(c[i], rng=rng)
+        if not frame.in_view:
+            continue
+        t0 = time.perf_counter()
         obs = sensor.process(frame.image)
+        times[i] = time.perf_counter() - t0
         if obs.ok:
             out[i] = obs.control_points
             ok[i] = True
-    return out, ok
+    return (out, ok, times) if return_timing else (out, ok)
 
 
 def make_dataset(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI,
@@ -183,7 +204,7 @@ def make_dataset(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI,
         raise ValueError(f'test_frac must be in [0, 1), got {test_frac}')
     cls, conv = fam_centerlines(F, length, ei, n_arcs, progress=progress)
     if render:
-        cp, ok = render_control_points(cls, length, seed=seed, progress=progress)
+        cp, ok = render_control_points(cls, seed=seed, progress=progress)
     else:
         cp = fit_control_points(cls, point_noise=point_noise, seed=seed, progress=progress)
         ok = np.ones(len(F), dtype=bool)

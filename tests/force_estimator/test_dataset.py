@@ -1,0 +1,100 @@
+"""Learning-from-simulation data sets: the thesis grid, random sets, FAM shapes fitted with
+the camera path's Bezier code, the 70:30 split, mirroring, and the array file."""
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from force_estimator import dataset as D
+
+fam_solver = pytest.importorskip('fam_solver')
+catheter_shape = pytest.importorskip('catheter_shape')
+
+
+def test_thesis_grid():
+    F = D.thesis_grid()
+    assert F.shape == (400, 2)
+    mag = np.hypot(F[:, 0], F[:, 1])
+    ang = np.arctan2(F[:, 1], F[:, 0])
+    np.testing.assert_allclose(np.unique(np.round(mag, 12)), 0.012 * np.arange(1, 26), rtol=1e-12)
+    np.testing.assert_allclose(np.unique(np.round(ang, 12)), np.pi / 16 * np.arange(16), atol=1e-12)
+    assert (F[:, 1] >= 0).all()
+    with pytest.raises(ValueError, match='f_max'):
+        D.thesis_grid(f_max=-1.0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, 200), st.floats(0.01, 2.0), st.integers(0, 10 ** 6))
+def test_random_forces_in_range(n, f_max, seed):
+    F = D.random_forces(n, f_max=f_max, seed=seed)
+    assert F.shape == (n, 2)
+    assert (np.hypot(F[:, 0], F[:, 1]) <= f_max * (1 + 1e-12)).all()
+    assert (F[:, 1] >= -1e-15).all()
+    np.testing.assert_array_equal(F[0], [0.0, 0.0])
+    np.testing.assert_array_equal(F, D.random_forces(n, f_max=f_max, seed=seed))
+
+
+def test_features_are_the_camera_fit_of_the_fam_centreline():
+    from catheter_shape import fit_bezier
+    from fam_solver import Catheter, Loads, solve_fam
+    F = np.array([[0.0, 0.0], [0.0, 0.1], [-0.1, 0.05], [0.2, 0.2]])
+    ds = D.make_dataset(F, test_frac=0.25, progress=False)
+    assert ds['X'].shape == (4, 12) and ds['control_points'].shape == (4, 4, 3)
+    np.testing.assert_array_equal(ds['X'], ds['control_points'].reshape(4, 12))
+    np.testing.assert_array_equal(ds['Y'], F)
+    np.testing.assert_allclose(ds['magnitude'], np.hypot(F[:, 0], F[:, 1]))
+    assert (ds['split'] == 1).sum() == 1
+    cat = Catheter(length=D.BLAZER_LENGTH, ei=D.BLAZER_EI)
+    for f, cp in zip(F, ds['control_points']):
+        cl = solve_fam(cat, Loads(tip_force=tuple(f)), n_arcs=12).centerline(D.N_CENTERLINE)
+        ref = fit_bezier(np.c_[cl, np.zeros(len(cl))], degree=3)
+        np.testing.assert_allclose(cp, ref, atol=1e-9)
+    # unloaded: a straight catheter along +x, p0 at the clamp and p3 at x = L
+    np.testing.assert_allclose(ds['control_points'][0][[0, 3]], [[0, 0, 0], [D.BLAZER_LENGTH, 0, 0]],
+                               atol=1e-9)
+    # a positive fy bends the catheter towards +y
+    assert ds['control_points'][1][3, 1] > 0.01
+
+
+def test_mirror_and_file_roundtrip(tmp_path):
+    F = np.array([[0.05, 0.1], [-0.1, 0.05], [0.0, 0.2]])
+    ds = D.make_dataset(F, test_frac=0.0, progress=False, mirror=True, point_noise=1e-5)
+    assert ds['X'].shape == (6, 12)
+    np.testing.assert_allclose(ds['control_points'][3:, :, 1], -ds['control_points'][:3, :, 1])
+    np.testing.assert_allclose(ds['Y'][3:], ds['Y'][:3] * [1, -1])
+    path = D.save_dataset(tmp_path / 'ds.npz', ds)
+    with np.load(path, allow_pickle=False) as d:
+        assert json.loads(str(d['header'][()]))['mirror'] is True
+    back = D.load_dataset(path)
+    for k in ('X', 'Y', 'split', 'control_points', 'angle'):
+        np.testing.assert_array_equal(back[k], ds[k])
+    assert back['header']['n'] == 6 and back['header']['point_noise'] == 1e-5
+
+
+def test_rendered_features_follow_the_shape():
+    """Through the synthetic camera and ShapeSensor the Bezier curve still lies on the
+    true centreline (control points themselves may slide along it)."""
+    from catheter_shape import bezier_eval
+    F = np.array([[0.0, 0.05], [-0.15, 0.1]])
+    cls, conv = D.fam_centerlines(F)
+    cp, ok = D.render_control_points(cls, seed=3)
+    assert ok.all() and conv.all()
+    for c, cl in zip(cp, cls):
+        curve = bezier_eval(c[:, :2], np.linspace(0, 1, 400))
+        d = np.sqrt(((curve[:, None, :] - cl[None, :, :]) ** 2).sum(-1)).min(axis=1)
+        assert d.max() < 1e-3 and d.mean() < 2.5e-4          # m
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match='forces'):
+        D.fam_centerlines(np.array([[np.nan, 0.0]]))
+    with pytest.raises(ValueError, match='centerlines'):
+        D.fit_control_points(np.zeros((2, 3, 2)))
+    with pytest.raises(ValueError, match='point_noise'):
+        D.fit_control_points(np.zeros((1, 10, 2)) + np.linspace(0, 1, 10)[:, None], point_noise=-1)
+    with pytest.raises(ValueError, match='test_frac'):
+        D.make_dataset(np.zeros((2, 2)), test_frac=1.5)
+    with pytest.raises(ValueError, match='n'):
+        D.random_forces(0)
