@@ -268,6 +268,10 @@ class ScenarioRunner:
         self._steps_since_spin = 0
         self._now_ns = 0
         self.on_step: Optional[Callable[[float], None]] = None
+        #: lockstep only: called with the step time (ns) and a phase, 'pre' (before the step's
+        #: timers run) or 'post' (after them); returns (topic, cdr bytes) pairs delivered to the
+        #: nodes as if published in that phase (reprocess)
+        self.inject: Optional[Callable[[int, str], list]] = None
 
     # ------------------------------------------------------------------ setup
     def _params_for(self, inst: NodeInstance, lockstep: bool) -> List[Parameter]:
@@ -488,6 +492,10 @@ class ScenarioRunner:
         last_bar = 0
         for k in range(1, n_steps + 1):
             self._publish_clock(k * dt_ns, msg)
+            if self.inject is not None:
+                self._inject(k * dt_ns, 'pre')
+                self.drain()
+                self._inject(k * dt_ns, 'post')
             self.drain()
             self._sim_reached = k * dt_ns * 1e-9
             if k % 64 == 0:
@@ -498,6 +506,11 @@ class ScenarioRunner:
                 bar.update(round((k - last_bar) * sc['step'], 6))
                 last_bar = k
         return n_steps, self._sim_reached
+
+    def _inject(self, t_ns: int, phase: str):
+        for topic, data in self.inject(t_ns, phase):
+            self.bus.counts[topic] = self.bus.counts.get(topic, 0) + 1
+            self.bus.queue.append((topic, data))
 
     def _publish_clock(self, t_ns: int, msg: Clock):
         self._now_ns = t_ns
