@@ -45,15 +45,31 @@ def bernstein(s, degree: int) -> np.ndarray:
     degree = int(degree)
     s = np.asarray(s, dtype=float).reshape(-1)
     j = np.arange(degree + 1)
-    binom = np.array([comb(degree, k) for k in j], dtype=float)
-    # powers by cumulative products: stable and faster than ** for small degrees
-    sp = np.ones((s.size, degree + 1))
-    tp = np.ones((s.size, degree + 1))
-    t = 1.0 - s
-    for k in range(1, degree + 1):
-        sp[:, k] = sp[:, k - 1] * s
-        tp[:, k] = tp[:, k - 1] * t
-    return binom * sp * tp[:, ::-1]
+    return _binom(degree) * (s[:, None] ** j) * ((1.0 - s)[:, None] ** (degree - j))
+
+
+_BINOM: dict = {}
+_B2P: dict = {}
+
+
+def _binom(n: int) -> np.ndarray:
+    b = _BINOM.get(n)
+    if b is None:
+        b = _BINOM[n] = np.array([comb(n, k) for k in range(n + 1)], dtype=float)
+    return b
+
+
+def _bez2pow(n: int) -> np.ndarray:
+    """(n+1, n+1) matrix taking Bezier control points to power-basis coefficients:
+    c(s) = sum_k a_k s^k with a = _bez2pow(n) @ ctrl."""
+    m = _B2P.get(n)
+    if m is None:
+        m = np.zeros((n + 1, n + 1))
+        for k in range(n + 1):
+            for i in range(k + 1):
+                m[k, i] = comb(n, k) * comb(k, i) * (-1) ** (k - i)
+        _B2P[n] = m
+    return m
 
 
 def bezier_eval(control_points, s) -> np.ndarray:
@@ -178,19 +194,23 @@ def _anchored(s: np.ndarray) -> np.ndarray:
 
 
 def _newton_params(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, steps: int) -> np.ndarray:
-    """Newton steps on (c(s) - p) . c'(s) = 0 for every point, clamped to [0, 1]."""
+    """Newton steps on (c(s) - p) . c'(s) = 0 for every point, clamped to [0, 1].
+    Evaluated in the power basis (a few numpy calls per step: this is the hot loop)."""
     n = ctrl.shape[0] - 1
-    d1 = bezier_derivative(ctrl, 1)
-    d2 = bezier_derivative(ctrl, 2) if n >= 2 else np.zeros((1, ctrl.shape[1]))
+    k = np.arange(n + 1)
+    A = _bez2pow(n) @ ctrl
+    A1 = A[1:] * k[1:, None]                           # c'(s)  = sum_j A1[j] s^j
+    A2 = A1[1:] * k[1:n, None]                         # c''(s) = sum_j A2[j] s^j
     for _ in range(steps):
-        r = bernstein(s, n) @ ctrl - p
-        c1 = bernstein(s, n - 1) @ d1 if n >= 2 else np.repeat(d1, s.size, axis=0)
-        c2 = bernstein(s, n - 2) @ d2 if n >= 3 else np.repeat(d2[:1], s.size, axis=0)
-        f = np.sum(r * c1, axis=1)
-        fp = np.sum(c1 * c1, axis=1) + np.sum(r * c2, axis=1)
-        # a Newton step where the objective is locally convex, a gradient step otherwise
-        ok = fp > 1e-12 * (np.sum(c1 * c1, axis=1) + 1e-300)
-        step = np.where(ok, f / np.where(ok, fp, 1.0), 0.0)
+        S = s[:, None] ** k
+        r = S @ A - p
+        c1 = S[:, :n] @ A1
+        g = np.einsum('ij,ij->i', c1, c1)
+        f = np.einsum('ij,ij->i', r, c1)
+        fp = g + np.einsum('ij,ij->i', r, S[:, :n - 1] @ A2) if n >= 2 else g
+        # a Newton step where the objective is locally convex, none otherwise
+        ok = fp > 1e-12 * g + 1e-300
+        step = np.divide(f, fp, out=np.zeros_like(f), where=ok)
         s = np.clip(s - step, 0.0, 1.0)
     return s
 
@@ -204,7 +224,8 @@ def _project_global(c: np.ndarray, p: np.ndarray, samples: int, steps: int) -> n
 
 
 def _dist(c: np.ndarray, p: np.ndarray, s: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.sum((bernstein(s, c.shape[0] - 1) @ c - p) ** 2, axis=1))
+    r = (s[:, None] ** np.arange(c.shape[0])) @ (_bez2pow(c.shape[0] - 1) @ c) - p
+    return np.sqrt(np.einsum('ij,ij->i', r, r))
 
 
 def project_points(control_points, points, params=None, steps: int = 8,
@@ -299,7 +320,7 @@ def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 1
             tw *= 10.0
             continue
         s_t = _anchored(_newton_params(trial, p, s, 3))
-        e_t = float(np.mean(np.sum((bernstein(s_t, degree) @ trial - p) ** 2, axis=1)))
+        e_t = float(np.mean(_dist(trial, p, s_t) ** 2))
         if e_t >= err:
             if tw >= 1.0:
                 break
@@ -310,15 +331,18 @@ def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 1
         tw = max(tw / 3.0, 1e-6)
         if improved <= tol * err:
             break
-    # final residual: the closest point, from the fit's parameters and from a coarse global
-    # search (guards against a local foot point on strongly curved fits)
-    s_loc = _newton_params(ctrl, p, s, 3)
-    d_loc = _dist(ctrl, p, s_loc)
-    s_glob = _project_global(ctrl, p, 8 * (degree + 1), 4)
-    d_glob = _dist(ctrl, p, s_glob)
-    use_glob = d_glob < d_loc
-    s = np.where(use_glob, s_glob, s_loc)
-    dist = np.where(use_glob, d_glob, d_loc)
+    # final residual: the closest point from the fit's parameters; a coarse global search
+    # for the points far from the curve (guards against a local foot point)
+    s = _newton_params(ctrl, p, s, 3)
+    dist = _dist(ctrl, p, s)
+    far = dist > 3.0 * np.median(dist) + 1e-300
+    if far.any():
+        s_g = _project_global(ctrl, p[far], 8 * (degree + 1), 4)
+        d_g = _dist(ctrl, p[far], s_g)
+        better = d_g < dist[far]
+        idx = np.nonzero(far)[0][better]
+        s[idx] = s_g[better]
+        dist[idx] = d_g[better]
     return BezierFit(control_points=ctrl, params=s, residual=float(dist.mean()),
                      max_distance=float(dist.max()), chord_residual=chord_res)
 
