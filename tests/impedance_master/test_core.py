@@ -111,7 +111,7 @@ def linear_data(n, m=0.05, c=2.0, k=30.0, o=0.02, noise=0.0, seed=0):
 @pytest.mark.parametrize('cutoff', [None, 20.0])
 def test_sliding_window_recovers_the_linear_model(cutoff):
     ident = SlidingWindowIdentifier(window=1.0, rate=1000.0, cutoff=cutoff, mass_ridge=0.0,
-                                    ridge=1e-9)
+                                    stiffness_ridge=0.0, ridge=1e-9)
     x, xd, xdd, f = linear_data(3000)
     outs = [ident.update(*s) for s in zip(x, xd, xdd, f)]
     assert all(o is None for o in outs[:999]) and outs[999] is not None
@@ -135,7 +135,8 @@ def test_sliding_window_running_sums_equal_direct_sums():
 
 
 def test_sliding_window_holds_at_rest_and_says_so():
-    ident = SlidingWindowIdentifier(window=0.5, rate=1000.0, mass_ridge=0.0)
+    ident = SlidingWindowIdentifier(window=0.5, rate=1000.0, mass_ridge=0.0,
+                                    stiffness_ridge=0.0)
     x, xd, xdd, f = linear_data(1500)
     for s in zip(x, xd, xdd, f):
         good = ident.update(*s)
@@ -175,7 +176,8 @@ def test_identifiers_refuse_bad_input():
 
 
 def test_sliding_window_derives_missing_derivatives():
-    ident = SlidingWindowIdentifier(window=1.0, rate=1000.0, mass_ridge=0.0, offset=True)
+    ident = SlidingWindowIdentifier(window=1.0, rate=1000.0, mass_ridge=0.0, offset=True,
+                                    stiffness_ridge=0.0)
     x, xd, xdd, f = linear_data(3000, m=0.0)
     for s in zip(x, f):
         imp = ident.update(s[0], None, None, s[1])

@@ -91,13 +91,18 @@ class SlidingWindowIdentifier:
         mass_ridge: extra relative ridge pulling the mass toward 0 (the mass is barely
             identifiable at catheter accelerations; unpulled it absorbs friction reversals
             and renders kilograms at the master). 0: the plain thesis fit.
+        stiffness_ridge: the same toward k = 0 (when the window spans a few mm, x and the
+            offset are nearly collinear and k x + offset, evaluated at the master's position
+            a delay away, extrapolates wildly). Both ridges act in the unit-diagonal scaled
+            problem, so a well-excited parameter is biased by about ridge / (1 + ridge).
     Attributes after update: `status` ('filling', 'ok', 'at_rest', 'ill_conditioned'),
     `n_held` (solves replaced by the last good estimate), `condition` (last estimate).
     """
 
     def __init__(self, window: float = 1.0, rate: float = 1000.0, cutoff: Optional[float] = 20.0,
                  ridge: float = 1e-4, min_velocity_rms: float = 1e-3,
-                 max_condition: float = 1e9, offset: bool = True, mass_ridge: float = 1.0):
+                 max_condition: float = 1e9, offset: bool = True, mass_ridge: float = 1.0,
+                 stiffness_ridge: float = 0.01):
         self.window = positive('window', window)
         self.rate = positive('rate', rate)
         self.n = int(round(window * rate))
@@ -115,6 +120,9 @@ class SlidingWindowIdentifier:
         self.mass_ridge = finite('mass_ridge', mass_ridge)
         if self.mass_ridge < 0:
             raise ValueError(f'mass_ridge must be >= 0, got {mass_ridge!r}')
+        self.stiffness_ridge = finite('stiffness_ridge', stiffness_ridge)
+        if self.stiffness_ridge < 0:
+            raise ValueError(f'stiffness_ridge must be >= 0, got {stiffness_ridge!r}')
         # column scales (fixed, physical): regressors [x''/A, x'/V, x/X, 1]
         self._scale = (1.0, 0.04, 0.05, 1.0)
         self.reset()
@@ -247,6 +255,7 @@ class SlidingWindowIdentifier:
              for i in range(dim)]
         r = [b[i] / d[i] + mu * prior[i] for i in range(dim)]
         R[0][0] += self.mass_ridge  # toward m = 0
+        R[2][2] += self.stiffness_ridge  # toward k = 0
         # Cholesky of R (dim x dim) with pivot monitoring
         L = [[0.0] * dim for _ in range(dim)]
         pmin, pmax = math.inf, 0.0
@@ -322,7 +331,7 @@ class HistoryIdentifier:
                  smoothness: float = 30.0, rest_velocity: float = 2e-4,
                  max_mass: float = 1.0, max_force: float = 5.0, static_ridge: float = 1.0,
                  friction_smoothness: float = 1e3, static_first_difference: bool = True,
-                 breakaway_ridge: float = 1000.0):
+                 breakaway_ridge: float = 1000.0, viscous_ridge: float = 100.0):
         self.window = positive('window', window)
         self.rate = positive('rate', rate)
         self.x_min = finite('x_min', x_min)
@@ -347,6 +356,7 @@ class HistoryIdentifier:
         self.friction_smoothness = positive('friction_smoothness', friction_smoothness)
         self.static_first_difference = bool(static_first_difference)
         self.breakaway_ridge = positive('breakaway_ridge', breakaway_ridge)
+        self.viscous_ridge = positive('viscous_ridge', viscous_ridge)
         self.dx = (self.x_max - self.x_min) / (n_nodes - 1)
         G = n_nodes
         self.P = 4 * G + 1
@@ -376,6 +386,7 @@ class HistoryIdentifier:
         Pm[:G, :G] += self.static_ridge * np.eye(G)
         # the breakaway table is a refinement seen only near reversals and stops: shrink it
         Pm[2 * G:3 * G, 2 * G:3 * G] += self.breakaway_ridge * np.eye(G)
+        Pm[3 * G:4 * G, 3 * G:4 * G] += self.viscous_ridge * np.eye(G)
         self._prior = Pm
         lo = np.full(self.P, -np.inf)
         hi = np.full(self.P, np.inf)

@@ -45,7 +45,7 @@ class ImaRenderer:
     Args:
         limit: N, safe output limit (|f_d| <= limit).
         blend_time: s, time constant of the bumpless transfer at a model switch (0: jump).
-        max_rate: N/s, slew-rate limit of the output (inf: none).
+        max_rate: N/s, slew-rate limit of the output (> 0; inf: none).
         dt: s, the call period (1 kHz loop), used by blending and slew limiting.
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_clamped`.
     """
@@ -54,7 +54,13 @@ class ImaRenderer:
                  max_rate: float = 20.0, dt: float = 1e-3):
         self._clamp = _Clamp(limit)
         self.blend_time = nonneg('blend_time', blend_time)
-        self.max_rate = positive('max_rate', max_rate)
+        try:
+            self.max_rate = float(max_rate)
+        except (TypeError, ValueError):
+            raise ValueError(f'max_rate must be a number > 0 (inf: none), got {max_rate!r}') \
+                from None
+        if math.isnan(self.max_rate) or self.max_rate <= 0.0:
+            raise ValueError(f'max_rate must be > 0 (inf: none), got {max_rate!r}')
         self.dt = positive('dt', dt)
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
