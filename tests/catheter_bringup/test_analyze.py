@@ -1,0 +1,121 @@
+"""analyze and metrics against exact answers: recordings written with known signals."""
+import json
+import math
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from rclpy.serialization import serialize_message
+
+from catheter_bringup import metrics as M
+from catheter_bringup.analyze import analyze, format_report, main as analyze_main
+from catheter_bringup.recorder import McapRecorder
+
+
+def _wrench(fx, t):
+    from geometry_msgs.msg import WrenchStamped
+    m = WrenchStamped()
+    m.header.stamp.sec, m.header.stamp.nanosec = int(t // 1), int(round((t % 1) * 1e9))
+    m.header.frame_id = 'catheter_base'
+    m.wrench.force.x = float(fx)
+    return m
+
+
+def _write(path, delay=0.2, outages=((1.0, 0.5),), err_normal=0.01, err_outage=0.05,
+           duration=2.0, with_estimate=False):
+    """Slave force f(t) = 0.3 sin(t); rendered f(t + delay) + a known error: err_normal outside
+    outages, err_outage inside (alternating sign, so MAE = |err|, RMSE = |err|)."""
+    sc = {'name': 'synthetic', 'link': {'delay': delay, 'outages': [list(o) for o in outages]},
+          'nodes': {'ima_master_node': {'params': {'mode': 'ima'}},
+                    'dfr_master_node': {'executable': 'ima_master_node', 'params': {'mode': 'dfr'},
+                                        'remap': {'/master/rendered_force':
+                                                  '/master/dfr/rendered_force'}}},
+          'metrics': {'truth_topic': '/truth'}}
+    rec = McapRecorder(path)
+    for t in ('/slave/force', '/master/rendered_force', '/master/dfr/rendered_force'):
+        rec.add_topic(t, 'geometry_msgs/msg/WrenchStamped')
+    if with_estimate:
+        rec.add_topic('/catheter/tip_wrench', 'geometry_msgs/msg/WrenchStamped')
+        rec.add_topic('/truth', 'geometry_msgs/msg/WrenchStamped')
+    n = int(duration * 1000)
+    for k in range(n + 1):
+        t = k * 1e-3
+        ns = k * 1_000_000
+        rec.write('/slave/force', serialize_message(_wrench(0.3 * math.sin(t), t)), ns)
+        inside = any(a <= t <= a + b for a, b in outages)
+        e = (err_outage if inside else err_normal) * (1 if k % 2 else -1)
+        rec.write('/master/rendered_force',
+                  serialize_message(_wrench(0.3 * math.sin(t + delay) + e, t)), ns)
+        rec.write('/master/dfr/rendered_force',
+                  serialize_message(_wrench(0.3 * math.sin(t + delay) + 2 * e, t)), ns)
+        if with_estimate and k % 33 == 0:
+            rec.write('/truth', serialize_message(_wrench(0.1, t)), ns)
+            rec.write('/catheter/tip_wrench', serialize_message(_wrench(0.1 + 0.02, t)), ns + 5_000_000)
+    rec.close('complete', extra={'scenario_yaml': yaml.safe_dump(sc), 'mode': 'lockstep',
+                                 'sim_time_reached_s': duration})
+    return path
+
+
+def test_force_tracking_recovers_known_errors(tmp_path):
+    res = analyze(_write(tmp_path / 's.mcap'), skip=0.0)
+    ft = res['force_tracking']
+    assert set(ft) == {'ima', 'dfr'}
+    # the last 200 ms have no slave force at t + delay: left out (n counts the rest)
+    assert ft['ima']['normal']['mae'] == pytest.approx(0.01, abs=1e-9)
+    assert ft['ima']['outage']['mae'] == pytest.approx(0.05, abs=1e-9)
+    assert ft['ima']['outage']['rmse'] == pytest.approx(0.05, abs=1e-9)
+    assert ft['dfr']['outage']['max'] == pytest.approx(0.10, abs=1e-9)
+    assert ft['ima']['outage']['n'] == 501
+    assert ft['ima']['all']['n'] == 2001 - 200
+    report = format_report(res)
+    assert 'ima' in report and '0.0500' in report and '0.0520' in report   # thesis beside
+
+
+def test_estimation_error_and_latency(tmp_path):
+    res = analyze(_write(tmp_path / 'e.mcap', with_estimate=True), skip=0.0)
+    est = res['estimation']
+    assert est['reference'] == '/truth' and est['reference_is_truth']
+    assert est['x']['mae'] == pytest.approx(0.02, abs=1e-9)
+    s = res['streams']['/catheter/tip_wrench']
+    assert s['latency_p50'] == pytest.approx(0.005, abs=1e-9)
+    assert s['rate_hz'] == pytest.approx(1000 / 33, rel=1e-6)
+
+
+def test_analyze_cli_writes_json(tmp_path, capsys):
+    bag = _write(tmp_path / 'c.mcap')
+    out = tmp_path / 'm.json'
+    assert analyze_main([str(bag), '--json', str(out), '--skip', '0']) == 0
+    data = json.loads(out.read_text())
+    assert data['force_tracking']['ima']['outage']['mae'] == pytest.approx(0.05, abs=1e-9)
+    assert 'Force tracking' in capsys.readouterr().out
+
+
+def test_metrics_refuse_bad_input():
+    with pytest.raises(ValueError, match='delay'):
+        M.force_tracking([0, 1], [0, 0], [0, 1], [0, 0], delay=-1)
+    with pytest.raises(ValueError, match='t_master'):
+        M.force_tracking([[0, 1]], [0, 0], [0, 1], [0, 0], delay=0)
+    with pytest.raises(ValueError, match='sig'):
+        M.align([0, 1], [0, 1], [0, float('nan')])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.0, 1.0), st.floats(-0.5, 0.5), st.floats(0.01, 2.0))
+def test_align_of_a_line_is_exact_and_nan_outside(shift, offset, slope):
+    t = np.linspace(0.0, 2.0, 201)
+    sig = offset + slope * t
+    q = np.linspace(0.0, 2.0, 57)
+    got = M.align(q, t, sig, shift=shift)
+    inside = q + shift <= 2.0
+    np.testing.assert_allclose(got[inside], offset + slope * (q[inside] + shift), atol=1e-12)
+    assert np.all(np.isnan(got[~inside]))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-1, 1), min_size=1, max_size=50))
+def test_error_stats_invariants(errs):
+    s = M.error_stats(np.asarray(errs))
+    assert s['mae'] <= s['rmse'] + 1e-12 <= s['max'] + 2e-12
+    assert s['n'] == len(errs)
