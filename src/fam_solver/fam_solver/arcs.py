@@ -62,8 +62,17 @@ _POW = np.arange(_K, dtype=float)
 _CCOEF = _COEF[:, 0::2] + 1j * _COEF[:, 1::2]   # (K, 4) complex: g, q, g', q'
 
 
+def _powers(phi):
+    """(..., K) powers phi^0 .. phi^(K-1) by a running product (np.power is ~10x slower)."""
+    V = np.empty(phi.shape + (_K,))
+    V[..., 0] = 1.0
+    V[..., 1:] = phi[..., None]
+    np.multiply.accumulate(V[..., 1:], axis=-1, out=V[..., 1:])
+    return V
+
+
 def _series(phi):
-    R = (phi[..., None] ** _POW) @ _CCOEF
+    R = (_powers(phi) if phi.size > 64 else phi[..., None] ** _POW) @ _CCOEF
     return R[..., 0], R[..., 1], R[..., 2], R[..., 3]
 
 

@@ -298,7 +298,7 @@ class _BezierResidual:
         P = np.repeat(phi, N + 1, axis=0).reshape(B, N + 1, N)
         idx = np.arange(N)
         P[:, idx + 1, idx] += h
-        loads, m = rp.loads(scale)
+        loads, m = rp.loads(np.repeat(scale, N + 1) if np.ndim(scale) else scale)
         R = model.residual(P.reshape(B * (N + 1), N), loads, m).reshape(B, N + 1, N)
         return np.transpose((R[:, 1:, :] - R[:, :1, :]) / h[:, :, None], (0, 2, 1))
 
@@ -309,48 +309,59 @@ def BezierModel_for(prob):
 
 
 def _newton(prob: _Problem, phi, scale, max_iter, step_limit=0.6, bezier=None):
-    """Damped Newton at a fixed load scale.
+    """Damped Newton at a fixed load scale (scalar or (B,)), vectorised over the cases;
+    converged cases drop out of the active set.
 
-    Returns phi (best iterate), converged (B,), iterations, max|r| (B,), Jacobian factors
-    of the exact model at the returned phi (for the branch check).
+    Returns phi (best iterate), converged (B,), iterations (B,), max|r| (B,), Jacobian
+    factors of the exact model at the returned phi (for the branch check).
     """
-    loads, m = prob.loads(scale)
     B, N = phi.shape
+    scale = np.broadcast_to(np.asarray(scale, dtype=float), (B,))
     best = phi.copy()
     best_res = np.full(B, np.inf)
-    it = 0
-    fac = fac_best = None
+    fac_best = tuple(np.zeros((B, N)) for _ in range(4))
+    iters = np.zeros(B, dtype=int)
+    act = np.arange(B)
+    sub, sc, ph = prob, scale, phi.copy()
+    bz = bezier
     for it in range(max_iter + 1):
-        r, fac, _ = _evaluate(phi, prob.l, prob.w, loads, m, jac=True)
-        if bezier is not None:
-            r = bezier.residual(phi, loads, m)
+        loads, m = sub.loads(sc)
+        r, fac, _ = _evaluate(ph, sub.l, sub.w, loads, m, jac=True)
+        if bz is not None:
+            r = bz.residual(ph, loads, m)
         res = np.max(np.abs(r), axis=1)
         res = np.where(np.isfinite(res), res, np.inf)
-        improve = res < best_res
-        if np.all(improve):
-            best, best_res, fac_best = phi, res, fac
-        else:
-            best = np.where(improve[:, None], phi, best)
-            best_res = np.where(improve, res, best_res)
-            fac_best = tuple(np.where(improve[:, None], x, y) for x, y in zip(fac, fac_best))
-        conv = res <= _tol(phi)
+        improve = res < best_res[act]
+        if np.any(improve):
+            ii = act[improve]
+            best[ii] = ph[improve]
+            best_res[ii] = res[improve]
+            for fb, f in zip(fac_best, fac):
+                fb[ii] = f[improve]
+        conv = res <= _tol(ph)
         if np.all(conv) or it == max_iter:
             break
-        Jb = bezier.jacobian(phi, scale) if bezier is not None else None
+        iters[act] += 1
+        Jb = bz.jacobian(ph, sc) if bz is not None else None
         if Jb is not None:
             try:
                 dx = np.linalg.solve(Jb, -r[:, :, None])[:, :, 0]
             except np.linalg.LinAlgError:
-                dx, _ = _newton_step(prob.w, fac, r)
+                dx, _ = _newton_step(sub.w, fac, r)
         else:
-            dx, _ = _newton_step(prob.w, fac, r)
+            dx, _ = _newton_step(sub.w, fac, r)
         dx = np.where(np.isfinite(dx), dx, 0.0)
         mx = np.max(np.abs(dx), axis=1)
         dx *= np.where(mx > step_limit, step_limit / np.maximum(mx, 1e-300), 1.0)[:, None]
-        dx[conv] = 0.0
-        phi = phi + dx
+        ph = ph + dx
+        if np.any(conv):
+            keep = ~conv
+            act, ph, sc = act[keep], ph[keep], sc[keep]
+            sub = _subproblem(sub, keep)
+            if bz is not None:
+                bz = _BezierResidual(sub)
     conv = best_res <= _tol(best)
-    return best, conv, it, best_res, fac_best
+    return best, conv, iters, best_res, fac_best
 
 
 def _principal_ok(prob: _Problem, fac):
@@ -365,22 +376,71 @@ def _principal_ok(prob: _Problem, fac):
 COARSE_N = 32
 
 
+def _linear_guess(prob: _Problem):
+    """Small-deflection beam solution phi_lin = (l/EI) Mbar(straight) (B, N) -- the moments
+    of the loads on the UNDEFORMED catheter, without the geometric stiffness of axial loads
+    (so its sign is the natural loading direction even past buckling) -- its tip angle
+    theta_lin (B,), and a start for Newton: phi_lin rescaled to a plausible tip angle.
+
+    For a dead tip force at angle beta (no moment, no point forces) the natural branch turns
+    the tip towards the force, so the start uses theta = beta (1 - exp(-theta_lin / beta));
+    otherwise |theta| <= 1.5 rad."""
+    B, N = prob.tip_force.shape[0], prob.n
+    loads, m = prob.loads(1.0)
+    r0, _, _ = _evaluate(np.zeros((B, N)), prob.l, prob.w, loads, m, jac=False)
+    lin = -r0
+    th = lin.sum(axis=1)
+    ath = np.abs(th)
+    target = np.minimum(ath, 1.5)
+    if not prob.follower and not prob.point_forces:
+        beta = np.angle(prob.tip_force)
+        same = (np.sign(beta) == np.sign(th)) & (prob.tip_moment == 0) & (beta != 0)
+        ab = np.where(same, np.abs(beta), 1.0)
+        # an axial compression past buckling turns the tip further than the linear beam says
+        L = prob.l * N
+        a_ax = np.maximum(0.0, -np.cos(beta)) * np.abs(prob.tip_force) * L * prob.w / prob.l * L / 2
+        target = np.where(same, ab * -np.expm1(-(ath + a_ax) / ab), target)
+    scale = np.where(ath > 0, target / np.where(ath > 0, ath, 1.0), 1.0)
+    return lin, th, lin * scale[:, None]
+
+
+def _accept(prob: _Problem, phi, conv, th_lin, fac=None):
+    """Direct-solve acceptance: converged, tip turned the way the linear beam turns (when that
+    is clear), and the branch check (all Jacobian eigenvalues in the right half plane)."""
+    th = phi.sum(axis=1)
+    ok = conv & ((np.sign(th) == np.sign(th_lin)) | (np.abs(th_lin) < 0.1))
+    big = ok & (np.abs(th_lin) > 0.3)
+    if np.any(big) and prob.n <= DENSE_MAX_N:
+        idx = np.nonzero(big)[0]
+        if fac is None:
+            sub = _subproblem(prob, idx)
+            loads, m = sub.loads(1.0)
+            _, f, _ = _evaluate(phi[idx], sub.l, sub.w, loads, m)
+        else:
+            f = tuple(x[idx] for x in fac)
+        good = _principal_ok(prob, f)
+        ok[idx[~good]] = False
+    return ok
+
+
 def _solve(prob: _Problem, B, arc_model='exact'):
     """Globalised solve for B cases.
 
     1. zero load -> exactly straight;
-    2. N <= 64: damped Newton from the straight shape with the full load; accepted when it
-       converges and (load parameter <= 2, or the branch check passes);
-       N > 64: Newton from the coarse (N = 32) solution interpolated onto the arcs;
-    3. otherwise load continuation from zero (per case).
+    2. N <= 64: damped Newton from the rescaled small-deflection solution, accepted by
+       ``_accept``; N > 64: Newton from the coarse (N = 32) solution interpolated onto the
+       arcs (that solution is accepted already);
+    3. otherwise load continuation from zero (per case). A result that is exactly straight
+       is kept (loading from zero keeps an axially loaded catheter straight).
     """
     N = prob.n
     bez = _BezierResidual(prob) if arc_model == 'bezier' else None
     alpha = _alpha(prob)
     zero = alpha == 0
     iters = np.zeros(B, dtype=int)
+    lin, th_lin, guess = _linear_guess(prob)
     if N <= DENSE_MAX_N:
-        phi0 = np.zeros((B, N))
+        phi0 = guess
     else:
         L = prob.l * N
         coarse = _make_problem(COARSE_N, L, prob.l / prob.w, prob.tip_force, prob.follower,
@@ -391,23 +451,18 @@ def _solve(prob: _Problem, B, arc_model='exact'):
         sc = (np.arange(COARSE_N) + 0.5) / COARSE_N
         sf = (np.arange(N) + 0.5) / N
         phi0 = np.stack([np.interp(sf, sc, pc[b]) for b in range(B)]) * (COARSE_N / N)
-    maxit = 10 if bez is None else 30
-    phi, conv, it, res, fac = _newton(prob, phi0, 1.0, maxit, bezier=bez)
+    phi, conv, it, res, fac = _newton(prob, phi0, 1.0, 12 if bez is None else 30, bezier=bez)
     iters += it
-    ok = conv & ~zero
-    check = ok & (alpha > 2.0)
-    if np.any(check) and N <= DENSE_MAX_N:
-        idx = np.nonzero(check)[0]
-        good = _principal_ok(prob, tuple(x[idx] for x in fac))
-        ok[idx[~good]] = False
+    ok = _accept(prob, phi, conv, th_lin, fac) if N <= DENSE_MAX_N else conv.copy()
+    straight = conv & ~np.any(phi != 0.0, axis=1)
+    ok |= zero | straight
     phi[zero] = 0.0
     res[zero] = 0.0
     conv |= zero
-    ok |= zero
     if not np.all(ok):
         idx = np.nonzero(~ok)[0]
         sub = _subproblem(prob, idx)
-        p2, c2, it2, r2 = _continuation(sub, len(idx), arc_model)
+        p2, c2, it2, r2 = _continuation(sub, len(idx), arc_model, lin[idx])
         # keep the continuation result unless it failed and the direct one converged
         take = c2 | ~conv[idx]
         phi[idx[take]] = p2[take]
@@ -425,60 +480,69 @@ def _subproblem(prob: _Problem, idx):
 MAX_CONTINUATION_ITERS = 600
 
 
-def _continuation(prob: _Problem, B, arc_model):
-    """Load each case from zero in adaptive steps (secant predictor, at most 0.8 rad change
-    of the tip angle per step, at most MAX_CONTINUATION_ITERS Newton iterations)."""
+def _continuation(prob: _Problem, B, arc_model, lin=None):
+    """Load every case from zero in adaptive steps, vectorised over the cases (each has its
+    own load scale s and step ds): secant predictor (the small-deflection solution for the
+    first step), at most 0.5 rad change of the tip angle per step, the branch check after
+    each step (a critical point is crossed only with steps < 1e-3, then the case is marked
+    unstable and followed), at most MAX_CONTINUATION_ITERS Newton iterations per case."""
     N = prob.n
-    out = np.zeros((B, N))
-    conv = np.zeros(B, dtype=bool)
-    iters = np.zeros(B, dtype=int)
-    res_out = np.zeros(B)
-    for b in range(B):
-        sub = _subproblem(prob, np.array([b]))
+    if lin is None:
+        lin = _linear_guess(prob)[0]
+    th_lin = np.max(np.abs(np.cumsum(lin, axis=1)), axis=1)
+    s = np.zeros(B)
+    ds = np.minimum(0.25, 0.3 / np.maximum(th_lin, 1e-12))
+    phi = np.zeros((B, N))
+    prev = np.zeros((B, N))
+    prev_s = np.zeros(B)
+    has_prev = np.zeros(B, dtype=bool)
+    unstable = np.zeros(B, dtype=bool)
+    total = np.zeros(B, dtype=int)
+    res = np.zeros(B)
+    while True:
+        act = np.nonzero((s < 1.0) & (ds >= 1e-5) & (total < MAX_CONTINUATION_ITERS))[0]
+        if act.size == 0:
+            break
+        sub = _subproblem(prob, act)
         bez = _BezierResidual(sub) if arc_model == 'bezier' else None
-        # first step: the linear (small deflection) tip angle at full load sets its size
-        loads, m = sub.loads(1.0)
-        r0, fac0, _ = _evaluate(np.zeros((1, N)), sub.l, sub.w, loads, m)
-        lin, _ = _newton_step(sub.w, fac0, r0)
-        th_lin = float(np.max(np.abs(np.cumsum(lin[0]))))
-        s, ds = 0.0, min(0.25, 0.3 / max(th_lin, 1e-12))
-        phi = np.zeros((1, N))
-        prev, prev_s = None, 0.0
-        total = 0
-        res = np.array([0.0])
-        unstable = False
-        while s < 1.0 and ds >= 1e-5 and total < MAX_CONTINUATION_ITERS:
-            s_new = min(1.0, s + ds)
-            if prev is not None:
-                guess = phi + (phi - prev) * ((s_new - s) / (s - prev_s))
-            else:
-                guess = lin * s_new
-            p, c, it, r, fac = _newton(sub, guess, s_new, 8 if bez is None else 20, bezier=bez)
-            total += it
-            okstep = bool(c[0]) and (abs(float(np.sum(p - phi))) <= 0.5 or ds < 1e-3)
-            if okstep and N <= DENSE_MAX_N and not unstable:
-                if not _principal_ok(sub, fac)[0]:
-                    if ds < 1e-3:
-                        unstable = True       # crossed a critical load: keep following
-                    else:
-                        okstep = False
-            if okstep:
-                prev, prev_s = phi, s
-                phi, s, res = p, s_new, r
-                ds = min(ds * 2.0, 0.5)
-            else:
-                ds *= 0.5
-        ok = s >= 1.0
-        if not ok:
-            p, c, it, r, _ = _newton(sub, phi, 1.0, 30, bezier=bez)
-            total += it
-            if np.isfinite(r[0]):
-                phi, res, ok = p, r, bool(c[0])
-        out[b] = phi[0]
-        conv[b] = ok
-        iters[b] = total
-        res_out[b] = res[0]
-    return out, conv, iters, res_out
+        s_new = np.minimum(1.0, s[act] + ds[act])
+        hp = has_prev[act]
+        denom = np.where(hp, s[act] - prev_s[act], 1.0)
+        guess = np.where(hp[:, None],
+                         phi[act] + (phi[act] - prev[act]) * ((s_new - s[act]) / denom)[:, None],
+                         lin[act] * s_new[:, None])
+        p, c, it, r, fac = _newton(sub, guess, s_new, 8 if bez is None else 20, bezier=bez)
+        total[act] += it
+        small = ds[act] < 1e-3
+        okstep = c & ((np.abs(np.sum(p - phi[act], axis=1)) <= 0.5) | small)
+        chk = okstep & ~unstable[act]
+        if N <= DENSE_MAX_N and np.any(chk):
+            ci = np.nonzero(chk)[0]
+            good = _principal_ok(sub, tuple(x[ci] for x in fac))
+            bad = ci[~good]
+            unstable[act[bad[small[bad]]]] = True
+            okstep[bad[~small[bad]]] = False
+        acc_i, rej_i = act[okstep], act[~okstep]
+        prev[acc_i] = phi[acc_i]
+        prev_s[acc_i] = s[acc_i]
+        has_prev[acc_i] = True
+        phi[acc_i] = p[okstep]
+        s[acc_i] = s_new[okstep]
+        res[acc_i] = r[okstep]
+        ds[acc_i] = np.minimum(ds[acc_i] * 2.0, 0.5)
+        ds[rej_i] *= 0.5
+    conv = s >= 1.0
+    left = np.nonzero(~conv)[0]
+    if left.size:
+        sub = _subproblem(prob, left)
+        bez = _BezierResidual(sub) if arc_model == 'bezier' else None
+        p, c, it, r, _ = _newton(sub, phi[left], 1.0, 30, bezier=bez)
+        total[left] += it
+        fin = np.isfinite(r)
+        phi[left[fin]] = p[fin]
+        res[left[fin]] = r[fin]
+        conv[left] = c & fin
+    return phi, conv, total, res
 
 
 def _stability(prob: _Problem, phi):
@@ -520,13 +584,15 @@ def _check_common(cat, n_arcs, arc_model):
 
 
 def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DEFAULT_ARC_MODEL,
-              max_iter: int = 60) -> Shape:
+              initial=None) -> Shape:
     """Solve the FAM for one load case; returns a Shape (see ``model.Shape``).
 
     cat: Catheter (m, N m^2). loads: Loads (N, N m; base frame, or tip frame if follower).
     n_arcs: number of equal arcs N (1..100000). arc_model: 'exact' (default, true circular
     arcs) or 'bezier' (the thesis' Bezier arcs, Eqs. 7-12). Never returns NaN: a case that
     does not converge has converged=False and the best finite iterate.
+    initial: optional warm start (a previous Shape or its arc angles (N,)); used when the
+    Newton iteration from it converges to a stable equilibrium, else ignored.
     """
     _check_common(cat, n_arcs, arc_model)
     if not isinstance(loads, Loads):
@@ -539,6 +605,19 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
             tip += complex(fx, fy)
         else:
             pfs.append((s, np.array([complex(fx, fy)])))
+    if initial is not None:
+        initial = np.asarray(getattr(initial, 'arc_angles', initial), dtype=float)
+        if initial.shape != (n,) or not np.all(np.isfinite(initial)):
+            raise ValueError(f'initial must be finite arc angles of shape ({n},)')
+    if arc_model == 'exact' and not pfs and n <= DENSE_MAX_N:
+        out = _fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower, initial)
+        if out is None and initial is not None:
+            out = _fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower)
+        if out is not None:
+            phi, conv, it, res, tipc, stable = out
+            return arc_shape(cat.length, phi, tip=tipc, tip_angle=float(phi.sum()),
+                             converged=True, iterations=it, stable=stable, warning='',
+                             residual=res, arc_model=arc_model)
     prob = _build_problem(cat, n, np.array([tip]), loads.follower,
                           np.array([loads.tip_moment]), pfs)
     phi, conv, iters, res = _solve(prob, 1, arc_model)
@@ -594,3 +673,133 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
         phi[lo:hi], conv[lo:hi], iters[lo:hi], res[lo:hi] = p, c, it, r
         stable[lo:hi] = _stability(prob, p)
     return BatchShape(cat.length, phi, conv, iters, stable, res, arc_model)
+
+
+# ---------------------------------------------------------------------------------------
+# Fast path: one case, tip force and moment only, exact arcs, N <= DENSE_MAX_N.
+# Same equations as _evaluate/_dense_jacobian, written with 1-D arrays and as few numpy
+# calls as possible (numpy call overhead dominates at N = 12).
+# ---------------------------------------------------------------------------------------
+from .arcs import _CCOEF, _POW, SERIES_LIMIT  # noqa: E402
+
+_FAST_CACHE = {}
+
+
+def _fast_consts(n):
+    c = _FAST_CACHE.get(n)
+    if c is None:
+        idx = np.arange(n)
+        lower = idx[:, None] > idx[None, :]
+        c = (lower, np.eye(n), np.diag_indices(n))
+        _FAST_CACHE[n] = c
+    return c
+
+
+def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3):
+    """Damped Newton for one tip-loaded case. F complex (base or tip frame), m float.
+
+    Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, and
+    the Jacobian of the last Newton step (None if no step was taken)."""
+    lower, eye, diag = _fast_consts(n)
+    cF0 = F.conjugate()
+    acc = np.add.accumulate
+    best = (phi, math.inf, 0j)
+    it = 0
+    J = None
+    for it in range(max_iter + 1):
+        th_end = acc(phi)
+        lE = l * np.exp(1j * (th_end - phi))
+        if -SERIES_LIMIT < _MINR(phi) and _MAXR(phi) < SERIES_LIMIT:
+            G, Q, GP, QP = ((phi[:, None] ** _POW) @ _CCOEF).T
+        else:
+            G, Q, GP, QP = arc_funcs(phi)
+        P = acc(lE * G)
+        rel = P[-1] - P
+        if follower:
+            t = float(th_end[-1])
+            cF = cF0 * complex(math.cos(t), -math.sin(t))
+        else:
+            cF = cF0
+        ZF = (rel + lE * Q) * cF
+        r = phi - w * (m - ZF.imag)
+        res = max(_MAXR(r), -_MINR(r))
+        if not res < math.inf:
+            res = math.inf
+        pmax = max(_MAXR(phi), -_MINR(phi))
+        if res < best[1]:
+            best = (phi, res, complex(P[-1]))
+        if res <= 1e-13 + 1e-12 * pmax or it == max_iter:
+            break
+        irel = 1j * rel
+        Bd = ((irel + lE * QP) * cF).imag
+        C = ((irel + lE * GP) * cF).imag
+        if follower:
+            D = np.where(lower, 0.0, C - ZF.real[:, None])
+            D[diag] = Bd - ZF.real
+        else:
+            D = np.where(lower, ZF.real[:, None], C)
+            D[diag] = Bd
+        D *= w
+        D += eye                          # J = I - w dMbar/dphi, dMbar/dphi = -D / w
+        J = D
+        dx = _dgesv(D, r)[2]
+        mx = max(_MAXR(dx), -_MINR(dx))
+        if not mx < math.inf:
+            break
+        if mx > step_limit:
+            dx *= step_limit / mx
+        phi = phi - dx
+    phi, res, tip = best
+    if not res < math.inf:
+        phi, tip = np.zeros(n), complex(n * l)
+    pmax = max(_MAXR(phi), -_MINR(phi))
+    return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J
+
+
+def _fast_solve(n, L, EI, F, m, follower, initial=None):
+    """Whole single-case solve for tip loads (exact arcs, N <= DENSE_MAX_N), or None when the
+    direct attempt is not accepted (the caller then uses the general path).
+
+    Returns phi, converged, iterations, residual, tip (complex), stable."""
+    l = L / n
+    w = l / EI
+    lin = w * (m + F.imag * (L - (np.arange(n) + 0.5) * l))   # small-deflection solution
+    th_lin = float(lin.sum())
+    if m == 0.0 and F == 0:
+        return None
+    if initial is not None:
+        phi0 = initial
+    else:
+        ath = abs(th_lin)
+        target = min(ath, 1.5)
+        beta = math.atan2(F.imag, F.real)
+        if not follower and m == 0.0 and beta != 0.0 and (beta > 0) == (th_lin > 0):
+            a_ax = max(0.0, -math.cos(beta)) * abs(F) * L * L / EI / 2
+            target = abs(beta) * -math.expm1(-(ath + a_ax) / abs(beta))
+        phi0 = lin * (target / ath) if ath > 0 else lin
+    phi, conv, it, res, tip, J = _fast_tip_newton(n, l, w, F, m, follower, phi0, 12)
+    if not conv:
+        return None
+    th = float(phi.sum())
+    if not np.any(phi):
+        J = None
+    elif initial is None and abs(th_lin) >= 0.1 and (th > 0) != (th_lin > 0):
+        return None
+    # axial compression at the tip -> stability matters; large loads -> branch check
+    Ft = F if follower else F * complex(math.cos(th), -math.sin(th))
+    compress = Ft.real < 0
+    stable = True
+    if J is not None and (compress or abs(th_lin) > 0.3 or initial is not None):
+        wr = _dgeev(J, compute_vl=0, compute_vr=0)[0]
+        stable = bool(_MINR(wr) > 1e-9)
+        if not stable:
+            return None      # possibly another branch: let continuation decide
+    elif J is None and compress:
+        return None          # straight under compression: the general path judges stability
+    return phi, True, it, res, tip, stable
+
+
+from scipy.linalg.lapack import dgesv as _dgesv, dgeev as _dgeev  # noqa: E402
+
+_MAXR = np.maximum.reduce
+_MINR = np.minimum.reduce

@@ -158,40 +158,53 @@ class Shape:
                 f'iterations={self.iterations}, stable={self.stable}, model={self.arc_model!r})')
 
 
-def arc_shape(length: float, phi: np.ndarray, **kw) -> Shape:
-    """Shape of N equal circular arcs with bending angles ``phi`` (N,), base at the origin."""
+def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, **kw) -> Shape:
+    """Shape of N equal circular arcs with bending angles ``phi`` (N,), base at the origin.
+
+    ``tip`` (complex) and ``tip_angle`` may be passed when already known; the arc geometry
+    for ``points_at`` is built lazily on first use."""
     phi = np.asarray(phi, dtype=float)
     n = phi.size
     l = length / n
-    th_end = np.cumsum(phi)
-    th_start = th_end - phi
-    E = np.exp(1j * th_start)
-    d = l * E * g_only(phi)
-    P_end = np.cumsum(d)
-    if not np.any(phi):
-        # exactly straight: no accumulated round-off, tip == (L, 0)
-        P_end = length * (np.arange(1, n + 1) / n) + 0j
-        P_end[-1] = length
-    P_start = np.concatenate([[0j], P_end[:-1]])
+    cache = {}
+
+    def geometry():
+        if not cache:
+            th_end = np.cumsum(phi)
+            th_start = th_end - phi
+            E = np.exp(1j * th_start)
+            d = l * E * g_only(phi)
+            P_end = np.cumsum(d)
+            if not np.any(phi):
+                # exactly straight: no accumulated round-off, tip == (L, 0)
+                P_end = length * (np.arange(1, n + 1) / n) + 0j
+                P_end[-1] = length
+            cache.update(th_start=th_start, E=E, P_end=P_end,
+                         P_start=np.concatenate([[0j], P_end[:-1]]))
+        return cache
 
     def locate(s):
         x = s * n
         i = np.minimum(np.floor(x).astype(int), n - 1)
-        tau = x - i
-        return i, tau
+        return i, x - i
 
     def points(s):
+        c = geometry()
         i, tau = locate(s)
-        z = P_start[i] + l * E[i] * tau * g_only(phi[i] * tau)
-        z = np.where(s >= 1.0, P_end[-1], z)
+        z = c['P_start'][i] + l * c['E'][i] * tau * g_only(phi[i] * tau)
+        z = np.where(s >= 1.0, c['P_end'][-1], z)
         return np.stack([z.real, z.imag], axis=-1)
 
     def angles(s):
+        c = geometry()
         i, tau = locate(s)
-        return th_start[i] + phi[i] * tau
+        return c['th_start'][i] + phi[i] * tau
 
-    tip = P_end[-1]
-    return Shape(length, (tip.real, tip.imag), float(th_end[-1]) if n else 0.0, phi,
+    if tip is None or not np.any(phi):
+        tip = geometry()['P_end'][-1]
+    if tip_angle is None:
+        tip_angle = float(np.sum(phi)) if n else 0.0
+    return Shape(length, (tip.real, tip.imag), tip_angle, phi,
                  points_fn=points, angles_fn=angles, **kw)
 
 
