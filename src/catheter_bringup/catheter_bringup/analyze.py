@@ -117,6 +117,24 @@ def renderer_streams(scenario: dict, topics) -> Dict[str, str]:
     return out
 
 
+def topic_owners(scenario: dict, ran) -> Dict[str, str]:
+    """topic -> the node instance of the run that publishes it (from the scenario registry)."""
+    if not scenario:
+        return {}
+    try:
+        from catheter_bringup.scenario import instances, validate_scenario
+        cands = instances(validate_scenario(scenario))
+    except (ValueError, KeyError):
+        return {}
+    out = {}
+    for name in sorted(ran):
+        inst = cands.get(name)
+        if inst is not None:
+            for t in inst.spec.produces:
+                out.setdefault(t, name)
+    return out
+
+
 def _t0(rec: Recording) -> float:
     """Start of the experiment clock: the first message of the slave (its timer's first tick),
     else the first message of the run."""
@@ -167,11 +185,13 @@ def analyze(path, skip: float = 0.5) -> dict:
             est['reference'] = ref_topic
             est['reference_is_truth'] = ref_topic != SLAVE_FORCE
             out['estimation'] = est
+    owner = topic_owners(sc, json.loads(rec.meta.get('nodes', '[]') or '[]'))
     for topic in rec.topics:
         st = rec.stamps(topic)
         out['streams'][topic] = M.stream_stats(rec.t(topic),
                                                None if np.all(np.isnan(st)) else st)
         out['streams'][topic]['type'] = rec.types.get(topic, '')
+        out['streams'][topic]['node'] = owner.get(topic, '')
     return out
 
 
@@ -219,11 +239,14 @@ def format_report(res: dict) -> str:
             lines.append(f"{ax:<10} {_f(s['mae']):>8} {_f(s['rmse']):>8} {_f(s['max']):>8} "
                          f"{s['n']:>6}")
         lines.append('')
-    lines += ['Streams (rate from log times; latency = log time - header stamp)',
-              f"{'topic':<32} {'count':>7} {'rate Hz':>8} {'period p50 ms':>14} "
+    lines += ['Streams per node (on the run\'s clock: simulated in lockstep runs; rate from log '
+              'times; latency = log time - header stamp)',
+              f"{'node':<26} {'topic':<28} {'count':>7} {'rate Hz':>8} {'period p50 ms':>14} "
               f"{'p99 ms':>8} {'lat p50 ms':>11} {'lat p99 ms':>11}"]
-    for topic, s in sorted(res.get('streams', {}).items()):
-        lines.append(f"{topic:<32} {s['count']:>7} {_f(s['rate_hz'], '{:.1f}'):>8} "
+    for topic, s in sorted(res.get('streams', {}).items(),
+                           key=lambda kv: (kv[1].get('node') or '~', kv[0])):
+        lines.append(f"{s.get('node') or '-':<26} {topic:<28} {s['count']:>7} "
+                     f"{_f(s['rate_hz'], '{:.1f}'):>8} "
                      f"{_f(s['period_p50'] * 1e3, '{:.3f}'):>14} "
                      f"{_f(s['period_p99'] * 1e3, '{:.3f}'):>8} "
                      f"{_f(s.get('latency_p50', math.nan) * 1e3, '{:.3f}'):>11} "

@@ -462,7 +462,7 @@ class ScenarioRunner:
         try:
             if self.progress:
                 from tqdm import tqdm
-                bar = tqdm(total=round(sc['duration'], 3), unit='s', desc=sc['name'],
+                bar = tqdm(total=round(sc['duration'], 3), unit='s', desc=sc['name'], mininterval=0.5,
                            bar_format='{desc}: {percentage:3.0f}%|{bar}| {n:.2f}/{total:.2f} s '
                                       '[{elapsed}<{remaining}{postfix}]', file=sys.stderr)
             if sc['mode'] == 'lockstep':
