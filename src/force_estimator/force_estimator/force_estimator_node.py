@@ -37,7 +37,7 @@ class ForceEstimatorNode(Node):
                             'MLP model: shipped name or path to a .npz model file')
         length = declare(self, 'length', 0.065, 'catheter length for fam, m', 0.005, 2.0)
         ei = declare(self, 'ei', 6.0e-5, 'bending stiffness EI for fam, N m^2', 1e-7, 1.0)
-        n_arcs = declare(self, 'n_arcs', 12, 'FAM arcs for fam', 1, 200)
+        n_arcs = declare(self, 'n_arcs', 24, 'FAM arcs for fam (more: more accurate, slower)', 1, 200)
         f_max = declare(self, 'f_max', 0.45, 'largest plausible tip force for fam, N', 0.01, 10.0)
         if self.method == 'fam':
             from fam_solver import Catheter

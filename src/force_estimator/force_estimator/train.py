@@ -13,7 +13,7 @@ Recipe (deterministic, seeded; about a minute on one core):
    provides it) or the Bezier fit of the FAM centreline with Gaussian point noise
    (`--features noise`).
 3. SVR (RBF, C = 100, epsilon and gamma by validation) -> ``blazer-svr``; the thesis MLP
-   (10 ReLU) and a larger MLP (64, 64): whichever validates better -> ``blazer-mlp``.
+   (10 ReLU) and a larger MLP (32, 32): whichever validates better -> ``blazer-mlp``.
 
 Models are written to ``--out`` (default: the package's ``models/`` folder) as .npz files
 (arrays + JSON header; no pickle).
@@ -50,7 +50,7 @@ def has_camera() -> bool:
         return False
 
 
-def build(out: str = DEFAULT_OUT, n_random: int = 1500, features: str = 'auto',
+def build(out: str = DEFAULT_OUT, n_random: int = 1000, features: str = 'auto',
           seed: int = 0, progress: bool = True, verbose: bool = True) -> dict:
     """Run the recipe; returns a report dict (metrics, hyper-parameters, times, paths)."""
     if features == 'auto':
@@ -105,10 +105,10 @@ def build(out: str = DEFAULT_OUT, n_random: int = 1500, features: str = 'auto',
                       n_sv=int(svr.arrays['sv'].shape[0]))
     say(f'SVR: {rep["svr"]}')
     cands = {}
-    for name, hidden in (('thesis-10', (10,)), ('large-64x64', (64, 64))):
+    for name, hidden in (('thesis-10', (10,)), ('large-32x32', (32, 32))):
         t = time.perf_counter()
         m, r = fit_mlp(X, Y, hidden_layer_sizes=hidden, seed=seed, extra_header=extra,
-                       n_init=3 if hidden == (10,) else 2, max_iter=2000)
+                       n_init=3 if hidden == (10,) else 1, max_iter=1000)
         cands[name] = (m, dict(r['hyper'], fit_time_s=time.perf_counter() - t))
         say(f'MLP {name}: {cands[name][1]}')
     win = min(cands, key=lambda k: cands[k][1]['val_mae_n'])
@@ -128,7 +128,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog='python -m force_estimator.train',
                                 description='Rebuild the shipped blazer-svr / blazer-mlp models.')
     p.add_argument('--out', default=DEFAULT_OUT, help='output folder (default: package models/)')
-    p.add_argument('--n-random', type=int, default=1500, help='random load cases (before mirroring)')
+    p.add_argument('--n-random', type=int, default=1000, help='random load cases (before mirroring)')
     p.add_argument('--features', choices=('auto', 'render', 'noise', 'exact'), default='auto',
                    help='render: synthetic camera + ShapeSensor; noise: FAM centreline + '
                         'point noise; exact: FAM centreline')

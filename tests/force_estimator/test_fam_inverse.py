@@ -1,0 +1,102 @@
+"""FamInverseEstimator: recovers tip forces from the shapes they produce (FAM and the
+independent rod solver), warm-starts, reports a residual, refuses bad input and flags shapes
+no tip force explains."""
+import numpy as np
+import pytest
+
+fam_solver = pytest.importorskip('fam_solver')
+catheter_shape = pytest.importorskip('catheter_shape')
+
+from catheter_shape import fit_bezier  # noqa: E402
+from fam_solver import Catheter, Loads, solve_elastica, solve_fam  # noqa: E402
+
+from force_estimator import FamInverseEstimator  # noqa: E402
+
+L, EI = 0.065, 6.0e-5
+
+
+@pytest.fixture(scope='module')
+def inv():
+    return FamInverseEstimator(Catheter(length=L, ei=EI), n_arcs=12, table_angles=24,
+                               table_magnitudes=10)
+
+
+def _cp(centerline):
+    return fit_bezier(np.c_[centerline, np.zeros(len(centerline))], degree=3)
+
+
+@pytest.mark.parametrize('f', [(0.0, 0.02), (0.0, 0.1), (0.05, 0.12), (-0.03, 0.08),
+                               (0.1, -0.05), (0.0, -0.2)])
+def test_recovers_force_of_fam_shapes(inv, f):
+    cat = Catheter(length=L, ei=EI)
+    cp = _cp(solve_fam(cat, Loads(tip_force=f), n_arcs=12).centerline(200))
+    inv.reset()
+    r = inv.estimate(cp)
+    assert r.converged and r.in_envelope
+    assert r.residual < 2e-4
+    assert np.hypot(*(r.force - f)) < 3e-3 + 0.02 * np.hypot(*f), r
+
+
+@pytest.mark.parametrize('alpha', [0.5, 2.0, 5.0])
+def test_recovers_perpendicular_load_of_the_exact_rod(inv, alpha):
+    """Shapes from the independent reference solver (Bisshopp-Drucker cantilever family)."""
+    cat = Catheter(length=L, ei=EI)
+    fy = alpha * EI / L ** 2
+    ref = solve_elastica(cat, Loads(tip_force=(0.0, fy)))
+    inv.reset()
+    f = inv.predict(_cp(ref.centerline(200)))
+    assert f.shape == (2,)
+    assert abs(f[1] - fy) < 0.03 * fy + 1e-3
+    assert abs(f[0]) < 0.05 * fy + 2e-3
+
+
+def test_unloaded_catheter_gives_zero(inv):
+    cp = np.array([[0, 0, 0], [L / 3, 0, 0], [2 * L / 3, 0, 0], [L, 0, 0]], dtype=float)
+    inv.reset()
+    f, inside = inv.predict(cp, return_flags=True)
+    assert np.hypot(*f) < 2e-3 and inside
+
+
+def test_warm_start_is_cheaper(inv):
+    cat = Catheter(length=L, ei=EI)
+    cps = [_cp(solve_fam(cat, Loads(tip_force=(0.01 * k, 0.1)), n_arcs=12).centerline(200))
+           for k in (0, 1)]
+    inv.reset()
+    first = inv.estimate(cps[0])
+    second = inv.estimate(cps[1])
+    assert second.solves <= first.solves
+    assert abs(second.force[0] - 0.01) < 3e-3
+    assert inv.last_residual == second.residual
+
+
+def test_batch_predict(inv):
+    cat = Catheter(length=L, ei=EI)
+    cps = np.array([_cp(solve_fam(cat, Loads(tip_force=(0.0, fy)), n_arcs=12).centerline(200))
+                    for fy in (0.05, 0.06)])
+    F, flags = inv.predict(cps, return_flags=True)
+    assert F.shape == (2, 2) and flags.shape == (2,) and flags.all()
+    assert F[1, 1] > F[0, 1]
+
+
+def test_unexplainable_shape_is_flagged(inv):
+    """An S-shaped curve of the right length is no tip-loaded cantilever."""
+    s = np.linspace(0, 1, 200)
+    cl = np.c_[L * s, 0.012 * np.sin(2 * np.pi * s)]
+    inv.reset()
+    r = inv.estimate(_cp(cl))
+    assert not r.in_envelope and r.residual > inv.max_residual
+
+
+def test_bad_input(inv):
+    bad = np.zeros((4, 3))
+    bad[2, 0] = np.nan
+    with pytest.raises(ValueError, match='control_points'):
+        inv.predict(bad)
+    with pytest.raises(ValueError, match='control_points'):
+        inv.predict(np.zeros((5, 3)))
+    with pytest.raises(ValueError, match='control_points'):
+        inv.predict(np.zeros((4, 3)))          # a curve of zero length
+    with pytest.raises(ValueError, match='f_max'):
+        FamInverseEstimator(Catheter(length=L, ei=EI), f_max=-1.0)
+    with pytest.raises(ValueError, match='n_arcs'):
+        FamInverseEstimator(Catheter(length=L, ei=EI), n_arcs=0)
