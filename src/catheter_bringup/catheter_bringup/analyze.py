@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import pathlib
 import sys
 from typing import Dict, Iterable, List, Optional
 
@@ -145,15 +146,20 @@ def _t0(rec: Recording) -> float:
     return min(allt) if allt else 0.0
 
 
-def analyze(path, skip: float = 0.5) -> dict:
-    """All metrics of one recording as a JSON-able dict (see the module docstring)."""
+def analyze(path, skip: Optional[float] = None) -> dict:
+    """All metrics of one recording as a JSON-able dict (see the module docstring).
+
+    ``skip``: start-up seconds left out of the force metrics (default: the scenario's
+    ``metrics.skip``, else 0.5)."""
     rec = Recording(path)
     sc = rec.scenario or {}
+    if skip is None:
+        skip = float((sc.get('metrics') or {}).get('skip', 0.5))
     link = sc.get('link') or {}
     delay = float(link.get('delay', 0.0))
     outages = [tuple(o) for o in link.get('outages', [])]
     t0 = _t0(rec)
-    out = {'bag': str(path), 'scenario': sc.get('name', rec.meta.get('scenario', '')),
+    out = {'bag': pathlib.Path(path).name, 'skip_s': skip, 'scenario': sc.get('name', rec.meta.get('scenario', '')),
            'status': rec.meta.get('status', 'unknown'), 'reason': rec.meta.get('reason', ''),
            'mode': rec.meta.get('mode', ''), 'seed': sc.get('seed'),
            'delay_s': delay, 'outages': [list(o) for o in outages],
@@ -268,7 +274,8 @@ def main(argv=None):
     p = argparse.ArgumentParser(prog='analyze', description=__doc__.split('\n\n')[0])
     p.add_argument('bag', help='an .mcap recording')
     p.add_argument('--json', default=None, help='write the metrics to this JSON file')
-    p.add_argument('--skip', type=float, default=0.5, help='start-up seconds left out')
+    p.add_argument('--skip', type=float, default=None,
+                   help="start-up seconds left out (default: the scenario's metrics.skip or 0.5)")
     p.add_argument('--quiet', action='store_true')
     a = p.parse_args(argv)
     res = analyze(a.bag, skip=a.skip)

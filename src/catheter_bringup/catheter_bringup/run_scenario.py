@@ -22,7 +22,8 @@ def build_parser():
                    help='name in ros_ws/config/ or path to a YAML file')
     p.add_argument('--mode', choices=('lockstep', 'realtime'), default=None)
     p.add_argument('--duration', type=float, default=None, help='override, s')
-    p.add_argument('--bag', default=None, help='output .mcap (default bags/<scenario>.mcap)')
+    p.add_argument('--bag', default=None,
+                   help='output .mcap (default bags/<scenario>_<date>_<time>.mcap)')
     p.add_argument('--no-record', action='store_true')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     return p
@@ -50,8 +51,18 @@ def main(args=None):
     argv = list(sys.argv[1:] if args is None else args)
     argv = remove_ros_args(['x'] + argv)[1:]
     opts = build_parser().parse_args(argv)
+    import datetime
+    import os
+    import pathlib
     from catheter_bringup.runner import ScenarioRunner
-    runner = ScenarioRunner(opts.scenario, bag=opts.bag, mode=opts.mode,
+    from catheter_bringup.scenario import load_scenario
+    sc = load_scenario(opts.scenario)
+    bag = opts.bag
+    if bag is None and not opts.no_record:
+        root = pathlib.Path(os.environ.get('CATHETER_WS_ROOT', pathlib.Path.cwd()))
+        stamp = datetime.datetime.now().strftime('%Y%m%d_%H%M%S')   # file name only
+        bag = str(root / 'bags' / f"{sc['name']}_{stamp}.mcap")
+    runner = ScenarioRunner(sc, bag=bag, mode=opts.mode,
                             duration=opts.duration, progress=not opts.quiet,
                             record=False if opts.no_record else None)
     # SIGTERM behaves like Ctrl-C: stop, close the recording

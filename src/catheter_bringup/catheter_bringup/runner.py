@@ -333,7 +333,8 @@ class ScenarioRunner:
         if self.bag:
             self.recorder = McapRecorder(self.bag)
             self.sink = RecordingSink(self.runner_node, self.recorder,
-                                      exclude=sc['record']['exclude'])
+                                      exclude=sc['record']['exclude'],
+                                      only=sc['record'].get('only') or None)
             self.sink.now_ns = (lambda: self._now_ns) if lockstep else None
             self.sink.buffered = lockstep
             self._record_publishers()

@@ -12,7 +12,7 @@ A scenario file::
     link: {delay: 0.2, jitter: 0.0, loss: 0.0, outages: [[4.0, 1.0], [8.0, 1.0]]}
     operator: {trajectory: experiment_ii}
     outputs: [/master/rendered_force, /slave/force]   # what the scene consumes
-    record: {exclude: [/clock]}
+    record: {exclude: [/clock]}   # and/or only: [topics] (everything else is not recorded)
     nodes:                    # parameters per node instance (and optional registry fields)
       ima_master_node: {params: {mode: ima}}
       dfr_shadow: {executable: ima_master_node, remap: {/master/rendered_force: /master/dfr/rendered_force},
@@ -170,6 +170,10 @@ def validate_scenario(data: Mapping) -> dict:
     rec = dict(s.get('record') or {})
     rec.setdefault('enabled', True)
     rec.setdefault('exclude', ['/clock', '/rosout', '/parameter_events'])
+    only = rec.get('only') or []
+    if not isinstance(only, (list, tuple)) or not all(isinstance(t, str) for t in only):
+        raise ValueError(f'record.only must be a list of topic names, got {only!r}')
+    rec['only'] = list(only)
     s['record'] = rec
     nodes = s.get('nodes') or {}
     if not isinstance(nodes, Mapping):
