@@ -18,6 +18,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'sim_slave_node = sim_slave.sim_slave_node:main',
         ],
     },
 )

@@ -100,3 +100,14 @@ def test_bad_constructor_arguments(kw):
 def test_bad_command(bad):
     with pytest.raises(ValueError, match='x_cmd'):
         SlaveRobot().step(bad)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(1e-4, 0.15), st.floats(0.01, 0.1), st.floats(0.5, 5.0))
+def test_steps_settle_without_overshoot_within_the_acceleration_limit(size, vmax, amax):
+    """A command jump (e.g. after a link outage) is braked along sqrt(2 a e): < 1 % overshoot."""
+    r = SlaveRobot(max_speed=vmax, max_accel=amax)
+    n = int((size / vmax + 2 * vmax / amax + 0.3) * 1000)
+    x, _, _ = run(r, [size] * n)
+    assert x.max() <= size * 1.01 + 1e-6
+    assert x[-1] == pytest.approx(size, rel=1e-3, abs=1e-6)

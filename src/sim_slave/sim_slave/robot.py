@@ -84,6 +84,7 @@ class SlaveRobot:
         self.xd = 0.0
         self.xdd = 0.0
         self._cmd_prev: Optional[float] = None
+        self.command = self.x     # the last command, clipped to the stroke
         self._v_ff = 0.0
         self.steps = 0
 
@@ -97,10 +98,20 @@ class SlaveRobot:
         dt = self.dt
         if self._cmd_prev is None:
             self._cmd_prev = x_cmd
+        # command velocity for the feed-forward: a jump (after an outage) is not a velocity the
+        # stage can follow, so the raw difference is clipped to the speed limit first
         raw = (x_cmd - self._cmd_prev) / dt
+        raw = min(max(raw, -self.max_speed), self.max_speed)
         self._cmd_prev = x_cmd
+        self.command = x_cmd
         self._v_ff += dt / (self.ff_time_constant + dt) * (raw - self._v_ff)
-        v_sp = self.kp * (x_cmd - self.x) + self.feedforward * self._v_ff
+        # P on the position error, capped by the braking curve sqrt(2 a e) (with margin for the
+        # motor lag) so that a large step decelerates within the acceleration limit
+        e = x_cmd - self.x
+        ae = abs(e)
+        v_fb = self.kp * ae
+        v_brake = 0.8 * math.sqrt(2.0 * self.max_accel * ae)
+        v_sp = math.copysign(min(v_fb, v_brake), e) + self.feedforward * self._v_ff
         v_sp = min(max(v_sp, -self.max_speed), self.max_speed)
         a = (v_sp - self.xd) / (self.motor_time_constant + dt)
         a = min(max(a, -self.max_accel), self.max_accel)
