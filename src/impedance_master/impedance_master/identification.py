@@ -14,8 +14,8 @@
   environment model learned from the WHOLE history (exponentially weighted least squares
   with a long memory), see `impedance.Impedance` (table kind): static force, Coulomb and
   breakaway friction and viscous drag as functions of inserted length on a grid, a Dahl
-  friction state for direction and presliding, the mass term. A second-difference
-  smoothness prior makes unvisited grid nodes extrapolate linearly from visited ones;
+  friction state for direction and presliding, the mass term. Smoothness priors make
+  unvisited grid nodes extrapolate from visited ones (friction linearly, static force flat);
   parameters are physically bounded (friction, breakaway and drag >= 0, bounded mass) by an
   active-set solve. Samples at rest are not learned from (the model is held).
 
@@ -29,7 +29,7 @@ from typing import Optional
 
 import numpy as np
 
-from impedance_master._check import finite, positive
+from impedance_master._check import finite, nonneg, positive
 from impedance_master.impedance import FrictionState, Impedance
 
 
@@ -230,69 +230,76 @@ class SlidingWindowIdentifier:
         return imp
 
     def _solve(self) -> Impedance:
+        """Ridge-regularised, Jacobi-scaled Cholesky solve of the 4x4 normal equations,
+        unrolled (pure Python, a few microseconds)."""
         S = self._S
-        n = self.n
+        sx = self._scale
         # at rest: velocity column carries no information
-        if S[4] / n * self._scale[1] ** 2 < self.min_velocity_rms ** 2:
+        if S[4] / self.n * sx[1] * sx[1] < self.min_velocity_rms ** 2:
             return self._hold('at_rest')
-        use_o = self.use_offset
-        dim = 4 if use_o else 3
-        A = [[S[0], S[1], S[2], S[3]],
-             [S[1], S[4], S[5], S[6]],
-             [S[2], S[5], S[7], S[8]],
-             [S[3], S[6], S[8], S[9]]]
-        b = [S[10], S[11], S[12], S[13]]
-        d = [math.sqrt(A[i][i]) if A[i][i] > 0.0 else 0.0 for i in range(dim)]
-        if min(d) <= 0.0:
+        a00, a01, a02, a03, a11, a12, a13, a22, a23, a33 = S[:10]
+        b0, b1, b2, b3 = S[10:14]
+        if not self.use_offset:     # decouple the offset: unit row, zero right-hand side
+            a03 = a13 = a23 = b3 = 0.0
+            a33 = 1.0
+        if a00 <= 0.0 or a11 <= 0.0 or a22 <= 0.0 or a33 <= 0.0:
             return self._hold('ill_conditioned')
-        # last good estimate in scaled coordinates (theta_scaled_i = theta_i * scale_i * d_i)
-        if self._theta is None:
-            prior = [0.0] * dim
-        else:
-            prior = [self._theta[i] * self._scale[i] * d[i] for i in range(dim)]
+        d0, d1, d2, d3 = math.sqrt(a00), math.sqrt(a11), math.sqrt(a22), math.sqrt(a33)
         mu = self.ridge
-        R = [[A[i][j] / (d[i] * d[j]) + (mu if i == j else 0.0) for j in range(dim)]
-             for i in range(dim)]
-        r = [b[i] / d[i] + mu * prior[i] for i in range(dim)]
-        R[0][0] += self.mass_ridge  # toward m = 0
-        R[2][2] += self.stiffness_ridge  # toward k = 0
-        # Cholesky of R (dim x dim) with pivot monitoring
-        L = [[0.0] * dim for _ in range(dim)]
-        pmin, pmax = math.inf, 0.0
-        for i in range(dim):
-            for j in range(i + 1):
-                s = R[i][j]
-                for q in range(j):
-                    s -= L[i][q] * L[j][q]
-                if i == j:
-                    if s <= 0.0:
-                        return self._hold('ill_conditioned')
-                    pmin = min(pmin, s)
-                    pmax = max(pmax, s)
-                    L[i][i] = math.sqrt(s)
-                else:
-                    L[i][j] = s / L[j][j]
-        self.condition = pmax / pmin
+        th = self._theta
+        if th is None:
+            p0 = p1 = p2 = p3 = 0.0
+        else:   # last good estimate in scaled coordinates
+            p0, p1, p2, p3 = th[0] * sx[0] * d0, th[1] * sx[1] * d1, th[2] * sx[2] * d2, \
+                th[3] * sx[3] * d3
+        # unit-diagonal scaled matrix + ridge (and the pulls of m and k toward 0)
+        r00 = 1.0 + mu + self.mass_ridge
+        r11 = 1.0 + mu
+        r22 = 1.0 + mu + self.stiffness_ridge
+        r33 = 1.0 + mu
+        r01, r02, r03 = a01 / (d0 * d1), a02 / (d0 * d2), a03 / (d0 * d3)
+        r12, r13, r23 = a12 / (d1 * d2), a13 / (d1 * d3), a23 / (d2 * d3)
+        y0, y1, y2, y3 = b0 / d0 + mu * p0, b1 / d1 + mu * p1, b2 / d2 + mu * p2, \
+            b3 / d3 + mu * p3
+        # Cholesky R = L L^T with pivot monitoring (pivots > 0 by the ridge in exact math)
+        q0 = r00
+        if q0 <= 0.0:
+            return self._hold('ill_conditioned')
+        l00 = math.sqrt(q0)
+        l10, l20, l30 = r01 / l00, r02 / l00, r03 / l00
+        q1 = r11 - l10 * l10
+        if q1 <= 0.0:
+            return self._hold('ill_conditioned')
+        l11 = math.sqrt(q1)
+        l21 = (r12 - l20 * l10) / l11
+        l31 = (r13 - l30 * l10) / l11
+        q2 = r22 - l20 * l20 - l21 * l21
+        if q2 <= 0.0:
+            return self._hold('ill_conditioned')
+        l22 = math.sqrt(q2)
+        l32 = (r23 - l30 * l20 - l31 * l21) / l22
+        q3 = r33 - l30 * l30 - l31 * l31 - l32 * l32
+        if q3 <= 0.0:
+            return self._hold('ill_conditioned')
+        l33 = math.sqrt(q3)
+        self.condition = max(q0, q1, q2, q3) / min(q0, q1, q2, q3)
         if self.condition > self.max_condition:
             return self._hold('ill_conditioned')
-        y = [0.0] * dim
-        for i in range(dim):
-            s = r[i]
-            for q in range(i):
-                s -= L[i][q] * y[q]
-            y[i] = s / L[i][i]
-        th = [0.0] * dim
-        for i in reversed(range(dim)):
-            s = y[i]
-            for q in range(i + 1, dim):
-                s -= L[q][i] * th[q]
-            th[i] = s / L[i][i]
-        theta = [th[i] / (d[i] * self._scale[i]) for i in range(dim)]
-        if not use_o:
-            theta.append(0.0)
-        if not all(math.isfinite(t) for t in theta):
+        # forward and back substitution
+        z0 = y0 / l00
+        z1 = (y1 - l10 * z0) / l11
+        z2 = (y2 - l20 * z0 - l21 * z1) / l22
+        z3 = (y3 - l30 * z0 - l31 * z1 - l32 * z2) / l33
+        t3 = z3 / l33
+        t2 = (z2 - l32 * t3) / l22
+        t1 = (z1 - l21 * t2 - l31 * t3) / l11
+        t0 = (z0 - l10 * t1 - l20 * t2 - l30 * t3) / l00
+        theta = (t0 / (d0 * sx[0]), t1 / (d1 * sx[1]), t2 / (d2 * sx[2]),
+                 t3 / (d3 * sx[3]) if self.use_offset else 0.0)
+        if not (math.isfinite(theta[0]) and math.isfinite(theta[1])
+                and math.isfinite(theta[2]) and math.isfinite(theta[3])):
             return self._hold('ill_conditioned')
-        self._theta = tuple(theta)
+        self._theta = theta
         self.status = 'ok'
         imp = Impedance(theta[0], theta[1], theta[2], theta[3], valid=True, status='ok')
         self.last = imp
@@ -314,15 +321,21 @@ class HistoryIdentifier:
         memory: s of MOTION after which old samples weigh 1/e (exponential forgetting that
             only advances while the catheter moves, so a rest does not erase the model).
         solve_every: samples between model solves (20 -> a new model every 20 ms).
-        smoothness: weight of the second-difference prior on the static table S (allows
-            kinks such as the onset of wall contact).
-        friction_smoothness: the same for the friction, breakaway and drag tables (F, B, C:
-            physically smooth in inserted length, so a kink in the insertion force is
-            attributed to the static table, e.g. wall contact).
+        smoothness: weight (in samples) of the smoothness prior on the static table S:
+            first differences (static_first_difference=True: unvisited lengths take the
+            nearest visited value, a cautious extrapolation) or second differences.
+        friction_smoothness: weight of the second-difference prior on the friction,
+            breakaway and drag tables (F, B, C): unvisited lengths extrapolate linearly.
+        friction_kink: weight of a third-difference prior on F, B, C (0: none).
         rest_velocity: m/s; samples slower than this are not learned from (the model holds).
         max_mass: kg, upper bound of the mass term; max_force: N, bound of |S|.
-        static_ridge: ridge weight (samples) pulling the static table S toward 0, so that
-            force seen in one direction only is attributed to friction.
+        static_ridge: ridge (samples) pulling S toward 0: force seen in one direction only
+            is attributed to friction, the dominant term of catheter insertion.
+        breakaway_ridge: ridge pulling B toward 0 (a refinement seen only near reversals).
+        viscous_ridge: ridge pulling C toward 0: insertion seen at one speed is explained by
+            friction, which holds at other speeds, rather than by drag.
+    Forgetting, priors and bounds make the solve well posed whatever the data: the matrix
+    is the data's information plus a positive definite prior, never singular.
     """
 
     def __init__(self, window: float = 1.0, rate: float = 1000.0, x_min: float = 0.0,
@@ -331,7 +344,8 @@ class HistoryIdentifier:
                  smoothness: float = 30.0, rest_velocity: float = 2e-4,
                  max_mass: float = 1.0, max_force: float = 5.0, static_ridge: float = 1.0,
                  friction_smoothness: float = 1e3, static_first_difference: bool = True,
-                 breakaway_ridge: float = 1000.0, viscous_ridge: float = 100.0):
+                 breakaway_ridge: float = 1000.0, viscous_ridge: float = 100.0,
+                 friction_kink: float = 0.0):
         self.window = positive('window', window)
         self.rate = positive('rate', rate)
         self.x_min = finite('x_min', x_min)
@@ -357,6 +371,7 @@ class HistoryIdentifier:
         self.static_first_difference = bool(static_first_difference)
         self.breakaway_ridge = positive('breakaway_ridge', breakaway_ridge)
         self.viscous_ridge = positive('viscous_ridge', viscous_ridge)
+        self.friction_kink = nonneg('friction_kink', friction_kink)
         self.dx = (self.x_max - self.x_min) / (n_nodes - 1)
         G = n_nodes
         self.P = 4 * G + 1
@@ -373,12 +388,16 @@ class HistoryIdentifier:
         for i in range(G - 1):
             D1[i, i:i + 2] = (-1.0, 1.0)
         D1tD1 = D1.T @ D1
+        D3 = np.zeros((G - 3, G))
+        for i in range(G - 3):
+            D3[i, i:i + 4] = (-1.0, 3.0, -3.0, 1.0)
+        D3tD3 = D3.T @ D3
         Pm = np.zeros((self.P, self.P))
         for g in range(4):
             if g == 0:
                 blk = self.smoothness * (D1tD1 if self.static_first_difference else DtD)
             else:
-                blk = self.friction_smoothness * DtD
+                blk = self.friction_smoothness * DtD + self.friction_kink * D3tD3
             Pm[g * G:(g + 1) * G, g * G:(g + 1) * G] = blk
         Pm += 1e-6 * np.eye(self.P)
         # the static table is shrunk toward 0: a force seen in one direction only is
