@@ -186,3 +186,38 @@ def test_identifier_node_writes_and_reloads_its_learned_state(ros, tmp_path):
     node.close()
     assert path.exists()
     node.destroy_node()
+
+
+def test_sim_haptic_node_runs_in_lockstep_with_a_clock(ros):
+    """use_sim_time: the 1 kHz timer fires once per published 1 ms /clock step and the
+    command stamps are the simulated time."""
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+    from catheter_common.topics import CLOCK, QOS_DEFAULT
+    node = ros.add(SimHapticNode(context=ros.context, parameter_overrides=params(
+        use_sim_time=True, **{'link.outages': [0.0, 0.0]})))
+    probe = ros.node('probe_clock')
+    cmds = collect(probe, JointState, MASTER_COMMAND)
+    clock = probe.create_publisher(Clock, CLOCK, QOS_DEFAULT)
+    assert ros.spin_until(lambda: clock.get_subscription_count() > 0
+                          and node.pub_cmd.get_subscription_count() > 0, 10.0)
+    t_ns = 1_000_000_000
+
+    def step():
+        nonlocal t_ns
+        t_ns += 1_000_000
+        clock.publish(Clock(clock=Time(sec=t_ns // 10 ** 9, nanosec=t_ns % 10 ** 9)))
+        for _ in range(4):
+            ros.executor.spin_once(timeout_sec=0.002)
+
+    for _ in range(20):      # let the clock subscription settle
+        step()
+    ticks0 = node.diag.get('ticks')
+    for _ in range(300):
+        step()
+    ticks = node.diag.get('ticks') - ticks0
+    assert 270 <= ticks <= 300
+    last = cmds[-1].header.stamp
+    stamp_ns = last.sec * 10 ** 9 + last.nanosec
+    assert t_ns - 5_000_000 <= stamp_ns <= t_ns            # simulated, not wall time
+    assert 0.30 - 0.03 <= node.t_last <= 0.32 + 0.001
