@@ -19,6 +19,7 @@ setup(
     entry_points={
         'console_scripts': [
             'sim_slave_node = sim_slave.sim_slave_node:main',
+            'camera_node = sim_slave.camera_node:main',
         ],
     },
 )

@@ -172,6 +172,11 @@ class VesselModel:
         xin = x if x > 0.0 else 0.0
         return fr + p.viscous_per_length * xin * xd + self._wall(x, xd)
 
+    def wall_force(self, x: float, xd: float) -> float:
+        """Hunt-Crossley wall contact force in N at x [m], xd [m/s] (stateless; 0 before the
+        wall, never negative). The tip load the camera simulation bends the catheter with."""
+        return self._wall(finite('x', x), finite('xd', xd))
+
     def _wall(self, x: float, xd: float) -> float:
         p = self.params
         d = x - p.wall_depth

@@ -1,0 +1,65 @@
+"""camera_node in-process with a /clock source: frames and the truth follow the joint state."""
+import math
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import WrenchStamped
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Image, JointState
+
+pytest.importorskip('fam_solver')
+pytest.importorskip('catheter_shape')
+
+from catheter_common.topics import (CAMERA_IMAGE, CLOCK, FRAME_CAMERA, QOS_DEFAULT,  # noqa: E402
+                                    QOS_FAST, QOS_SENSOR, SLAVE_JOINT_STATE)
+from sim_slave import VesselParams  # noqa: E402
+from sim_slave.camera_node import CAMERA_TIP_FORCE_TRUTH, CameraNode  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+
+def test_frames_and_truth_follow_the_joint_state(ros, tmp_path):
+    bg = tmp_path / 'bg.png'
+    node = ros.add(CameraNode(context=ros.context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('background_file', value=str(bg))]))
+    assert bg.exists()
+    peer = ros.node('camera_test_peer')
+    clock = peer.create_publisher(Clock, CLOCK, QOS_DEFAULT)
+    js = peer.create_publisher(JointState, SLAVE_JOINT_STATE, QOS_FAST)
+    images, truth = [], []
+    peer.create_subscription(Image, CAMERA_IMAGE, images.append, QOS_SENSOR)
+    peer.create_subscription(WrenchStamped, CAMERA_TIP_FORCE_TRUTH, truth.append, QOS_SENSOR)
+    assert ros.spin_until(lambda: node.pub_image.get_subscription_count() > 0
+                          and node.sub.get_publisher_count() > 0
+                          and clock.get_subscription_count() > 0, 10.0)
+    p = VesselParams()
+    x = p.wall_depth + 0.011
+    ms = 0
+    for k in range(12):
+        m = JointState()
+        m.position = [x if k >= 3 else 0.01, 0.0]
+        m.velocity = [0.0, 0.0]
+        js.publish(m)
+        ros.spin_until(lambda: node.x == m.position[0], 1.0)
+        if k == 6:
+            bad = JointState()
+            bad.position = [math.nan]
+            js.publish(bad)
+            ros.spin_until(lambda: node.diag.get('bad_joint_states') == 1, 1.0)
+        ms += 34                                     # one 30 Hz period per step
+        c = Clock()
+        c.clock.sec, c.clock.nanosec = divmod(ms * 1_000_000, 1_000_000_000)
+        n = len(images)
+        clock.publish(c)
+        ros.spin_until(lambda: len(images) > n, 2.0)
+    assert len(images) >= 8 and len(truth) >= 8
+    img = images[-1]
+    assert (img.encoding, img.width, img.height, img.step) == ('mono8', 800, 800, 800)
+    assert img.header.frame_id == FRAME_CAMERA
+    f = truth[-1].wrench.force
+    assert math.hypot(f.x, f.y) == pytest.approx(p.wall_stiffness * 0.011 ** 1.5, rel=1e-9)
+    assert truth[0].wrench.force.x == 0.0 and truth[0].wrench.force.y == 0.0
+    a = np.frombuffer(bytes(img.data), np.uint8).reshape(800, 800)
+    assert a.min() < 100 < a.max()                   # a dark catheter on a bright background
+    assert node.diag.get('bad_joint_states') == 1
