@@ -12,6 +12,9 @@ A scenario file::
     link: {delay: 0.2, jitter: 0.0, loss: 0.0, outages: [[4.0, 1.0], [8.0, 1.0]]}
     operator: {trajectory: experiment_ii}
     outputs: [/master/rendered_force, /slave/force]   # what the scene consumes
+    lockstep_transport: local # local: in-process bus (fast, deterministic) | dds: via DDS
+    realtime_transport: local # the same choice for real-time runs
+    dds: false                # local bus: also publish every message on DDS (outside viewers)
     record: {exclude: [/clock]}   # and/or only: [topics] (everything else is not recorded)
     nodes:                    # parameters per node instance (and optional registry fields)
       ima_master_node: {params: {mode: ima}}
@@ -179,6 +182,14 @@ def validate_scenario(data: Mapping) -> dict:
     if not isinstance(nodes, Mapping):
         raise ValueError('scenario.nodes must be a mapping of instance name -> settings')
     s['nodes'] = {str(k): dict(v or {}) for k, v in nodes.items()}
+    s.setdefault('lockstep_transport', 'local')
+    if s['lockstep_transport'] not in ('local', 'dds'):
+        raise ValueError("scenario.lockstep_transport must be 'local' or 'dds', "
+                         f"got {s['lockstep_transport']!r}")
+    s.setdefault('realtime_transport', 'local')
+    if s['realtime_transport'] not in ('local', 'dds'):
+        raise ValueError("scenario.realtime_transport must be 'local' or 'dds', "
+                         f"got {s['realtime_transport']!r}")
     s.setdefault('global_params', {})
     s.setdefault('metrics', {})
     return s
