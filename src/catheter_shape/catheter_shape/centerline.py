@@ -135,15 +135,25 @@ def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 
 def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
-               trim_px: float, at_start: bool = False) -> Tuple[np.ndarray, float]:
+               trim_px: float, at_start: bool = False,
+               half_contrast: bool = True, quadratic: bool = True,
+               span_widths: float = 1.5) -> Tuple[np.ndarray, float]:
     """Restore one end of an ordered path (N, 2): drop the last trim_px of it (a skeleton
-    curls into a corner of a flat end), then walk along the end tangent (principal axis of
-    the preceding ~2 widths) until the darkness `score` falls below `level` (bilinear,
-    sub-pixel crossing) or the image border, at most 1.5 widths + trim beyond the cut.
-    Returns (new path, extension length px)."""
+    curls into a corner of a flat end), fit a parabola to the preceding ~1.5 widths (the
+    end may bend strongly: a loaded catheter's base) and walk along it until the darkness
+    `score` falls below the edge level (bilinear, sub-pixel crossing) or the image border,
+    at most 1.5 widths + trim beyond the cut.
+
+    The edge level is `level` (the segmentation threshold), or with half_contrast the
+    midpoint between the catheter's darkness on the path and the local background beside
+    it (an unbiased edge for a symmetric blur; a threshold above the midpoint would put
+    the end inside the tube). Returns (new path, extension length px)."""
     if at_start:
-        p, ext = extend_end(px[::-1], score, level, width_px, trim_px, False)
+        p, ext = extend_end(px[::-1], score, level, width_px, trim_px, False, half_contrast,
+                            quadratic, span_widths)
         return p[::-1], ext
+    if not np.isfinite(level):
+        raise ValueError(f'level must be finite, got {level!r}')
     H, W = score.shape
     seg = np.sqrt(np.sum(np.diff(px, axis=0) ** 2, axis=1))
     s = np.concatenate([[0.0], np.cumsum(seg)])
@@ -153,7 +163,7 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     keep = s <= L - trim_px
     body = px[keep]
     sb = s[keep]
-    span = max(2.0 * width_px, 6.0)
+    span = max(span_widths * width_px, 6.0)
     tail = body[sb >= sb[-1] - span]
     if tail.shape[0] < 3:
         return px, 0.0
@@ -162,29 +172,52 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     d = vt[0]
     if np.dot(d, tail[-1] - tail[0]) < 0:
         d = -d
-    # project the end onto the fitted tangent line so the extension starts on the axis
-    e = c + np.dot(body[-1] - c, d) * d
+    nrm = np.array([-d[1], d[0]])
+    a = (tail - c) @ d
+    bq = (tail - c) @ nrm
+    if quadratic and tail.shape[0] >= 5 and np.ptp(a) > 2.0:
+        coef = np.polyfit(a, bq, 2)
+        # bound the curvature by the tube's (a skeleton cannot bend tighter than ~its width)
+        coef[0] = np.clip(coef[0], -0.5 / width_px, 0.5 / width_px)
+    else:
+        coef = np.array([0.0, 0.0, 0.0])
+    a_e = float(np.dot(body[-1] - c, d))
     max_t = trim_px + 1.5 * width_px + 2.0
-    t = np.arange(0.0, max_t, 0.25)
-    pts = e + t[:, None] * d
+    aa = a_e + np.arange(0.0, max_t, 0.25)
+
+    def curve(x):
+        return c + x[:, None] * d + np.polyval(coef, x)[:, None] * nrm
+    pts = curve(aa)
     inside_img = (pts[:, 0] >= 0) & (pts[:, 0] <= W - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= H - 1)
-    if not np.isfinite(level):
-        raise ValueError(f'level must be finite, got {level!r}')
     vals = _bilinear(score, pts)
-    below = (vals <= level) | ~inside_img
-    j = int(np.argmax(below)) if below.any() else t.size - 1
+    lvl = level
+    if half_contrast:
+        core = float(np.median(_bilinear(score, tail)))
+        tg = np.polyval(np.polyder(coef), a_e)
+        n_e = nrm - tg * d
+        n_e /= np.linalg.norm(n_e)
+        side = np.vstack([pts[0] + 1.5 * width_px * n_e, pts[0] - 1.5 * width_px * n_e])
+        ok = (side[:, 0] >= 0) & (side[:, 0] <= W - 1) & (side[:, 1] >= 0) & (side[:, 1] <= H - 1)
+        if ok.any() and core > level:
+            bg = float(np.min(_bilinear(score, side[ok])))
+            mid = 0.5 * (core + bg)
+            if bg < level < core:
+                lvl = mid
+    below = (vals <= lvl) | ~inside_img
+    j = int(np.argmax(below)) if below.any() else aa.size - 1
     if j == 0:
-        t_end = 0.0
+        t_end = aa[0]
     elif not inside_img[j]:
-        t_end = t[j - 1]
+        t_end = aa[j - 1]
     else:
         v0, v1 = vals[j - 1], vals[j]
-        f = (v0 - level) / (v0 - v1) if v0 != v1 else 0.0
-        t_end = t[j - 1] + f * (t[j] - t[j - 1])
-    # new points every pixel up to the sub-pixel end (no near-duplicate before the end)
-    steps = np.arange(1.0, t_end - 0.1)
-    new = e + np.append(steps, t_end)[:, None] * d if t_end > 0 else np.empty((0, 2))
-    return np.vstack([body[:-1], e[None, :], new]), float(t_end)
+        f = (v0 - lvl) / (v0 - v1) if v0 != v1 else 0.0
+        t_end = aa[j - 1] + f * (aa[j] - aa[j - 1])
+    ext = float(t_end - a_e)
+    # new points every pixel (along the axis) up to the sub-pixel end
+    steps = np.append(np.arange(a_e, t_end - 0.1, 1.0), t_end)
+    new = curve(steps)
+    return np.vstack([body[:-1], new]), ext
 
 
 def smooth_path(px: np.ndarray, window: int = 5) -> np.ndarray:

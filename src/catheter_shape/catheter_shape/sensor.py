@@ -66,7 +66,9 @@ class ShapeSensor:
         nearest the image border.
     method: 'fixed' (thesis), 'otsu' or 'adaptive' (see segmentation.threshold_frame).
     degree: Bezier degree (3 = the thesis's 4 control points).
-    refine: parameter-correction rounds of the fit (0 = the thesis's chord-length fit).
+    refine, correction, param_weight: parameter correction of the Bezier fit (see
+        bezier.fit_bezier_detailed); refine=0 or correction='none' is the thesis's
+        chord-length fit; the default 'regularized' keeps the control points stable.
     base_constraint: 'none', 'point' (p0 fixed at base_px) or 'tangent' (p0 fixed and the
         base tangent along +x of catheter_base, the clamp's direction); needs base_px.
     diameter: catheter diameter, m (sets size limits). max_gap: largest gap joined, m.
@@ -76,7 +78,8 @@ class ShapeSensor:
     """
 
     def __init__(self, psi, threshold: int = 132, background: Optional[np.ndarray] = None,
-                 base_px=None, method: str = 'fixed', degree: int = 3, refine: int = 10,
+                 base_px=None, method: str = 'fixed', degree: int = 3, refine: int = 8,
+                 correction: str = 'regularized', param_weight: float = 0.05,
                  base_constraint: str = 'none', diameter: float = BLAZER_DIAMETER,
                  max_gap: float = 0.003, min_length: float = 0.005, smooth: int = 5,
                  max_fit_points: int = 160, keep_mask: bool = False):
@@ -94,6 +97,13 @@ class ShapeSensor:
         if int(refine) != refine or refine < 0:
             raise ValueError(f'refine must be a non-negative integer, got {refine!r}')
         self.refine = int(refine)
+        from catheter_shape.bezier import CORRECTIONS
+        if correction not in CORRECTIONS:
+            raise ValueError(f'correction must be one of {CORRECTIONS}, got {correction!r}')
+        if not (np.isfinite(param_weight) and param_weight >= 0):
+            raise ValueError(f'param_weight must be >= 0, got {param_weight!r}')
+        self.correction = correction
+        self.param_weight = float(param_weight)
         for name, v in (('diameter', diameter), ('max_gap', max_gap), ('min_length', min_length)):
             if not (np.isfinite(v) and v >= 0) or (name == 'diameter' and v <= 0):
                 raise ValueError(f'{name} must be a non-negative finite length (m), got {v!r}')
@@ -192,11 +202,18 @@ class ShapeSensor:
         # it is free (not cut at the clamp and not on the image border)
         half = 0.5 * w_px
         H, W = gray.shape
-        px, _ = extend_end(px, score, level, w_px, trim_px=half)
+        # The tip of a tip-loaded catheter carries no moment: nearly straight, extrapolate
+        # along a line. The clamped base carries the largest moment: a parabola follows its
+        # curvature. With background removal the background's darkness is 0, so the
+        # half-contrast edge is known; without, the threshold crossing is used.
+        flat = bg is not None and self.method == 'fixed'
+        px, _ = extend_end(px, score, level, w_px, trim_px=half, half_contrast=flat,
+                           quadratic=False, span_widths=2.0)
         b0 = px[0]
         on_border = min(b0[0], b0[1], W - 1 - b0[0], H - 1 - b0[1]) <= 1.5
         if not cl.base_cut and not on_border:
-            px, _ = extend_end(px, score, level, w_px, trim_px=half, at_start=True)
+            px, _ = extend_end(px, score, level, w_px, trim_px=half, at_start=True,
+                               half_contrast=flat, quadratic=True, span_widths=2.5)
         if self.smooth >= 3:
             px = smooth_path(px, self.smooth | 1)
         t5 = time.perf_counter()
@@ -216,7 +233,8 @@ class ShapeSensor:
                 tangent = np.array([1.0, 0.0, 0.0]) @ self._plane
         try:
             fit = fit_bezier_detailed(p2[sel], self.degree, refine=self.refine, start=start,
-                                      start_tangent=tangent)
+                                      start_tangent=tangent, correction=self.correction,
+                                      param_weight=self.param_weight)
         except (ValueError, np.linalg.LinAlgError) as exc:
             return fail('fit_failed', str(exc), tm, t0)
         ctrl2 = fit.control_points
