@@ -344,7 +344,7 @@ class HistoryIdentifier:
                  smoothness: float = 30.0, rest_velocity: float = 2e-4,
                  max_mass: float = 1.0, max_force: float = 5.0, static_ridge: float = 1.0,
                  friction_smoothness: float = 1e3, static_first_difference: bool = True,
-                 breakaway_ridge: float = 1000.0, viscous_ridge: float = 100.0,
+                 breakaway_ridge: float = 1.0, viscous_ridge: float = 100.0,
                  friction_kink: float = 0.0):
         self.window = positive('window', window)
         self.rate = positive('rate', rate)
