@@ -217,3 +217,22 @@ def test_never_nan_and_reports_convergence(fx, fy, m, follower, n, model):
 def test_bad_input_raises_value_error_naming_the_argument(bad, name):
     with pytest.raises(ValueError, match=name):
         bad()
+
+
+def test_imperfect_column_past_buckling_follows_the_natural_branch():
+    # axial compression 1.35x the Euler load with a small lateral force: the loading path bends
+    # toward the lateral force (both solvers; the complementary branch is not taken)
+    cat = Catheter(1.0, 1.0)
+    ld = Loads(tip_force=(-3.3217, -0.0651))
+    ref = solve_elastica(cat, ld)
+    sh = solve_fam(cat, ld, n_arcs=48)
+    assert ref.converged and sh.converged and sh.stable
+    assert ref.tip_angle < -1.0 and sh.tip_angle < -1.0
+    assert np.max(np.abs(sh.tip - ref.tip)) < 1e-3
+
+
+def test_snap_through_is_reported_and_a_stable_equilibrium_returned():
+    ld = Loads(tip_force=(5.2968, -4.2802), tip_moment=4.9337)   # fold near 99 % of the load
+    sh = solve_fam(Catheter(1.0, 1.0), ld, n_arcs=12)
+    assert sh.converged and sh.stable and 'snap' in sh.warning
+    assert np.all(np.isfinite(sh.tip))

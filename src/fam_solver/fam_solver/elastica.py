@@ -120,6 +120,10 @@ def solve_elastica(cat: Catheter, loads: Loads, rtol: float = 1e-12, atol: float
         ds = min(1.0, 0.6 / alpha)
         prev = None
         th_tip = 0.0
+        # sign of the shooting Jacobian's determinant along the path: it is that of the
+        # unloaded rod on the stable natural branch; a change means a critical point was
+        # crossed (bifurcation onto the complementary branch, or a fold)
+        jsign = np.sign(np.linalg.det(rod.shoot(0.0, 0.0, 0.0)[1]))
         total = 0
         conv = True
         while s < 1.0:
@@ -151,8 +155,13 @@ def solve_elastica(cat: Catheter, loads: Loads, rtol: float = 1e-12, atol: float
                 x = x + dx
                 if it >= 12 and ds > 1e-4:
                     break
-            if ok and abs(yend[0] - th_tip) > 0.4 and ds > 1e-3:
+            if ok and abs(yend[0] - th_tip) > 0.4:
                 ok = False  # too large a jump of the tip angle: possibly another branch
+            if ok and np.sign(np.linalg.det(J)) != jsign:
+                if ds > 1e-4:
+                    ok = False
+                else:
+                    jsign = -jsign   # crossed with a tiny step: follow (e.g. straight past buckling)
             if ok:
                 th_tip = yend[0]
                 prev = (s, M0, Th)

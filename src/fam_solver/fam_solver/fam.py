@@ -438,6 +438,7 @@ def _solve(prob: _Problem, B, arc_model='exact'):
     alpha = _alpha(prob)
     zero = alpha == 0
     iters = np.zeros(B, dtype=int)
+    snapped = np.zeros(B, dtype=bool)
     lin, th_lin, guess = _linear_guess(prob)
     if N <= DENSE_MAX_N:
         phi0 = guess
@@ -445,7 +446,7 @@ def _solve(prob: _Problem, B, arc_model='exact'):
         L = prob.l * N
         coarse = _make_problem(COARSE_N, L, prob.l / prob.w, prob.tip_force, prob.follower,
                                prob.tip_moment, [((a + t) / N, F) for a, t, F in prob.point_forces])
-        pc, cc, ic, _ = _solve(coarse, B, 'exact')
+        pc, cc, ic, _, _ = _solve(coarse, B, 'exact')
         iters += ic
         # curvature at the coarse midpoints -> fine arcs (piecewise linear), phi = kappa l
         sc = (np.arange(COARSE_N) + 0.5) / COARSE_N
@@ -462,14 +463,15 @@ def _solve(prob: _Problem, B, arc_model='exact'):
     if not np.all(ok):
         idx = np.nonzero(~ok)[0]
         sub = _subproblem(prob, idx)
-        p2, c2, it2, r2 = _continuation(sub, len(idx), arc_model, lin[idx])
+        p2, c2, it2, r2, sn2 = _continuation(sub, len(idx), arc_model, lin[idx])
         # keep the continuation result unless it failed and the direct one converged
         take = c2 | ~conv[idx]
         phi[idx[take]] = p2[take]
         conv[idx[take]] = c2[take]
         res[idx[take]] = r2[take]
+        snapped[idx[take]] = sn2[take]
         iters[idx] += it2
-    return phi, conv, iters, res
+    return phi, conv, iters, res, snapped
 
 
 def _subproblem(prob: _Problem, idx):
@@ -532,17 +534,32 @@ def _continuation(prob: _Problem, B, arc_model, lin=None):
         ds[acc_i] = np.minimum(ds[acc_i] * 2.0, 0.5)
         ds[rej_i] *= 0.5
     conv = s >= 1.0
+    snapped = np.zeros(B, dtype=bool)
     left = np.nonzero(~conv)[0]
-    if left.size:
-        sub = _subproblem(prob, left)
+    for b in left:
+        # the path stopped at a fold (snap-through) or could not be followed: look for an
+        # equilibrium at the full load from the last point and from starts turned further
+        # along the path; prefer a stable one
+        sub = _subproblem(prob, np.array([b]))
         bez = _BezierResidual(sub) if arc_model == 'bezier' else None
-        p, c, it, r, _ = _newton(sub, phi[left], 1.0, 30, bezier=bez)
-        total[left] += it
-        fin = np.isfinite(r)
-        phi[left[fin]] = p[fin]
-        res[left[fin]] = r[fin]
-        conv[left] = c & fin
-    return phi, conv, total, res
+        step = phi[b] - prev[b] if has_prev[b] else lin[b] * 0.1
+        starts = [phi[b]] + [phi[b] + k * step / max(np.abs(step.sum()), 1e-12) for k in (0.5, 1.0, 2.0, 3.0)]
+        found = None
+        for st in starts:
+            p, c, it, r, fac = _newton(sub, st[None], 1.0, 40, step_limit=0.3, bezier=bez)
+            total[b] += it[0]
+            if not (c[0] and np.isfinite(r[0])):
+                continue
+            stable = N > DENSE_MAX_N or bool(_principal_ok(sub, fac)[0])
+            if found is None or (stable and not found[2]):
+                found = (p[0], r[0], stable)
+            if stable:
+                break
+        if found is not None:
+            phi[b], res[b] = found[0], found[1]
+            conv[b] = True
+            snapped[b] = s[b] > 0.0
+    return phi, conv, total, res, snapped
 
 
 def _stability(prob: _Problem, phi):
@@ -620,11 +637,14 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
                              residual=res, arc_model=arc_model)
     prob = _build_problem(cat, n, np.array([tip]), loads.follower,
                           np.array([loads.tip_moment]), pfs)
-    phi, conv, iters, res = _solve(prob, 1, arc_model)
+    phi, conv, iters, res, snapped = _solve(prob, 1, arc_model)
     stable = _stability(prob, phi)
     warning = ''
     if not conv[0]:
         warning = f'not converged: max residual {res[0]:.3g} rad'
+    elif snapped[0]:
+        warning = ('snap-through: the loading path from zero has a fold; returned the '
+                   'equilibrium found beyond it')
     if not stable[0]:
         warning = (warning + '; ' if warning else '') + \
             'unstable equilibrium (compressed past buckling; loading from zero kept this shape)'
@@ -669,7 +689,7 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
     for lo in range(0, B, chunk):
         hi = min(B, lo + chunk)
         prob = _build_problem(cat, n, F[lo:hi], bool(follower), tm[lo:hi], [])
-        p, c, it, r = _solve(prob, hi - lo, arc_model)
+        p, c, it, r, _ = _solve(prob, hi - lo, arc_model)
         phi[lo:hi], conv[lo:hi], iters[lo:hi], res[lo:hi] = p, c, it, r
         stable[lo:hi] = _stability(prob, p)
     return BatchShape(cat.length, phi, conv, iters, stable, res, arc_model)

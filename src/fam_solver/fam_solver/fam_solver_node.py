@@ -47,6 +47,7 @@ class FamSolverNode(Node):
         self.diag = Diagnostics(self)
         self._pending = None        # (stamp, loads) not yet solved
         self._last_loads = None     # loads of the last published shape
+        self._last_shape = None     # warm start for the next solve
         self._poll = self.create_timer(0.1, self._flush)
         self.get_logger().info(
             f'FAM solver: L={length} m, EI={ei} N m^2, N={self.n_arcs}, model={self.arc_model}, '
@@ -80,7 +81,8 @@ class FamSolverNode(Node):
         stamp, loads = self._pending
         self._pending = None
         t0 = wall_time()
-        shape = solve_fam(self.cat, loads, n_arcs=self.n_arcs, arc_model=self.arc_model)
+        shape = solve_fam(self.cat, loads, n_arcs=self.n_arcs, arc_model=self.arc_model,
+                          initial=self._last_shape if self.arc_model == 'exact' else None)
         dt = wall_time() - t0
         self.diag.count('solves')
         self.diag.set('last_solve_ms', dt * 1e3)
@@ -93,6 +95,7 @@ class FamSolverNode(Node):
             self.diag.count('unstable')
             self.get_logger().warning(shape.warning, throttle_duration_sec=5.0)
         self._last_loads = loads
+        self._last_shape = shape if shape.converged and shape.stable else None
         if stamp.sec == 0 and stamp.nanosec == 0:
             stamp = self.get_clock().now().to_msg()
         self._publish(stamp, shape)
