@@ -111,6 +111,11 @@ class SimSlaveNode(Node):
         self._err_sq = 0.0
         self._err_n = 0
 
+        self._js = JointState()
+        self._js.header.frame_id = FRAME_CATHETER_BASE
+        self._js.name = JOINT_NAMES
+        self._wrench = WrenchStamped()
+        self._wrench.header.frame_id = FRAME_CATHETER_BASE
         self.diag = Diagnostics(self)
         self.pub_js = self.create_publisher(JointState, SLAVE_JOINT_STATE, QOS_FAST)
         self.pub_force = self.create_publisher(WrenchStamped, SLAVE_FORCE, QOS_FAST)
@@ -201,19 +206,16 @@ class SimSlaveNode(Node):
         self._err_n += 1
         msg_stamp = stamp.to_msg()
         if self.pub_js.get_subscription_count() > 0:
-            js = JointState()
+            js = self._js            # reused: rclpy serialises at publish
             js.header.stamp = msg_stamp
-            js.header.frame_id = FRAME_CATHETER_BASE
-            js.name = JOINT_NAMES
             rotation = self.sim.rotation
             js.position = [sample.x, rotation.x]
             js.velocity = [sample.xd, rotation.xd]
             js.effort = [sample.f_meas, 0.0]
             self.pub_js.publish(js)
         if self.pub_force.get_subscription_count() > 0:
-            w = WrenchStamped()
+            w = self._wrench
             w.header.stamp = msg_stamp
-            w.header.frame_id = FRAME_CATHETER_BASE
             w.wrench.force.x = sample.f_meas
             self.pub_force.publish(w)
 
