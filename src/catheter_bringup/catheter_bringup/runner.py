@@ -299,6 +299,7 @@ class ScenarioRunner:
         self.skipped = sorted({i.name for i in wanted_all} - {i.name for i in chosen})
         self.missing = missing
         self.start_errors = {}
+        self.fallbacks = {}
         transport = sc.get('lockstep_transport' if lockstep else 'realtime_transport', 'local')
         # the local bus calls timers itself and spins a SingleThreadedExecutor now and then;
         # real time through DDS spins an EventsExecutor
@@ -321,7 +322,20 @@ class ScenarioRunner:
             if cli:
                 kwargs['cli_args'] = ['--ros-args'] + cli
             try:
-                node = classes[inst.name](**kwargs)
+                try:
+                    node = classes[inst.name](**kwargs)
+                except Exception as first:  # noqa: BLE001
+                    fb = (sc['nodes'].get(inst.name) or {}).get('fallback_params')
+                    if not fb:
+                        raise
+                    self.log(f'[run] {inst.name} failed to start ({type(first).__name__}: '
+                             f'{first}); retrying with {fb}')
+                    params = dict(inst.params)
+                    params.update(fb)
+                    kwargs['parameter_overrides'] = self._params_for(
+                        dataclasses.replace(inst, params=params), lockstep)
+                    node = classes[inst.name](**kwargs)
+                    self.fallbacks[inst.name] = dict(fb)
             except Exception as exc:  # noqa: BLE001 - a node that cannot start is left out
                 if sc.get('strict', False):
                     raise
@@ -620,6 +634,8 @@ class ScenarioRunner:
                 'steps': steps,
                 'nodes': sorted(self.nodes),
                 'skipped_nodes': self.skipped,
+                'start_errors': self.start_errors,
+                'fallbacks': self.fallbacks,
                 'published': published,
                 'scenario_yaml': _scenario_text(self.scenario),
             })

@@ -72,7 +72,7 @@ REGISTRY: Dict[str, NodeSpec] = {s.executable: s for s in [
              produces=(T.SLAVE_JOINT_STATE, T.SLAVE_FORCE)),
     NodeSpec('camera_node', 'sim_slave.camera_node',
              consumes=(T.SLAVE_JOINT_STATE,),
-             produces=(T.CAMERA_IMAGE,)),
+             produces=(T.CAMERA_IMAGE, '/camera/tip_force_truth')),
     NodeSpec('shape_node', 'catheter_shape.shape_node',
              consumes=(T.CAMERA_IMAGE,),
              produces=(T.CONTROL_POINTS, T.SHAPE)),
