@@ -154,7 +154,7 @@ _TANGENT_WEIGHT = 0.03
 
 
 def _tdm_step(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, c0: np.ndarray,
-              M: np.ndarray, tw: float = _TANGENT_WEIGHT) -> np.ndarray:
+              M: np.ndarray, tw: float = _TANGENT_WEIGHT, t_offset=None) -> np.ndarray:
     """One tangent-distance-minimisation (Gauss-Newton on the perpendicular distances)
     update of the control points for points p at their foot-point parameters s."""
     n = ctrl.shape[0] - 1
@@ -170,14 +170,23 @@ def _tdm_step(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, c0: np.ndarray,
         # the normals are nearly parallel (an almost straight catheter), where pure TDM
         # cannot place the inner control points along the line
         nrm = np.stack([-t[:, 1], t[:, 0]], axis=1)
-        tw = tw * t
+        tw = (tw[:, None] if np.ndim(tw) else tw) * t
         A = np.vstack([(B[:, :, None] * nrm[:, None, :]).reshape(N, (n + 1) * D),
                        (B[:, :, None] * tw[:, None, :]).reshape(N, (n + 1) * D)])
-        rhs = -np.concatenate([np.sum(nrm * r, axis=1), np.sum(tw * r, axis=1)])
+        tr = np.sum(tw * r, axis=1)
+        if t_offset is not None:
+            tr = tr - (np.sqrt(np.sum(tw * tw, axis=1)) * t_offset)
+        rhs = -np.concatenate([np.sum(nrm * r, axis=1), tr])
     else:
-        P = np.eye(D)[None] - (1.0 - tw ** 2) * t[:, :, None] * t[:, None, :]
-        A = np.einsum('ij,ide->idje', B, P).reshape(N * D, (n + 1) * D)
-        rhs = -np.einsum('ide,ie->id', P, r).reshape(-1)
+        # normal space (D - 1 dimensions) through its projector, plus the tangential row
+        P = np.eye(D)[None] - t[:, :, None] * t[:, None, :]
+        twv = (tw[:, None] if np.ndim(tw) else tw) * t
+        tr = np.sum(twv * r, axis=1)
+        if t_offset is not None:
+            tr = tr - np.sqrt(np.sum(twv * twv, axis=1)) * t_offset
+        A = np.vstack([np.einsum('ij,ide->idje', B, P).reshape(N * D, (n + 1) * D),
+                       (B[:, :, None] * twv[:, None, :]).reshape(N, (n + 1) * D)])
+        rhs = -np.concatenate([np.einsum('ide,ie->id', P, r).reshape(-1), tr])
     # the first and last points keep s = 0 and s = 1: their full distance counts, so the
     # curve starts and ends at the data instead of running past it
     ends = np.einsum('ij,de->idje', B[[0, -1]], np.eye(D)).reshape(2 * D, (n + 1) * D)
@@ -194,9 +203,9 @@ def _anchored(s: np.ndarray) -> np.ndarray:
 
 
 def _newton_params(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, steps: int,
-                   s0: Optional[np.ndarray] = None, lam: float = 0.0) -> np.ndarray:
+                   s0: Optional[np.ndarray] = None, mu: float = 0.0) -> np.ndarray:
     """Newton steps on (c(s) - p) . c'(s) + mu (s - s0) = 0 for every point, clamped to
-    [0, 1]; mu = lam * mean |c'|^2 (lam = 0: the orthogonal foot point).
+    [0, 1] (mu = 0: the orthogonal foot point; mu > 0: held towards s0).
     Evaluated in the power basis (a few numpy calls per step: this is the hot loop)."""
     n = ctrl.shape[0] - 1
     k = np.arange(n + 1)
@@ -204,14 +213,13 @@ def _newton_params(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, steps: int,
     A1 = A[1:] * k[1:, None]                           # c'(s)  = sum_j A1[j] s^j
     A2 = A1[1:] * k[1:n, None]                         # c''(s) = sum_j A2[j] s^j
     for _ in range(steps):
-        S = s[:, None] ** k
+        S = np.vander(s, n + 1, increasing=True)
         r = S @ A - p
         c1 = S[:, :n] @ A1
         g = np.einsum('ij,ij->i', c1, c1)
         f = np.einsum('ij,ij->i', r, c1)
         fp = g + np.einsum('ij,ij->i', r, S[:, :n - 1] @ A2) if n >= 2 else g
-        if lam > 0:
-            mu = lam * g.mean()
+        if mu > 0:
             f = f + mu * (s - s0)
             fp = fp + mu
         # a Newton step where the objective is locally convex, none otherwise
@@ -230,7 +238,7 @@ def _project_global(c: np.ndarray, p: np.ndarray, samples: int, steps: int) -> n
 
 
 def _dist(c: np.ndarray, p: np.ndarray, s: np.ndarray) -> np.ndarray:
-    r = (s[:, None] ** np.arange(c.shape[0])) @ (_bez2pow(c.shape[0] - 1) @ c) - p
+    r = np.vander(s, c.shape[0], increasing=True) @ (_bez2pow(c.shape[0] - 1) @ c) - p
     return np.sqrt(np.einsum('ij,ij->i', r, r))
 
 
@@ -260,14 +268,56 @@ def bezier_distance(control_points, points) -> np.ndarray:
     return project_points(control_points, points)[1]
 
 
+def _fit_regularized(ctrl, p, s, degree, c0, M, lam, rounds, tol):
+    """Minimise J = sum |c(s_i) - p_i|^2 + mu sum (s_i - s0_i)^2 over the control points
+    and the parameters, mu = lam * mean |c'(s0)|^2 (s0: chord length). Eliminating each
+    s_i gives a Gauss-Newton step of the same form as TDM with a per-point tangential
+    weight sqrt(mu / (|c'_i|^2 + mu)): the penalty makes the problem well-conditioned
+    along reparameterisations of the curve, where the orthogonal fit is flat."""
+    n = degree
+    s0 = s.copy()
+    d1 = bezier_derivative(ctrl, 1)
+    g0 = np.sum((bernstein(s0, n - 1) @ d1) ** 2, axis=1)
+    mu = lam * float(g0.mean())
+
+    def solve_s(c, s_start):
+        return _anchored(_newton_params(c, p, s_start, 2, s0, mu))
+
+    def objective(c, ss):
+        return float(np.sum(_dist(c, p, ss) ** 2) + mu * np.sum((ss - s0) ** 2))
+    s = solve_s(ctrl, s)
+    J = objective(ctrl, s)
+    for _ in range(rounds):
+        g = np.sum((bernstein(s, n - 1) @ bezier_derivative(ctrl, 1)) ** 2, axis=1)
+        tw = np.sqrt(mu / (g + mu)) if mu > 0 else np.zeros_like(g)
+        # the eliminated parameter leaves a tangential residual t.r - |c'| (s - s0)
+        trial = _tdm_step(ctrl, p, s, c0, M, tw, t_offset=np.sqrt(g) * (s - s0))
+        if not np.all(np.isfinite(trial)):
+            break
+        s_t = solve_s(trial, s)
+        J_t = objective(trial, s_t)
+        if J_t >= J:
+            # a plain least-squares re-solve at the current parameters never increases J
+            trial = _solve_ls(bernstein(s, n), p, c0, M)
+            s_t = solve_s(trial, s)
+            J_t = objective(trial, s_t)
+            if J_t >= J:
+                break
+        done = (J - J_t) <= tol * 0.1 * J
+        ctrl, s, J = trial, s_t, J_t
+        if done:
+            break
+    return ctrl, s
+
+
 #: parameter-correction methods of fit_bezier: 'regularized' (default), 'orthogonal', 'none'
 CORRECTIONS = ('regularized', 'orthogonal', 'none')
 
 
-def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 8,
+def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 3,
                         start=None, start_tangent=None, tol: float = 1e-3,
-                        correction: str = 'regularized', param_weight: float = 0.05
-                        ) -> BezierFit:
+                        correction: str = 'regularized', param_weight: float = 0.05,
+                        global_residual: bool = True) -> BezierFit:
     """Least-squares Bezier fit of ordered points (N, D) (thesis Eqs. 2-5) with parameter
     correction.
 
@@ -286,8 +336,10 @@ def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 8
         'none': the thesis's chord-length fit (same as refine=0).
     refine: at most this many correction rounds (0 = the thesis's chord-length fit).
     param_weight: the penalty of 'regularized' (dimensionless, >= 0; 0 = no penalty).
+    global_residual: also search the whole curve for each point's closest point when
+        computing the residual (robust; False uses the local foot points only).
     tol: 'orthogonal' stops once a round lowers the mean squared distance by less than this
-        fraction; 'regularized' once no control point moves by more than tol * 1e-3 of the
+        fraction; 'regularized' once no control point moves by more than tol * 1e-2 of the
         points' extent (0 runs all `refine` rounds).
     start: optional (D,) point that p0 is fixed to (e.g. the clamp).
     start_tangent: optional (D,) direction; p1 is then constrained to p0 + a * t (needs start).
@@ -330,16 +382,8 @@ def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 8
     c0, M = _constraint_map(degree + 1, D, start, start_tangent)
     ctrl = _solve_ls(bernstein(s, degree), p, c0, M)
     chord_res = float(np.mean(_dist(ctrl, p, s)))
-    if correction == 'regularized':
-        s0 = s.copy()
-        scale = float(np.ptp(p, axis=0).max()) or 1.0
-        for _ in range(int(refine)):
-            s = _anchored(_newton_params(ctrl, p, s, 2, s0, param_weight))
-            new = _solve_ls(bernstein(s, degree), p, c0, M)
-            moved = float(np.abs(new - ctrl).max())
-            ctrl = new
-            if moved <= tol * 1e-3 * scale:
-                break
+    if correction == 'regularized' and refine > 0:
+        ctrl, s = _fit_regularized(ctrl, p, s, degree, c0, M, param_weight, int(refine), tol)
         refine = 0                                   # skip the orthogonal loop below
     # Parameter correction: foot points by Newton (orthogonal projection), then a
     # Gauss-Newton step on the perpendicular distances (tangent distance minimisation).
@@ -374,16 +418,17 @@ def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 8
     # global search (guards against a local foot point), whichever is nearer
     s = _newton_params(ctrl, p, s, 4)
     dist = _dist(ctrl, p, s)
-    s_g = _project_global(ctrl, p, 8 * (degree + 1), 4)
-    d_g = _dist(ctrl, p, s_g)
-    better = d_g < dist
-    s = np.where(better, s_g, s)
-    dist = np.where(better, d_g, dist)
+    if global_residual:
+        s_g = _project_global(ctrl, p, 8 * (degree + 1), 4)
+        d_g = _dist(ctrl, p, s_g)
+        better = d_g < dist
+        s = np.where(better, s_g, s)
+        dist = np.where(better, d_g, dist)
     return BezierFit(control_points=ctrl, params=s, residual=float(dist.mean()),
                      max_distance=float(dist.max()), chord_residual=chord_res)
 
 
-def fit_bezier(points, degree: int = 3, *, params=None, refine: int = 8, start=None,
+def fit_bezier(points, degree: int = 3, *, params=None, refine: int = 3, start=None,
                start_tangent=None, tol: float = 1e-3, correction: str = 'regularized',
                param_weight: float = 0.05) -> np.ndarray:
     """Control points (degree + 1, D) of the least-squares Bezier curve through ordered

@@ -78,11 +78,11 @@ class ShapeSensor:
     """
 
     def __init__(self, psi, threshold: int = 132, background: Optional[np.ndarray] = None,
-                 base_px=None, method: str = 'fixed', degree: int = 3, refine: int = 8,
+                 base_px=None, method: str = 'fixed', degree: int = 3, refine: int = 3,
                  correction: str = 'regularized', param_weight: float = 0.05,
                  base_constraint: str = 'none', diameter: float = BLAZER_DIAMETER,
                  max_gap: float = 0.003, min_length: float = 0.005, smooth: int = 5,
-                 max_fit_points: int = 160, keep_mask: bool = False):
+                 max_fit_points: int = 120, keep_mask: bool = False):
         self.psi = _check_psi(psi)
         if isinstance(threshold, bool) or not isinstance(threshold, (int, np.integer, float)) \
                 or not np.isfinite(threshold) or not (1 <= threshold <= 255):
@@ -234,7 +234,7 @@ class ShapeSensor:
         try:
             fit = fit_bezier_detailed(p2[sel], self.degree, refine=self.refine, start=start,
                                       start_tangent=tangent, correction=self.correction,
-                                      param_weight=self.param_weight)
+                                      param_weight=self.param_weight, global_residual=False)
         except (ValueError, np.linalg.LinAlgError) as exc:
             return fail('fit_failed', str(exc), tm, t0)
         ctrl2 = fit.control_points
