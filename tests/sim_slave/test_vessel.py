@@ -214,3 +214,24 @@ def test_bad_model_arguments():
     v.force(1.0, 0.01, 0.0)
     with pytest.raises(ValueError, match='t must not decrease'):
         v.force(0.5, 0.01, 0.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(-0.08, 0.08), st.integers(1, 300)), min_size=1, max_size=12),
+       st.sampled_from([1e-4, 1e-3, 1e-2]))
+def test_bristle_state_bounded_and_friction_below_breakaway_at_rest(segments, dt):
+    """For any velocity history (any step size: the exact update is unconditionally stable) the
+    LuGre deflection stays within zc * Fs/Fc, so the held friction at rest never exceeds Fs(x)."""
+    p = VesselParams(cardiac_amplitude=0.0)
+    v = VesselModel(p)
+    t, x = 0.0, 0.03
+    bound = p.presliding_displacement * p.stribeck_ratio * (1 + 1e-12)
+    for vel, n in segments:
+        for _ in range(n):
+            t += dt
+            x = min(max(x + vel * dt, 0.001), 0.2)
+            v.force(t, x, vel)
+            assert abs(v.z) <= bound
+    t += dt
+    v.force(t, x, 0.0)
+    assert abs(v.last.friction) <= v.breakaway_force(x) * (1 + 1e-9)
