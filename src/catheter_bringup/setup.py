@@ -20,6 +20,7 @@ setup(
         'console_scripts': [
             'run_scenario = catheter_bringup.run_scenario:main',
             'recorder_node = catheter_bringup.recorder_node:main',
+            'force_source_node = catheter_bringup.force_source_node:main',
         ],
     },
 )

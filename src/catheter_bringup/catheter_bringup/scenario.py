@@ -85,6 +85,8 @@ REGISTRY: Dict[str, NodeSpec] = {s.executable: s for s in [
 ]}
 
 MODES = ('lockstep', 'realtime')
+#: the identifier's input when the scenario's force source is the image (force_source_node)
+SLAVE_JOINT_STATE_IMAGE = '/slave/joint_state_image'
 FORCE_SOURCES = ('load_cell', 'image')
 
 
@@ -216,10 +218,11 @@ def instances(scenario: Mapping, registry: Optional[Mapping[str, NodeSpec]] = No
     """Every node instance the scenario could start: the registry's nodes (with the scenario's
     parameters) plus the scenario's own entries (shadow instances, nodes of tests)."""
     reg = dict(REGISTRY if registry is None else registry)
-    if registry is None and scenario['force_source'] == 'image':
-        ident = reg['impedance_identifier_node']
-        reg['impedance_identifier_node'] = dataclasses.replace(
-            ident, consumes=tuple(ident.consumes) + (T.TIP_WRENCH,))
+    image_source = registry is None and scenario['force_source'] == 'image'
+    if image_source:
+        reg['force_source_node'] = NodeSpec(
+            'force_source_node', 'catheter_bringup.force_source_node',
+            consumes=(T.SLAVE_JOINT_STATE, T.TIP_WRENCH), produces=(SLAVE_JOINT_STATE_IMAGE,))
     common = common_params(scenario)
     out: Dict[str, NodeInstance] = {}
     for name, spec in reg.items():
@@ -244,6 +247,13 @@ def instances(scenario: Mapping, registry: Optional[Mapping[str, NodeSpec]] = No
         out[name] = NodeInstance(name, spec.remapped(remap), params, remap,
                                  optional=bool(cfg.get('optional', False)),
                                  always=bool(cfg.get('always', False)))
+    if image_source and 'impedance_identifier_node' in out:
+        # the identifier fits the image-based force: its joint state comes through the adapter
+        ident = out['impedance_identifier_node']
+        remap = dict(ident.remap)
+        remap[T.SLAVE_JOINT_STATE] = SLAVE_JOINT_STATE_IMAGE
+        base = reg['impedance_identifier_node'] if ident.name in reg else ident.spec
+        out[ident.name] = dataclasses.replace(ident, spec=base.remapped(remap), remap=remap)
     return out
 
 
