@@ -236,3 +236,25 @@ def test_snap_through_is_reported_and_a_stable_equilibrium_returned():
     sh = solve_fam(Catheter(1.0, 1.0), ld, n_arcs=12)
     assert sh.converged and sh.stable and 'snap' in sh.warning
     assert np.all(np.isfinite(sh.tip))
+
+
+def test_bezier_model_converges_with_point_forces_and_follower():
+    cat = Catheter(1.0, 1.0)
+    for ld in (Loads(tip_force=(0.5, 2.0), tip_moment=-1.0,
+                     point_forces=((0.165, 0.0, 3.0), (0.577, 0.0, -0.5), (0.968, 0.0, 0.1))),
+               Loads(tip_force=(0.0, 3.0), follower=True)):
+        ref = solve_elastica(cat, ld)
+        e = [np.max(np.abs(solve_fam(cat, ld, n_arcs=n, arc_model='bezier').tip - ref.tip))
+             for n in (10, 20, 40)]
+        assert e[0] > e[1] > e[2] and 3.0 < e[1] / e[2] < 5.0, e
+
+
+def test_warm_start_gives_the_same_equilibrium():
+    cat = Catheter(1.0, 1.0)
+    s0 = solve_fam(cat, Loads(tip_force=(0.0, 3.0)))
+    warm = solve_fam(cat, Loads(tip_force=(0.1, 3.1)), initial=s0)
+    cold = solve_fam(cat, Loads(tip_force=(0.1, 3.1)))
+    assert warm.iterations <= cold.iterations
+    assert np.max(np.abs(warm.tip - cold.tip)) < 1e-12
+    with pytest.raises(ValueError, match='initial'):
+        solve_fam(cat, Loads(tip_force=(0.1, 3.1)), initial=np.zeros(5))
