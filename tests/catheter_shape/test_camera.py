@@ -102,3 +102,11 @@ def test_bad_camera_arguments(kw):
 def test_bad_centerlines(c):
     with pytest.raises(ValueError):
         SyntheticCamera().render(c)
+
+
+def test_framing_sees_every_loaded_shape(shape_helpers):
+    cam = SyntheticCamera.framing(noise=0)
+    assert cam.mm_per_px < 0.25
+    for theta in (-3.0, -1.5, 0.0, 1.5, 3.0):        # arcs up to a U-turn
+        assert cam.render(shape_helpers.arc(theta)).in_view
+    assert cam.render(np.array([[0, 0], [-0.03, 0.058]])).in_view

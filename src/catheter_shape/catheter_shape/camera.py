@@ -160,6 +160,23 @@ class SyntheticCamera:
             self._bank = None
         self._rng = rng
 
+    @classmethod
+    def framing(cls, length: float = 0.065, width: int = 640, height: int = 480,
+                margin_px: int = 20, **kwargs) -> 'SyntheticCamera':
+        """A camera that sees every planar shape of a clamped catheter of this length
+        (m) under tip loads: x in [-0.5, 1] length, y in [-0.9, 0.9] length (the Blazer
+        under 0.3 N at any angle stays inside). The catheter points down the image (as in
+        the thesis's set-up), the clamp near the top. Other keyword arguments go to the
+        constructor (noise, blur, seed, ...)."""
+        if not (np.isfinite(length) and length > 0):
+            raise ValueError(f'length must be positive, got {length!r}')
+        x_span = 1.5 * length * 1e3                        # mm along the image rows
+        y_span = 1.8 * length * 1e3                        # mm along the columns
+        mm = max(x_span / (height - 2 * margin_px), y_span / (width - 2 * margin_px))
+        base = (width / 2.0, margin_px + 0.5 * length * 1e3 / mm)
+        return cls(width=width, height=height, mm_per_px=mm, base_px=base, angle=-np.pi / 2,
+                   **kwargs)
+
     # --- geometry -------------------------------------------------------------------
     def to_pixels(self, xy) -> np.ndarray:
         """catheter_base points (N, 2) m -> pixels (N, 2) (u, v)."""
