@@ -288,6 +288,17 @@ def test_ima_renders_the_model_on_the_local_trajectory():
     assert ima.n_ignored == 1
 
 
+def test_ima_defaults_render_the_first_model_exactly_and_clamp():
+    ima = ImaRenderer()
+    imp = Impedance(0.01, 3.0, 8.0, 0.02)
+    ima.set_impedance(imp)
+    assert ima.desired_force(0.03, 0.02, 0.5) == pytest.approx(imp.force(0.03, 0.02, 0.5))
+    strong = ImaRenderer()
+    strong.set_impedance(Impedance(0.0, 0.0, 1000.0, 0.0))
+    assert strong.desired_force(0.05, 0.0, 0.0) == 2.0
+    assert strong.desired_force(-0.05, 0.0, 0.0) == -2.0 and strong.n_clamped == 2
+
+
 @settings(max_examples=30, deadline=None)
 @given(st.lists(st.tuples(st.floats(-50, 50), st.floats(-1, 1)), min_size=1, max_size=30))
 def test_ima_output_is_clamped_and_slew_limited(models):

@@ -5,8 +5,8 @@ reflection (DFR, the thesis's baseline).
 the feedback neither waits for nor stalls with the network. A new model never kicks the
 operator's hand: at a switch the difference between the old and the new model at the
 current state is taken up by a bumpless-transfer term that decays with `blend_time`
-(the rendered force is continuous across switches), and the output slews at most
-`max_rate` N/s. The renderer owns the Dahl friction state of table models, driven by the
+(the rendered force is continuous across switches), and optionally the output slews at
+most `max_rate` N/s. The renderer owns the Dahl friction state of table models, driven by the
 master's own position. Invalid models (identifier warming up or without a good estimate)
 are ignored: the previous model stays in use.
 
@@ -45,13 +45,16 @@ class ImaRenderer:
     Args:
         limit: N, safe output limit (|f_d| <= limit).
         blend_time: s, time constant of the bumpless transfer at a model switch (0: jump).
-        max_rate: N/s, slew-rate limit of the output (> 0; inf: none).
+        max_rate: N/s, slew-rate limit of the output (> 0; default inf: none; the nodes use
+            20 N/s as a safety net, which ramps in the very first model).
+    The first valid model is rendered as is (there is nothing to blend from); every later
+    switch is bumpless.
         dt: s, the call period (1 kHz loop), used by blending and slew limiting.
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_clamped`.
     """
 
     def __init__(self, limit: float = 2.0, blend_time: float = 0.05,
-                 max_rate: float = 20.0, dt: float = 1e-3):
+                 max_rate: float = math.inf, dt: float = 1e-3):
         self._clamp = _Clamp(limit)
         self.blend_time = nonneg('blend_time', blend_time)
         try:
