@@ -134,6 +134,13 @@ def test_node_drops_frames_instead_of_queueing(ros, shape_helpers):
     assert node.diag.get('processed') == 1
 
 
+@pytest.mark.parametrize('base', [[51, 240], [51.2, 240.0]])
+def test_base_px_accepts_ints_and_doubles(ros, base):
+    node = ros.add(ShapeNode(context=ros.context, parameter_overrides=[
+        Parameter('base_px', value=base)]))
+    np.testing.assert_allclose(node.sensor.base_px, base)
+
+
 def test_bad_parameters_are_refused(ros):
     with pytest.raises(ValueError):
         ShapeNode(context=ros.context, parameter_overrides=[Parameter('psi', value=[1.0, 2.0])])

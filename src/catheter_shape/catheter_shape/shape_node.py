@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from nav_msgs.msg import Path
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image
@@ -175,15 +176,16 @@ class ShapeNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('shape_node', **kwargs)
-        psi = declare(self, 'psi', DEFAULT_PSI,
-                      'camera calibration matrix PSI (Eq. 1), 12 doubles row-major 3x4: '
-                      '(x, y, z) [m, catheter_base] = PSI (u, v, 0, 1) [pixels]')
+        psi = self._declare_array('psi', DEFAULT_PSI,
+                                  'camera calibration matrix PSI (Eq. 1), 12 numbers row-major '
+                                  '3x4: (x, y, z) [m, catheter_base] = PSI (u, v, 0, 1) [pixels]')
         threshold = declare(self, 'threshold', 132,
                             'grey threshold (8 bit): the catheter is darker than this after '
                             'background removal (thesis: 132)', 1, 255)
-        base_px = declare(self, 'base_px', [-1, -1],
-                          'pixel (u, v) of the clamp / catheter base; [-1, -1] = unknown '
-                          '(the base is the centreline end nearest the image border)')
+        base_px = self._declare_array('base_px', [-1, -1],
+                                      'pixel (u, v) of the clamp / catheter base (ints or '
+                                      'doubles); [-1, -1] = unknown (the base is the centreline '
+                                      'end nearest the image border)')
         bg_file = declare(self, 'background_file', '',
                           'optional PNG of the scene without the catheter (background removal)')
         method = declare(self, 'method', 'fixed', 'threshold method', choices=METHODS)
@@ -229,6 +231,20 @@ class ShapeNode(Node):
             f'{threshold} ({method}), base_px {base}, background '
             f'{"yes" if self.sensor.background is not None else "no"}, '
             f'{self.sensor._m_per_px * 1e3:.4f} mm/px')
+
+    def _declare_array(self, name: str, default, description: str):
+        """A numeric array parameter that accepts integer or double lists (dynamic typing:
+        YAML writes [51, 240] and [51.2, 240.0] differently). Returns floats."""
+        desc = ParameterDescriptor(description=description, dynamic_typing=True)
+        value = self.declare_parameter(name, default, desc).value
+        try:
+            out = [float(v) for v in value]
+        except (TypeError, ValueError):
+            raise ValueError(f'parameter {name} must be a list of numbers, got {value!r}') \
+                from None
+        if not all(np.isfinite(out)):
+            raise ValueError(f'parameter {name} has non-finite values: {value!r}')
+        return out
 
     def _on_image(self, msg: Image) -> None:
         self.diag.count('frames')
