@@ -61,7 +61,8 @@ class Recording:
     """A recording loaded into arrays: per topic log times, header stamps (s), values."""
 
     def __init__(self, path, topics: Optional[Iterable[str]] = None, decode: bool = True):
-        from mcap_ros2.reader import read_ros2_messages
+        from mcap.reader import make_reader
+        from mcap_ros2.decoder import DecoderFactory
         self.path = str(path)
         self.meta = read_run_metadata(path)
         sc = self.meta.get('scenario_yaml')
@@ -71,14 +72,17 @@ class Recording:
         self.values: Dict[str, list] = {}
         self.types: Dict[str, str] = {}
         want = set(topics) if topics else None
-        for m in read_ros2_messages(self.path, topics=list(want) if want else None):
-            topic = m.channel.topic
-            self.types.setdefault(topic, m.schema.name)
-            self.log.setdefault(topic, []).append(m.log_time_ns * 1e-9)
-            s = _stamp(m.ros_msg)
-            self.stamp.setdefault(topic, []).append(math.nan if s is None else s)
-            if decode:
-                self.values.setdefault(topic, []).append(_values(m.ros_msg))
+        with open(self.path, 'rb') as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for schema, channel, message, msg in reader.iter_decoded_messages(
+                    topics=list(want) if want else None, log_time_order=True):
+                topic = channel.topic
+                self.types.setdefault(topic, schema.name)
+                self.log.setdefault(topic, []).append(message.log_time * 1e-9)
+                s = _stamp(msg)
+                self.stamp.setdefault(topic, []).append(math.nan if s is None else s)
+                if decode:
+                    self.values.setdefault(topic, []).append(_values(msg))
 
     @property
     def topics(self) -> List[str]:

@@ -56,8 +56,17 @@ def main(argv=None):
     metrics = analyze(res.bag, skip=skip)
     metrics['run'] = {'wall_time_s': res.wall_time, 'realtime_factor': res.realtime_factor,
                       'nodes': res.nodes, 'skipped': res.skipped,
-                      'missing_outputs': res.missing_outputs, 'lost': res.lost}
+                      'missing_outputs': res.missing_outputs, 'lost': res.lost,
+                      'cost': res.cost}
     print(format_report(metrics), flush=True)
+    if res.cost:
+        print(f'\nCompute per node (wall time inside its callbacks; run_scenario = the recorder; '
+              f'{res.wall_time:.1f} s wall, 2 shared cores)', flush=True)
+        print(f"{'node':<26} {'callbacks':>9} {'mean ms':>8} {'p99 ms':>8} {'max ms':>8} "
+              f"{'total s':>8} {'share':>6}")
+        for node, c in sorted(res.cost.items(), key=lambda kv: -kv[1]['total_s']):
+            print(f"{node:<26} {c['callbacks']:>9} {c['mean_ms']:>8.3f} {c['p99_ms']:>8.3f} "
+                  f"{c['max_ms']:>8.2f} {c['total_s']:>8.2f} {c['share'] * 100:>5.0f}%")
     out.mkdir(parents=True, exist_ok=True)
     mpath = out / f"{sc['name']}_metrics.json"
     with open(mpath, 'w') as f:

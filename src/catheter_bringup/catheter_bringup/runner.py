@@ -55,6 +55,7 @@ class RunResult:
     missing_outputs: List[str]   # wanted topics nobody produces
     published: Dict[str, int]
     recorded: Dict[str, int]
+    cost: Dict[str, dict] = dataclasses.field(default_factory=dict)   # per node callback time
 
     @property
     def lost(self) -> Dict[str, int]:
@@ -124,6 +125,27 @@ class PublishCounter:
         return new
 
 
+class CallbackCost:
+    """Wall time spent in each node's callbacks (timers and deliveries), s."""
+
+    def __init__(self):
+        self.samples: Dict[str, list] = {}
+
+    def add(self, node: str, dt: float) -> None:
+        self.samples.setdefault(node, []).append(dt)
+
+    def summary(self, wall: float) -> Dict[str, dict]:
+        import numpy as np
+        out = {}
+        for node, xs in sorted(self.samples.items()):
+            a = np.asarray(xs)
+            out[node] = {'callbacks': int(a.size), 'mean_ms': float(a.mean() * 1e3),
+                         'p99_ms': float(np.percentile(a, 99) * 1e3),
+                         'max_ms': float(a.max() * 1e3), 'total_s': float(a.sum()),
+                         'share': float(a.sum() / wall) if wall > 0 else float('nan')}
+        return out
+
+
 class LocalBus:
     """Lockstep transport between the runner's nodes: every publish is serialised once, counted
     and queued; `deliver_all` hands each queued message, in publish order, to every in-process
@@ -140,6 +162,7 @@ class LocalBus:
         self.delivered = 0
         self.dds = dds
         self.subs: Dict[str, list] = {}
+        self.cost = CallbackCost()
         self._pubs = set()
         self._subs = set()
 
@@ -169,21 +192,25 @@ class LocalBus:
             with_info = getattr(sub, '_callback_type', None) is not None and \
                 sub._callback_type.name != 'MessageOnly'
             self.subs.setdefault(sub.topic_name, []).append(
-                (sub.callback, bool(sub.raw), sub.msg_type, with_info))
+                (sub.callback, bool(sub.raw), sub.msg_type, with_info, node.get_name()))
             sub.callback = _drop
 
     def deliver_all(self) -> int:
         from rclpy.serialization import deserialize_message
         n = 0
         q = self.queue
+        clock = time.perf_counter
+        cost = self.cost
         while q:
             topic, data = q.popleft()
-            for cb, raw, msg_type, with_info in self.subs.get(topic, ()):
+            for cb, raw, msg_type, with_info, owner in self.subs.get(topic, ()):
+                t = clock()
                 msg = data if raw else deserialize_message(data, msg_type)
                 if with_info:
                     cb(msg, {})
                 else:
                     cb(msg)
+                cost.add(owner, clock() - t)
                 n += 1
         self.delivered += n
         return n
@@ -265,6 +292,7 @@ class ScenarioRunner:
         self.bus: Optional[LocalBus] = None
         self.time_sources = []
         self._timers = []
+        self._timer_owner = {}
         self._steps_since_spin = 0
         self._now_ns = 0
         self.on_step: Optional[Callable[[float], None]] = None
@@ -376,6 +404,8 @@ class ScenarioRunner:
 
     def _track(self):
         self._timers = [t for node in self.nodes.values() for t in node.timers]
+        self._timer_owner = {id(t): name for name, node in self.nodes.items()
+                             for t in node.timers}
         for node in list(self.nodes.values()) + [self.runner_node]:
             if self.bus is not None:
                 self.bus.wrap_node(node, publishers=node is not self.runner_node)
@@ -445,9 +475,11 @@ class ScenarioRunner:
                     continue
                 if not ready:
                     continue
+                t0 = time.perf_counter()
                 with tmr.handle:
                     tmr.handle.call_timer()
                 tmr.callback()
+                bus.cost.add(self._timer_owner.get(id(tmr), '?'), time.perf_counter() - t0)
                 n += 1
                 progress = True
                 bus.deliver_all()
@@ -639,8 +671,10 @@ class ScenarioRunner:
                 'published': published,
                 'scenario_yaml': _scenario_text(self.scenario),
             })
+        cost = self.bus.cost.summary(wall) if self.bus is not None else {}
         res = RunResult(self.scenario['name'], status, reason, self.bag, sim, wall, steps,
-                        sorted(self.nodes), self.skipped, self.missing, published, recorded)
+                        sorted(self.nodes), self.skipped, self.missing, published, recorded,
+                        cost)
         self.close()
         return res
 
