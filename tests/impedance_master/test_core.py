@@ -202,7 +202,7 @@ def test_default_identifier_recovers_a_table_model_and_bounds_parameters():
     for s in zip(x, xd, xdd, f):
         imp = ident.update(*s)
     assert imp.valid and imp.kind == 1
-    assert min(imp.F) >= 0.0 and min(imp.B) >= 0.0 and min(imp.C) >= 0.0
+    assert min(imp.F) >= 0.0 and min(imp.B) >= 0.0 and min(imp.C) + imp.c >= -1e-12
     assert 0.0 <= imp.m <= ident.max_mass
     # prediction along a new trajectory inside the visited range
     x2, xd2, xdd2, f2 = drive(truth, OperatorTrajectory(duration=6.0, seed=4))
@@ -248,8 +248,10 @@ def test_default_identifier_parameters_stay_physical_on_any_data(seed):
     assert imp is not None
     vals = imp.to_fields()
     assert all(math.isfinite(v) for v in vals.values())
-    assert min(imp.F) >= 0 and min(imp.B) >= 0 and min(imp.C) >= 0
-    assert max(abs(s) for s in imp.S) <= ident.max_force and 0 <= imp.m <= ident.max_mass
+    assert min(imp.F) >= 0 and min(imp.B) >= 0 and min(imp.C) + imp.c >= -1e-12
+    static = [s + imp.k * (imp.x0 + j * imp.dx) + imp.offset for j, s in enumerate(imp.S)]
+    assert max(abs(s) for s in static) <= ident.max_force + 1e-9
+    assert 0 <= imp.m <= ident.max_mass
 
 
 def test_default_identifier_holds_at_rest():
@@ -394,3 +396,19 @@ def test_default_identifier_state_round_trips_through_json(tmp_path):
     path.write_text('{not json')
     with pytest.raises(ValueError, match='JSON'):
         make_identifier().load_state(str(path))
+
+
+def test_default_identifier_reports_the_linear_part_in_m_c_k_offset():
+    """On a linear static environment (a spring with preload) the default model's k and
+    offset are the spring's, and its tables hold (almost) nothing."""
+    ident = make_identifier()
+    t, x, xd, xdd = OperatorTrajectory(duration=10.0, seed=9).arrays()
+    rng = np.random.default_rng(0)
+    for s in zip(x, xd, xdd, 30.0 * x + 0.02 + 0.005 * rng.normal(size=x.size)):
+        imp = ident.update(*s)
+    assert imp.k == pytest.approx(30.0, rel=0.05) and imp.offset == pytest.approx(0.02, abs=3e-3)
+    visited = slice(2, 11)            # nodes at 10..50 mm (the script spans 8..56 mm)
+    assert max(np.abs(imp.F[visited])) < 0.01 and max(np.abs(imp.S[visited])) < 0.01
+    # force() is the same model as before the split
+    for xx, v in ((0.01, 0.02), (0.03, -0.01), (0.05, 0.0)):
+        assert imp.force(xx, v, 0.0) == pytest.approx(30.0 * xx + 0.02, abs=0.01)

@@ -373,6 +373,7 @@ class HistoryIdentifier:
         self.viscous_ridge = positive('viscous_ridge', viscous_ridge)
         self.friction_kink = nonneg('friction_kink', friction_kink)
         self.dx = (self.x_max - self.x_min) / (n_nodes - 1)
+        self._nodes = self.x_min + self.dx * np.arange(n_nodes)
         G = n_nodes
         self.P = 4 * G + 1
         # scales of the feature columns: velocity by V, acceleration by A (coefficients in N)
@@ -585,11 +586,22 @@ class HistoryIdentifier:
         self.n_solves += 1
         self.status = 'ok'
         G = self.n_nodes
+        # report the linear part in m, c, k, offset (the thesis's terms): the straight line
+        # through the static table and the mean drag, weighted by how much data each node
+        # has seen; the tables keep the rest, so force() is unchanged on the grid (outside
+        # it the linear part continues while the tables hold their end values)
+        S = theta[:G]
+        C = theta[3 * G:4 * G] / self._V
+        info = np.diag(self._A_mat)
+        w = info[:G] + 1e-9
+        k, off = np.polyfit(self._nodes, S, 1, w=np.sqrt(w))
+        wc = info[3 * G:4 * G] + 1e-9
+        c = float(np.sum(wc * C) / np.sum(wc))
         self.last = Impedance(
-            m=float(theta[4 * G]) / self._A, c=0.0, k=0.0, offset=0.0, valid=True,
+            m=float(theta[4 * G]) / self._A, c=c, k=float(k), offset=float(off), valid=True,
             x0=self.x_min, dx=self.dx, sigma=self.sigma, v_s=self.v_s, beta=self.beta,
-            S=theta[:G].tolist(), F=theta[G:2 * G].tolist(), B=theta[2 * G:3 * G].tolist(),
-            C=(theta[3 * G:4 * G] / self._V).tolist(), status='ok')
+            S=(S - (k * self._nodes + off)).tolist(), F=theta[G:2 * G].tolist(),
+            B=theta[2 * G:3 * G].tolist(), C=(C - c).tolist(), status='ok')
         return self.last
 
 

@@ -13,6 +13,10 @@ LOCAL trajectory. Two kinds share one class:
           + F(x) z1 + B(x) (z2 - z1)               friction: Coulomb level F, breakaway extra B
           + C(x) x'                                viscous drag growing with inserted length
 
+  The default identifier puts the linear part in m, c, k, offset (the thesis's terms: the
+  data-weighted straight line through the static force and the mean drag) and the rest in
+  the tables, so ``c + C(x) >= 0`` is the drag and ``k x + offset + S(x)`` the static force.
+
   ``z1`` in [-1, 1] (Dahl) and ``z2`` (LuGre-like, with a breakaway peak of relative height
   ``beta`` below ``v_s``) are friction states driven by the motion (`FrictionState`,
   presliding length ``sigma``): +1 (resp. up to 1 + beta) after inserting by more than a few
