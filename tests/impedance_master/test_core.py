@@ -354,6 +354,17 @@ def test_device_tracks_a_ramp_while_the_hand_moves(compliant):
         assert abs(dev.x - traj.sample(3.999)[0]) < 0.005
 
 
+def test_device_step_returns_the_hand_force_as_a_float_and_takes_a_hand_tuple():
+    a, b = HapticDevice(seed=3), HapticDevice(seed=3)
+    for k in range(50):
+        sa = a.step(0.2, 0.02 + 1e-5 * k, 0.01, 0.0)
+        sb = b.step(0.2, (0.02 + 1e-5 * k, 0.01, 0.0))
+    assert isinstance(sa, float) and float(sa) == sa.f_hand == float(sb)
+    assert sa.x == pytest.approx(0.02 + 49e-5) and sa.xd == 0.01
+    with pytest.raises(ValueError, match='x_hand'):
+        a.step(0.2, (0.1,))
+
+
 def test_device_refuses_bad_parameters():
     with pytest.raises(ValueError, match='kt'):
         DeviceParams(kt=0.0)

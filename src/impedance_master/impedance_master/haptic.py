@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import random
 from dataclasses import dataclass, fields
-from typing import NamedTuple, Optional
+from typing import Optional
 
 from impedance_master._check import finite, nonneg, positive, seed as check_seed
 
@@ -70,15 +70,25 @@ class DeviceParams:
             raise ValueError(f'substeps must be an int in 1..1000, got {self.substeps!r}')
 
 
-class DeviceSample(NamedTuple):
-    """One control period of the device: force at the hand (N, true), handle position (m),
-    velocity (m/s), acceleration (m/s^2), motor current (A), measured handle force (N)."""
-    f_hand: float
-    x: float
-    xd: float
-    xdd: float
-    current: float
-    f_measured: float
+class DeviceSample(float):
+    """One control period of the device. Its value (it IS a float) is the force at the
+    operator's hand in N; attributes: f_hand N (the same), x handle position m, xd m/s,
+    xdd m/s^2, current A (motor), f_measured N (handle force sensor reading)."""
+
+    __slots__ = ('f_hand', 'x', 'xd', 'xdd', 'current', 'f_measured')
+
+    def __new__(cls, f_hand: float, x: float, xd: float, xdd: float, current: float,
+                f_measured: float):
+        obj = super().__new__(cls, f_hand)
+        obj.f_hand = float(f_hand)
+        obj.x, obj.xd, obj.xdd = x, xd, xdd
+        obj.current, obj.f_measured = current, f_measured
+        return obj
+
+    def __repr__(self) -> str:
+        return (f'DeviceSample(f_hand={self.f_hand:.6g}, x={self.x:.6g}, xd={self.xd:.6g}, '
+                f'xdd={self.xdd:.6g}, current={self.current:.6g}, '
+                f'f_measured={self.f_measured:.6g})')
 
 
 class HapticDevice:
@@ -122,13 +132,25 @@ class HapticDevice:
         p = self.p
         return p.coulomb_friction * math.tanh(v / 1e-3) + p.viscous_friction * v
 
-    def step(self, f_desired: float, x_hand: float, xd_hand: float, xdd_hand: float = 0.0
-             ) -> DeviceSample:
+    def step(self, f_desired: float, x_hand, xd_hand: Optional[float] = None,
+             xdd_hand: float = 0.0) -> DeviceSample:
         """Advance one control period tracking f_desired (N) against the hand.
 
-        x_hand, xd_hand, xdd_hand: the scripted hand trajectory at this period (m, m/s, m/s^2).
-        Returns the DeviceSample at the end of the period.
+        x_hand, xd_hand, xdd_hand: the scripted hand trajectory at this period (m, m/s, m/s^2);
+        the hand state may also be given as one sequence (x, xd[, xdd]) in x_hand.
+        Returns the DeviceSample at the end of the period: a float, the force at the hand (N),
+        with the device state as attributes.
         """
+        if xd_hand is None:
+            try:
+                hand = [float(v) for v in x_hand]
+            except TypeError:
+                raise ValueError('xd_hand must be given, or x_hand must be a sequence '
+                                 f'(x, xd[, xdd]); got {x_hand!r}') from None
+            if len(hand) not in (2, 3):
+                raise ValueError(f'x_hand as a sequence must be (x, xd[, xdd]), got {x_hand!r}')
+            x_hand, xd_hand = hand[0], hand[1]
+            xdd_hand = hand[2] if len(hand) == 3 else 0.0
         fd = finite('f_desired', f_desired)
         xh = finite('x_hand', x_hand)
         vh = finite('xd_hand', xd_hand)
