@@ -141,6 +141,18 @@ def test_base_px_accepts_ints_and_doubles(ros, base):
     np.testing.assert_allclose(node.sensor.base_px, base)
 
 
+def test_base_constraint_parameter(ros, shape_helpers):
+    cam = SyntheticCamera(noise=2)
+    node = ros.add(ShapeNode(context=ros.context, parameter_overrides=[
+        Parameter('psi', value=[float(x) for x in cam.psi.reshape(-1)]),
+        Parameter('base_px', value=list(cam.base_px)),
+        Parameter('base_constraint', value='point')]))
+    node._on_image(_image(cam.render(shape_helpers.arc(0.4)).image))
+    node._process()
+    assert node._last_obs.ok
+    np.testing.assert_allclose(node._last_obs.control_points[0], 0.0, atol=1e-12)
+
+
 def test_bad_parameters_are_refused(ros):
     with pytest.raises(ValueError):
         ShapeNode(context=ros.context, parameter_overrides=[Parameter('psi', value=[1.0, 2.0])])

@@ -196,6 +196,10 @@ class ShapeNode(Node):
                                  'largest number of poses in /catheter/shape', 2, 10000)
         degree = declare(self, 'degree', 3, 'Bezier degree (3: the 4 control points of the '
                                             'thesis; force_estimator expects 3)', 1, 8)
+        base_constraint = declare(self, 'base_constraint', 'none',
+                                  'Bezier base constraint (needs base_px): none (thesis), '
+                                  'point (p0 at the clamp), tangent (p0 at the clamp, p1 '
+                                  'along +x)', choices=('none', 'point', 'tangent'))
         if len(psi) != 12:
             raise ValueError(f'parameter psi needs 12 values, got {len(psi)}')
         base = None
@@ -210,8 +214,12 @@ class ShapeNode(Node):
                 self.get_logger().error(f'cannot read background_file {bg_file!r}: running '
                                         'without background removal')
         self._psi = np.asarray(psi, dtype=float).reshape(3, 4)
+        if base is None and base_constraint != 'none':
+            self.get_logger().warning('base_constraint needs base_px: using none')
+            base_constraint = 'none'
         self.sensor = ShapeSensor(self._psi, threshold=threshold, background=background,
-                                  base_px=base, method=method, degree=degree)
+                                  base_px=base, method=method, degree=degree,
+                                  base_constraint=base_constraint)
         self.diag = Diagnostics(self)
         for k in ('frames', 'processed', 'dropped', 'published', 'bad_messages') + \
                 tuple('fail_' + s for s in STATUSES if s != 'ok'):
