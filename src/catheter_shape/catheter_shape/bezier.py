@@ -154,7 +154,8 @@ _TANGENT_WEIGHT = 0.03
 
 
 def _tdm_step(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, c0: np.ndarray,
-              M: np.ndarray, tw: float = _TANGENT_WEIGHT, t_offset=None) -> np.ndarray:
+              M: np.ndarray, tw: float = _TANGENT_WEIGHT, t_offset=None,
+              reg=None) -> np.ndarray:
     """One tangent-distance-minimisation (Gauss-Newton on the perpendicular distances)
     update of the control points for points p at their foot-point parameters s."""
     n = ctrl.shape[0] - 1
@@ -164,6 +165,13 @@ def _tdm_step(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, c0: np.ndarray,
     t = bernstein(s, n - 1) @ bezier_derivative(ctrl, 1)
     tn = np.linalg.norm(t, axis=1, keepdims=True)
     t = t / np.where(tn > 0, tn, 1.0)
+    if reg is not None:
+        # the regularized problem with the parameters eliminated: per-point tangential
+        # weight sqrt(mu / (|c'|^2 + mu)) and tangential residual t.r - |c'| (s - s0)
+        mu, s0 = reg
+        g = tn[:, 0] ** 2
+        tw = np.sqrt(mu / (g + mu)) if mu > 0 else np.zeros_like(g)
+        t_offset = tn[:, 0] * (s - s0)
     if D == 2:
         # one normal per point: scalar signed distances e_i = n_i . r_i
         # plus the tangential part with a small weight: it keeps the step well-posed when
@@ -288,21 +296,13 @@ def _fit_regularized(ctrl, p, s, degree, c0, M, lam, rounds, tol):
     s = solve_s(ctrl, s)
     J = objective(ctrl, s)
     for _ in range(rounds):
-        g = np.sum((bernstein(s, n - 1) @ bezier_derivative(ctrl, 1)) ** 2, axis=1)
-        tw = np.sqrt(mu / (g + mu)) if mu > 0 else np.zeros_like(g)
-        # the eliminated parameter leaves a tangential residual t.r - |c'| (s - s0)
-        trial = _tdm_step(ctrl, p, s, c0, M, tw, t_offset=np.sqrt(g) * (s - s0))
+        trial = _tdm_step(ctrl, p, s, c0, M, reg=(mu, s0))
         if not np.all(np.isfinite(trial)):
             break
         s_t = solve_s(trial, s)
         J_t = objective(trial, s_t)
         if J_t >= J:
-            # a plain least-squares re-solve at the current parameters never increases J
-            trial = _solve_ls(bernstein(s, n), p, c0, M)
-            s_t = solve_s(trial, s)
-            J_t = objective(trial, s_t)
-            if J_t >= J:
-                break
+            break                   # at the noise floor: Gauss-Newton no longer helps
         done = (J - J_t) <= tol * 0.1 * J
         ctrl, s, J = trial, s_t, J_t
         if done:
