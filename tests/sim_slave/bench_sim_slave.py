@@ -127,6 +127,22 @@ def tracking():
     x = np.array([r.step(c)[0] for c in cmd])
     row('  without feed-forward, max', 100 * np.abs(x - cmd).max() / 0.056, 5.0, ' %',
         ref_label=' (thesis <)')
+    # through a lossy link: error against the command as sent, delayed by the link's delay
+    for loss, jit in ((0.1, 0.0), (0.3, 0.005)):
+        link = Link(LinkConfig(delay=0.2, jitter=jit, loss=loss, outages=()), seed=0)
+        r = SlaveRobot()
+        held = 0.0
+        xs = []
+        for ti, c in zip(t, cmd):
+            link.send(ti, c)
+            got = link.receive(ti)
+            held = held if got is None else got
+            xs.append(r.step(held)[0])
+        xs = np.array(xs)
+        lag = 200
+        e = np.abs(xs[lag:] - cmd[:-lag])
+        row(f'  through the link, {loss:.0%} loss, {jit * 1e3:g} ms jitter, max',
+            100 * e.max() / 0.056, 5.0, ' %', ref_label=' (thesis <)')
     table('Robot tracking, Experiment-I-like motion (% of the 56 mm stroke)')
 
 
