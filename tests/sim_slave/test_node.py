@@ -110,6 +110,15 @@ def test_outage_holds_the_last_command_and_bad_messages_are_counted(ros):
     assert rig.node.diag.get('steps') >= 400
 
 
+def test_initial_position_is_held_until_a_command_arrives(ros):
+    rig = Rig(ros, **{'robot.x0': 0.03, 'link.delay': 0.05, 'link.outages': [0.0, 0.0],
+                      'sensor.noise_std': 0.0, 'vessel.cardiac_amplitude': 0.0})
+    for _ in range(40):
+        rig.step((0.03, 0.0))
+    assert all(m.position[0] == 0.03 for m in rig.js)
+    assert all(m.effort[0] == 0.0 for m in rig.js)     # at rest from the start: no friction load
+
+
 def test_bad_parameters_are_refused(ros):
     with pytest.raises(Exception, match='outages'):
         SimSlaveNode(context=ros.context,

@@ -85,6 +85,8 @@ class SimSlaveNode(Node):
                        1e-4, 10.0)
         amax = declare(self, 'robot.max_accel', 2.0, 'insertion axis acceleration limit, m/s^2',
                        1e-3, 1000.0)
+        x0 = declare(self, 'robot.x0', 0.0, 'initial inserted length (the robot holds it until '
+                     'the first command arrives), m', -0.02, 0.2)
         self.max_catchup = declare(self, 'max_catchup_steps', 100,
                                    'most simulation periods computed in one late timer tick',
                                    1, 10000)
@@ -99,7 +101,7 @@ class SimSlaveNode(Node):
         except (TypeError, ValueError):
             raise ValueError(f'link.outages must be a list of numbers, got {outages!r}') from None
         self.link = Link(LinkConfig.from_flat(delay, jitter, loss, flat), seed=seed + 2)
-        robot = SlaveRobot(rate=self.rate, kp=kp, max_speed=vmax, max_accel=amax)
+        robot = SlaveRobot(rate=self.rate, kp=kp, max_speed=vmax, max_accel=amax, x0=x0)
         self.sim = SlaveSimulation(vessel=VesselModel(VesselParams(**vessel_kw), seed=seed),
                                    sensor=ForceSensor(noise_std=noise, bias=bias, seed=seed + 1),
                                    robot=robot, rotation=default_rotation_axis(self.rate))
