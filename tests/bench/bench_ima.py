@@ -102,6 +102,13 @@ def switch_and_rest(res, resw):
     ren = res['ima'][0].metrics
     print(f'IMA default: {ren["renderer"]["switches"]} model switches delivered, identifier '
           f'status counts {ren["id_status"]}')
+    for m in ('ima', 'ima_thesis'):
+        rs = [run_experiment(ExperimentConfig(mode=m, seed=r.config.seed, passivity=True))
+              for r in res[m]]
+        n, o = agg(rs, 'normal'), agg(rs, 'outage')
+        print(f'{LABEL[m]} with the passivity controller (TDPA): normal {n[0]:.4f}, outage '
+              f'{o[0]:.4f}, max {max(n[2], o[2]):.4f} N; damping active in '
+              f'{sum(r.metrics["renderer"]["passivity_steps"] for r in rs)} steps')
 
 
 def visited(res_by_label, delay=0.2, margin=1e-3):

@@ -328,6 +328,31 @@ def test_ima_model_switch_is_bumpless_and_converges():
     assert ima.n_switches == 2
 
 
+def test_passivity_controller_keeps_an_active_model_passive():
+    """A negative damping (an identification artefact) pumps energy into the hand; the TDPA
+    option keeps the observed energy at or above zero, without it the energy goes negative."""
+    active = Impedance(0.0, -3.0, 0.0, 0.0)
+    energies = {}
+    for passive in (False, True):
+        ima = ImaRenderer(passivity=passive, dt=1e-3)
+        ima.set_impedance(active)
+        e = 0.0
+        for k in range(3000):
+            t = k * 1e-3
+            x, xd = 0.03 + 0.01 * math.sin(2 * t), 0.02 * math.cos(2 * t)
+            e += ima.desired_force(x, xd, 0.0) * xd * 1e-3
+        energies[passive] = e
+        if passive:
+            assert ima.energy >= -1e-12 and ima.n_passivity > 0
+    assert energies[False] < -1e-3 and energies[True] >= -1e-6
+    # a passive (dissipative) model is untouched
+    ima = ImaRenderer(passivity=True)
+    ima.set_impedance(Impedance(0.0, 3.0, 0.0, 0.0))
+    for k in range(500):
+        assert ima.desired_force(0.03, 0.02, 0.0) == pytest.approx(0.06)
+    assert ima.n_passivity == 0
+
+
 # ---------------------------------------------------------------- haptic device
 def test_device_tracks_a_constant_force_with_the_hand_at_rest():
     dev = HapticDevice(DeviceParams(sensor_noise=0.0))

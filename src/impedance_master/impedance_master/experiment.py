@@ -60,7 +60,8 @@ class ExperimentConfig:
     Experiment I in the thesis; the renderer starts without a model either way;
     thesis_offset: the ima_thesis identifier fits the constant term (True) or exactly the
     thesis's Eq. 29 f = m x'' + c x' + k x (False); blend_time s and max_rate N/s of the
-    ImaRenderer (bumpless model switch and slew limit; 0 and inf: switch at once).
+    ImaRenderer (bumpless model switch and slew limit; 0 and inf: switch at once);
+    passivity: the renderer's time-domain passivity controller.
     """
     experiment: str = 'II'
     mode: str = 'ima'
@@ -80,6 +81,7 @@ class ExperimentConfig:
     thesis_offset: bool = True
     blend_time: float = 0.05
     max_rate: float = 20.0
+    passivity: bool = False
 
     def __post_init__(self):
         if self.mode not in MODES:
@@ -173,7 +175,7 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
         renderer = DfrRenderer(limit=cfg.limit)
     else:
         renderer = ImaRenderer(limit=cfg.limit, dt=dt, blend_time=cfg.blend_time,
-                               max_rate=cfg.max_rate)
+                               max_rate=cfg.max_rate, passivity=cfg.passivity)
     imp_every = max(1, int(round(cfg.rate / cfg.impedance_rate)))
 
     keys = ('t', 'x_hand', 'x_master', 'x_slave', 'f_hand', 'f_desired', 'reference',
@@ -241,7 +243,8 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
     metrics['id_status'] = id_status
     if ima:
         metrics['renderer'] = {'switches': renderer.n_switches, 'ignored': renderer.n_ignored,
-                               'clamped': renderer.n_clamped}
+                               'clamped': renderer.n_clamped,
+                               'passivity_steps': renderer.n_passivity}
     else:
         metrics['renderer'] = {'updates': renderer.n_updates, 'clamped': renderer.n_clamped}
     metrics['link'] = {'to_slave': to_slave.stats.as_dict(),

@@ -12,8 +12,10 @@ Publishes   /master/rendered_force  geometry_msgs/WrenchStamped, force.x = desir
                                     `rate` Hz on the node clock while subscribed. QOS_FAST.
             /diagnostics            rendered, models received / switched / ignored (invalid),
                                     clamps, bad messages, age of the last command.
-Parameters: mode (ima | ima_thesis | dfr), rate Hz, limit N, blend_time s, max_rate N/s.
-  ima         ImaRenderer with bumpless model switches and slew limiting (project default);
+Parameters: mode (ima | ima_thesis | dfr), rate Hz, limit N, blend_time s, max_rate N/s,
+passivity (bool, TDPA).
+  ima         ImaRenderer with bumpless model switches, slew limiting and the time-domain
+              passivity controller (project default);
   ima_thesis  ImaRenderer rendering only the linear part m x'' + c x' + k x + offset of the
               received model, switched at once (thesis Eq. 35), same clamp;
   dfr         DfrRenderer: the last force received (thesis baseline).
@@ -57,13 +59,16 @@ class ImaMasterNode(Node):
                         0.0, 5.0)
         max_rate = declare(self, 'max_rate', 20.0, 'slew-rate limit of the desired force, N/s',
                            0.01, 1e6)
+        passivity = declare(self, 'passivity', True, 'time-domain passivity controller on the '
+                            'rendered model (mode ima only)')
         dt = 1.0 / self.rate
         if self.mode == 'dfr':
             self.renderer = DfrRenderer(limit=limit)
         elif self.mode == 'ima_thesis':
             self.renderer = ImaRenderer(limit=limit, blend_time=0.0, max_rate=1e6, dt=dt)
         else:
-            self.renderer = ImaRenderer(limit=limit, blend_time=blend, max_rate=max_rate, dt=dt)
+            self.renderer = ImaRenderer(limit=limit, blend_time=blend, max_rate=max_rate, dt=dt,
+                                        passivity=passivity)
         self.state = None            # (x, xd, xdd) of the local trajectory
         self._t_state = None
         self._last_values = None
@@ -152,6 +157,8 @@ class ImaMasterNode(Node):
             self.diag.set('model_switches', r.n_switches)
             self.diag.set('models_ignored', r.n_ignored)
             self.diag.set('has_model', str(r.model is not None))
+            self.diag.set('passivity_steps', r.n_passivity)
+            self.diag.set('passivity_energy_j', float(r.energy))
         if self._t_state is not None:
             age = (self.get_clock().now() - self._t_state).nanoseconds * 1e-9
             self.diag.set('command_age_s', float(age))

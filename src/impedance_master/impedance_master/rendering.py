@@ -50,11 +50,18 @@ class ImaRenderer:
     The first valid model is rendered as is (there is nothing to blend from); every later
     switch is bumpless.
         dt: s, the call period (1 kHz loop), used by blending and slew limiting.
-    Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_clamped`.
+        passivity: add the time-domain passivity controller (TDPA, Ryu & Hannaford): the
+            observer E = sum f x' dt is the energy the operator has put into the rendered
+            environment; when it would go negative (the model, e.g. a negative damping or a
+            switch, returned more than it received), a damping alpha x' with
+            alpha = -E / (dt x'^2) (at most max_damping N s/m) dissipates the excess.
+    Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_clamped`,
+    `energy` (J, observer), `n_passivity` (steps with added damping).
     """
 
     def __init__(self, limit: float = 2.0, blend_time: float = 0.05,
-                 max_rate: float = math.inf, dt: float = 1e-3):
+                 max_rate: float = math.inf, dt: float = 1e-3, passivity: bool = False,
+                 max_damping: float = 50.0):
         self._clamp = _Clamp(limit)
         self.blend_time = nonneg('blend_time', blend_time)
         try:
@@ -77,6 +84,10 @@ class ImaRenderer:
         self._xdd = 0.0
         self.n_switches = 0
         self.n_ignored = 0
+        self.passivity = bool(passivity)
+        self.max_damping = positive('max_damping', max_damping)
+        self.energy = 0.0
+        self.n_passivity = 0
 
     @property
     def limit(self) -> float:
@@ -142,8 +153,20 @@ class ImaRenderer:
                 f = last + step
             elif f < last - step:
                 f = last - step
+        if self.passivity:
+            f = self._passivity(f, xd)
         f = self._clamp(f)
         self._last_out = f
+        if self.passivity:
+            self.energy += f * xd * self.dt
+        return f
+
+    def _passivity(self, f: float, xd: float) -> float:
+        e = self.energy + f * xd * self.dt
+        if e < 0.0 and xd * xd > 1e-12:
+            alpha = min(-e / (self.dt * xd * xd), self.max_damping)
+            self.n_passivity += 1
+            return f + alpha * xd
         return f
 
 
