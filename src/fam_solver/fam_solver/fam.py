@@ -409,7 +409,7 @@ def _accept(prob: _Problem, phi, conv, th_lin, fac=None):
     is clear), and the branch check (all Jacobian eigenvalues in the right half plane)."""
     th = phi.sum(axis=1)
     ok = conv & ((np.sign(th) == np.sign(th_lin)) | (np.abs(th_lin) < 0.1))
-    big = ok & (np.abs(th_lin) > 0.3)
+    big = ok & ((np.abs(th_lin) > 0.3) | (_alpha(prob) > 2.0))
     if np.any(big) and prob.n <= DENSE_MAX_N:
         idx = np.nonzero(big)[0]
         if fac is None:
@@ -544,6 +544,12 @@ def _continuation(prob: _Problem, B, arc_model, lin=None):
         bez = _BezierResidual(sub) if arc_model == 'bezier' else None
         step = phi[b] - prev[b] if has_prev[b] else lin[b] * 0.1
         starts = [phi[b]] + [phi[b] + k * step / max(np.abs(step.sum()), 1e-12) for k in (0.5, 1.0, 2.0, 3.0)]
+        # then the last shape and the small-deflection shape turned to tip angles up to 2 pi
+        for base in (phi[b], lin[b]):
+            tb = base.sum()
+            if abs(tb) > 1e-12:
+                for t in (0.5, 1.0, 1.5, 2.0, -0.5, -1.0, -1.5, -2.0):
+                    starts.append(base * (t * np.pi / tb))
         found = None
         for st in starts:
             p, c, it, r, fac = _newton(sub, st[None], 1.0, 40, step_limit=0.3, bezier=bez)
@@ -559,6 +565,10 @@ def _continuation(prob: _Problem, B, arc_model, lin=None):
             phi[b], res[b] = found[0], found[1]
             conv[b] = True
             snapped[b] = s[b] > 0.0
+        else:   # report the residual at the full load, not at the last load step
+            loads, m = sub.loads(1.0)
+            r_full, _, _ = _evaluate(phi[b:b + 1], sub.l, sub.w, loads, m, jac=False)
+            res[b] = float(np.max(np.abs(r_full)))
     return phi, conv, total, res, snapped
 
 
