@@ -293,6 +293,7 @@ class ScenarioRunner:
         self.time_sources = []
         self._timers = []
         self._timer_owner = {}
+        self._due = {}
         self._steps_since_spin = 0
         self._now_ns = 0
         self.on_step: Optional[Callable[[float], None]] = None
@@ -406,6 +407,7 @@ class ScenarioRunner:
         self._timers = [t for node in self.nodes.values() for t in node.timers]
         self._timer_owner = {id(t): name for name, node in self.nodes.items()
                              for t in node.timers}
+        self._due = {}
         for node in list(self.nodes.values()) + [self.runner_node]:
             if self.bus is not None:
                 self.bus.wrap_node(node, publishers=node is not self.runner_node)
@@ -466,23 +468,36 @@ class ScenarioRunner:
         n = 0
         progress = True
         bus.deliver_all()
+        # lockstep: time only moves between steps, so each timer's next due time is cached
+        # and only timers due now are asked (refreshed on every rescan)
+        cache = self.scenario['mode'] == 'lockstep'
+        due = self._due
+        now = self._now_ns
         while progress and n < max_callbacks:
             progress = False
             for tmr in self._timers:
+                if cache and due.get(id(tmr), 0) > now:
+                    continue
                 try:
                     ready = tmr.is_ready()
                 except Exception:  # noqa: BLE001 - destroyed timer
                     continue
-                if not ready:
-                    continue
-                t0 = time.perf_counter()
-                with tmr.handle:
-                    tmr.handle.call_timer()
-                tmr.callback()
-                bus.cost.add(self._timer_owner.get(id(tmr), '?'), time.perf_counter() - t0)
-                n += 1
-                progress = True
-                bus.deliver_all()
+                if ready:
+                    t0 = time.perf_counter()
+                    with tmr.handle:
+                        tmr.handle.call_timer()
+                    tmr.callback()
+                    bus.cost.add(self._timer_owner.get(id(tmr), '?'),
+                                 time.perf_counter() - t0)
+                    n += 1
+                    progress = True
+                    bus.deliver_all()
+                if cache:
+                    try:
+                        left = tmr.time_until_next_call()
+                    except Exception:  # noqa: BLE001 - destroyed timer
+                        left = None
+                    due[id(tmr)] = now + left if left is not None else 2 ** 62
         self._steps_since_spin += 1
         if self._steps_since_spin >= 100:
             self._steps_since_spin = 0
