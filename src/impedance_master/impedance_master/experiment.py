@@ -28,7 +28,6 @@ Every mode of a comparison uses the same seeds (trajectory, links, vessel, senso
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from typing import Dict, Optional, Tuple
 

@@ -260,4 +260,4 @@ def check_state(x, xd, xdd) -> tuple:
 
 
 __all__ = ['Impedance', 'FrictionState', 'BASE_FIELDS', 'KIND_LINEAR', 'KIND_TABLE',
-           'check_state', 'nonneg']
+           'check_state']

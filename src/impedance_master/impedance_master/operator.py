@@ -12,7 +12,6 @@ maximum depth.
 """
 from __future__ import annotations
 
-import math
 import random
 from typing import List, Tuple
 
