@@ -45,6 +45,11 @@ import numpy as np
 
 from force_estimator.models import control_points_to_features
 
+#: prior width of the arc-length offset of the observed curve's start, m
+ALIGN_SIGMA = 1e-3
+#: prior width of the relative stretch of the observed curve's arc length
+STRETCH_SIGMA = 0.02
+
 
 @dataclass
 class FamInverseResult:
@@ -71,7 +76,7 @@ class FamInverseEstimator:
     """
 
     def __init__(self, cat, n_arcs: int = 12, n_points: int = 24, f_max: float = 0.45,
-                 tol: float = 1e-5, max_iter: int = 8, max_residual: float = 5e-4,
+                 tol: float = 1e-4, max_iter: int = 8, max_residual: float = 5e-4,
                  fd_step: float = 1e-4, table_angles: int = 64, table_magnitudes: int = 30):
         for name, v in (('f_max', f_max), ('tol', tol), ('max_residual', max_residual),
                         ('fd_step', fd_step)):
@@ -92,6 +97,7 @@ class FamInverseEstimator:
         self.max_iter = int(max_iter)
         self.max_residual = float(max_residual)
         self.fd_step = float(fd_step)
+        self._w = 1e-4          # prior rows in metres of shape residual per sigma
         self._solve_batch = solve_fam_batch
         self._last: Optional[np.ndarray] = None
         self.last_result: Optional[FamInverseResult] = None
@@ -134,55 +140,72 @@ class FamInverseEstimator:
         self._a = a
         return obs
 
-    def _shape(self, forces: np.ndarray) -> np.ndarray:
-        """FAM points (m, n_points, 2) m at the current arc-length fractions; NaN where
-        the solve did not converge."""
-        b = self._solve_batch(self.cat, forces, np.zeros(len(forces)), n_arcs=self.n_arcs)
-        pts = b.points_at(self._frac)
-        if not b.converged.all():
-            pts[~b.converged] = np.nan
-        return pts
-
     def _table_start(self, obs: np.ndarray) -> np.ndarray:
         idx = np.rint(self._frac * 64).astype(int)
         d = ((self._table_pts[:, idx] - obs) ** 2).sum(axis=(1, 2))
         return self._table_f[int(np.argmin(d))].copy()
 
-    def _eval(self, f: np.ndarray, obs: np.ndarray):
-        """Residual (2 n_points,) m, its Jacobian (2 n_points, 2) m/N and cost at force f:
-        one batched FAM solve of f and its two forward-difference perturbations."""
+    def _eval(self, x: np.ndarray, obs: np.ndarray):
+        """Residual, Jacobian and cost at x = (fx, fy, delta, eps).
+
+        The FAM shape is compared at arc lengths a'_j = delta + (1 + eps) a_j: delta (m) and
+        eps absorb where the observed curve starts and how its parameterisation stretches
+        (a fitted cubic ends a fraction of a millimetre short of the true ends), so only the
+        shape decides the force. One batched FAM solve of f and its two forward-difference
+        perturbations; the delta/eps columns come from the FAM tangent. Two prior rows keep
+        delta ~ 0 +- `ALIGN_SIGMA` m and eps ~ 0 +- `STRETCH_SIGMA`."""
         h = self.fd_step
-        P = self._shape(np.array([f, f + (h, 0.0), f + (0.0, h)]))
-        r = (P[0] - obs).reshape(-1)
-        J = np.stack([(P[1] - P[0]).reshape(-1), (P[2] - P[0]).reshape(-1)], axis=1) / h
+        f = x[:2]
+        ap = np.clip(x[2] + (1.0 + x[3]) * self._a, 0.0, self.length)
+        frac = ap / self.length
+        b = self._solve_batch(self.cat, np.array([f, f + (h, 0.0), f + (0.0, h)]),
+                              np.zeros(3), n_arcs=self.n_arcs)
+        if not b.converged.all():
+            return None, None, np.inf
+        P = b.points_at(frac)
+        dh = 1e-4
+        fr2 = np.where(frac + dh / self.length <= 1.0, frac + dh / self.length,
+                       frac - dh / self.length)
+        T = (b.points_at(fr2)[0] - P[0]) / (fr2 - frac)[:, None] / self.length   # unit tangent
+        n = self.n_points
+        r = np.concatenate([(P[0] - obs).reshape(-1),
+                            [x[2] / ALIGN_SIGMA * self._w, x[3] / STRETCH_SIGMA * self._w]])
+        J = np.zeros((2 * n + 2, 4))
+        J[:2 * n, 0] = (P[1] - P[0]).reshape(-1) / h
+        J[:2 * n, 1] = (P[2] - P[0]).reshape(-1) / h
+        J[:2 * n, 2] = T.reshape(-1)
+        J[:2 * n, 3] = (T * self._a[:, None]).reshape(-1)
+        J[2 * n, 2] = self._w / ALIGN_SIGMA
+        J[2 * n + 1, 3] = self._w / STRETCH_SIGMA
         cost = float(r @ r)
         if not (np.isfinite(cost) and np.isfinite(J).all()):
             return r, J, np.inf
         return r, J, cost
 
     def _solve(self, obs: np.ndarray, f0: np.ndarray):
-        """LM from f0. Returns (force, cost, iterations, FAM solves, converged)."""
-        f = np.asarray(f0, dtype=float).copy()
-        r, J, cost = self._eval(f, obs)
+        """LM from f0. Returns (x = (fx, fy, delta, eps), shape cost, iterations, FAM solves,
+        converged); the shape cost excludes the prior rows."""
+        x = np.array([f0[0], f0[1], 0.0, 0.0], dtype=float)
+        r, J, cost = self._eval(x, obs)
         solves = 3
         if not np.isfinite(cost):
-            return f, np.inf, 0, solves, False
+            return x, np.inf, 0, solves, False
         mu = 1e-4
         converged = False
         it = 0
         for it in range(1, self.max_iter + 1):
             A = J.T @ J
-            step = -np.linalg.solve(A + mu * np.diag(np.diag(A)) + 1e-30 * np.eye(2), J.T @ r)
-            fn = f + step
-            nf = np.hypot(*fn)
+            step = -np.linalg.solve(A + mu * np.diag(np.diag(A)) + 1e-30 * np.eye(4), J.T @ r)
+            xn = x + step
+            nf = np.hypot(xn[0], xn[1])
             if nf > 1.5 * self.f_max:            # stay within reach of the force range
-                fn *= 1.5 * self.f_max / nf
-                step = fn - f
-            small = bool(np.sqrt(step @ step) < self.tol)
-            rn, Jn, cn = self._eval(fn, obs)
+                xn[:2] *= 1.5 * self.f_max / nf
+                step = xn - x
+            small = bool(np.hypot(step[0], step[1]) < self.tol)
+            rn, Jn, cn = self._eval(xn, obs)
             solves += 3
             if cn <= cost:
-                f, r, J, cost = fn, rn, Jn, cn
+                x, r, J, cost = xn, rn, Jn, cn
                 mu = max(0.2 * mu, 1e-9)
                 if small:
                     converged = True
@@ -192,7 +215,8 @@ class FamInverseEstimator:
                 if small:                        # no descent left at the tolerance scale
                     converged = True
                     break
-        return f, cost, it, solves, converged
+        shape_cost = float(r[:-2] @ r[:-2])
+        return x, shape_cost, it, solves, converged
 
     def estimate(self, control_points) -> FamInverseResult:
         """Full result for one observation: control_points (4, 3) m (z ignored)."""
@@ -206,7 +230,8 @@ class FamInverseEstimator:
         for f0 in starts:
             if f0 is None:
                 f0 = self._table_start(obs)
-            f, cost, it, solves, conv = self._solve(obs, f0)
+            x, cost, it, solves, conv = self._solve(obs, f0)
+            f = x[:2]
             total += solves
             res = float(np.sqrt(cost / self.n_points))
             if best is None or res < best[1]:

@@ -33,7 +33,7 @@ SVR_EPSILONS_N = (2.5e-4, 1e-3, 4e-3)
 #: candidate RBF widths in standardised feature units
 SVR_GAMMAS = (0.01, 0.03, 0.1, 0.3, 1.0)
 #: at most this many samples take part in the hyper-parameter search (speed)
-MAX_SEARCH = 1500
+MAX_SEARCH = 800
 #: relative slack of the validation MAE within which a sparser SVR (larger epsilon) wins
 SPARSE_TOL = 0.05
 
