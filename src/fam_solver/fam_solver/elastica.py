@@ -12,8 +12,8 @@ e^{i theta(L)} F_tip, so theta(L) is a second unknown with the condition theta(L
 Integration is base -> tip, segment by segment between point forces, with scipy
 ``solve_ivp`` (DOP853, rtol default 1e-12, atol 1e-14 L) and the variational equations
 for the exact shooting Jacobian (Newton). Loads are applied by continuation from zero
-(adaptive steps, secant predictor): shooting from the small-deflection guess lands on a
-looped equilibrium for F L^2/EI >= 14.
+(adaptive steps, secant predictor, branch checks): shooting from the small-deflection
+guess lands on a looped equilibrium for F L^2/EI >= 14.
 
 The result is a ``Shape`` (dense output: ``points_at``/``centerline`` interpolate the
 DOP853 continuous extension); ``arc_angles`` are tangent-angle increments over 100 equal
@@ -92,9 +92,13 @@ def solve_elastica(cat: Catheter, loads: Loads, rtol: float = 1e-12, atol: float
                    method: str = 'DOP853', max_iter: int = 50) -> Shape:
     """Reference rod solution with the same Shape interface as ``solve_fam``.
 
-    rtol/atol: solve_ivp tolerances (atol defaults to 1e-14 * L... scaled to the states).
-    Newton on the shooting unknowns to |M(L) - m_tip| <= 1e-13 EI/L (and |theta(L) - Theta|
-    <= 1e-12 for follower forces); continuation from zero in adaptive steps.
+    rtol/atol: solve_ivp tolerances (atol defaults to 0.01 rtol min(L, EI/L), applied to
+    theta [rad], x, y [m] and M [N m]). Newton on the shooting unknowns to
+    |M(L) - m_tip| <= max(1e-13, 10 rtol) EI/L (and |theta(L) - Theta| <= 1e-12 for follower
+    forces). Continuation from zero in adaptive steps, each accepted only if the tip angle
+    moved <= 0.4 rad and the sign of the shooting Jacobian's determinant is unchanged (the
+    natural branch; a crossing is followed only with steps <= 1e-4, e.g. a straight rod past
+    buckling). A loading path with a fold (snap-through) is not followed: converged=False.
     """
     if not isinstance(cat, Catheter):
         raise ValueError(f'cat must be a Catheter, got {type(cat).__name__}')
