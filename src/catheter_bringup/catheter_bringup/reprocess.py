@@ -123,6 +123,7 @@ def reprocess(path, nodes: Optional[List[str]] = None, tol: float = 1e-9,
             runner = ScenarioRunner(validate_scenario(sub), bag=bag, progress=False,
                                     registry=reg or {inst.spec.executable: inst.spec}, log=log)
             runner.inject = inject
+            runner.inject_topics = set(inputs)
             res = runner.run()
             if res.status != 'complete':
                 results[name] = {'ok': False, 'error': res.reason or 'not started'}

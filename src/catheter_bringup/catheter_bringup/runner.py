@@ -163,12 +163,20 @@ class LocalBus:
         self.dds = dds
         self.subs: Dict[str, list] = {}
         self.cost = CallbackCost()
+        #: topics also published on DDS (their subscribers run in another process)
+        self.dds_topics = set()
+        #: ids of subscriptions left to DDS (no publisher of their topic in this process)
+        self.external = set()
         self._pubs = set()
         self._subs = set()
 
     def wrap_node(self, node: Node, publishers: bool = True) -> None:
+        self.wrap_publishers(node) if publishers else None
+        self.wrap_subscriptions(node)
+
+    def wrap_publishers(self, node: Node) -> None:
         from rclpy.serialization import serialize_message
-        for pub in list(node.publishers) if publishers else ():
+        for pub in list(node.publishers):
             if id(pub) in self._pubs:
                 continue
             self._pubs.add(id(pub))
@@ -179,15 +187,23 @@ class LocalBus:
 
             def publish(self_pub, msg, _orig=orig, _topic=topic, _type=pub.msg_type):
                 data = msg if isinstance(msg, bytes) else serialize_message(msg)
-                if bus.dds:
+                if bus.dds or _topic in bus.dds_topics:
                     _orig(msg)
                 bus.counts[_topic] += 1
                 bus.queue.append((_topic, data))
 
             pub.publish = types.MethodType(publish, pub)
+
+    def wrap_subscriptions(self, node: Node) -> None:
         for sub in list(node.subscriptions):
             if id(sub) in self._subs:
                 continue
+            if sub.topic_name not in self.counts:
+                # nobody in this process publishes it (yet): DDS delivers it, the runner spins
+                # the executor for it
+                self.external.add(id(sub))
+                continue
+            self.external.discard(id(sub))
             self._subs.add(id(sub))
             with_info = getattr(sub, '_callback_type', None) is not None and \
                 sub._callback_type.name != 'MessageOnly'
@@ -301,6 +317,8 @@ class ScenarioRunner:
         #: timers run) or 'post' (after them); returns (topic, cdr bytes) pairs delivered to the
         #: nodes as if published in that phase (reprocess)
         self.inject: Optional[Callable[[int, str], list]] = None
+        #: the topics `inject` delivers (treated as published in this process)
+        self.inject_topics = set()
 
     # ------------------------------------------------------------------ setup
     def _params_for(self, inst: NodeInstance, lockstep: bool) -> List[Parameter]:
@@ -338,6 +356,8 @@ class ScenarioRunner:
         if transport == 'local':
             self.bus = LocalBus(dds=bool(sc.get('dds', False)))
             self.counter = self.bus       # the bus counts what was published
+            for t in self.inject_topics:
+                self.bus.counts.setdefault(t, 0)
         # lockstep_transport: dds -> messages go through DDS, each step waits for delivery
         # (slower; kept as the reference the benchmark compares with)
         for inst in chosen:
@@ -408,10 +428,13 @@ class ScenarioRunner:
         self._timer_owner = {id(t): name for name, node in self.nodes.items()
                              for t in node.timers}
         self._due = {}
-        for node in list(self.nodes.values()) + [self.runner_node]:
-            if self.bus is not None:
-                self.bus.wrap_node(node, publishers=node is not self.runner_node)
-            else:
+        if self.bus is not None:
+            for node in self.nodes.values():
+                self.bus.wrap_publishers(node)
+            for node in list(self.nodes.values()) + [self.runner_node]:
+                self.bus.wrap_subscriptions(node)
+        else:
+            for node in list(self.nodes.values()) + [self.runner_node]:
                 self.tracker.wrap_node(node)
 
     def _record_publishers(self):
