@@ -235,3 +235,66 @@ def test_bristle_state_bounded_and_friction_below_breakaway_at_rest(segments, dt
     t += dt
     v.force(t, x, 0.0)
     assert abs(v.last.friction) <= v.breakaway_force(x) * (1 + 1e-9)
+
+
+STICKY = VesselParams(shaft_stiffness=50.0, presliding_displacement=1e-5, cardiac_amplitude=0.0)
+
+
+def run_compliant(params, vel, seconds, x0=0.03):
+    v = VesselModel(params)
+    out = []
+    for k in range(int(seconds * 1000)):
+        t = k * DT
+        f = v.force(t, x0 + vel * t, vel)
+        out.append((t, x0 + vel * t, v.y, v.yd, f, v.last.friction / v.coulomb_force(v.y)))
+    return v, np.array(out)
+
+
+def test_default_shaft_is_rigid():
+    assert VesselParams().shaft_stiffness == 0.0
+    v = VesselModel()
+    v.force(0.0, 0.02, 0.01)
+    v.force(0.001, 0.03, 0.01)
+    assert (v.y, v.yd) == (0.03, 0.01)
+
+
+def test_compliant_shaft_gives_stick_slip_at_slow_insertion():
+    """Drive at 1 mm/s through a 50 N/m shaft: the catheter sticks, the spring loads to the
+    breakaway level, it slips (tens of mm/s), friction drops to the Coulomb level, it sticks."""
+    vel = 0.001
+    v, a = run_compliant(STICKY, vel, 12.0)
+    a = a[4000:]                                   # after the spring first loads up
+    yd, ratio = a[:, 3], a[:, 5]
+    stuck = np.abs(yd) < 0.1 * vel
+    assert stuck.mean() > 0.5                      # mostly stuck
+    assert yd.max() > 10 * vel                     # slips fast
+    slips = np.count_nonzero(np.diff(stuck.astype(int)) == -1)
+    assert slips >= 3                              # repeated cycles, not one breakaway
+    assert ratio.max() == pytest.approx(STICKY.stribeck_ratio, rel=0.03)   # breaks away at Fs
+    assert ratio.min() < 1.05                      # slides down to the Coulomb level
+    # the mean velocity of the catheter is the drive's (it does not drift away)
+    assert np.mean(yd) == pytest.approx(vel, rel=0.2)
+
+
+def test_compliant_shaft_slides_smoothly_and_lags_by_force_over_stiffness():
+    p = VesselParams(shaft_stiffness=50.0, cardiac_amplitude=0.0)
+    vel = 0.01
+    v, a = run_compliant(p, vel, 2.5, x0=0.005)
+    t, x, y, yd, f, _ = a[-1]
+    # steady sliding, no stick-slip: the spring keeps loading as friction grows with depth,
+    # so the catheter moves at v / (1 + F'(y) / k) (F' the slope of the sliding force)
+    slope = (v.steady_force(y + 1e-6, yd) - v.steady_force(y - 1e-6, yd)) / 2e-6
+    assert yd == pytest.approx(vel / (1 + slope / p.shaft_stiffness), rel=2e-3)
+    assert np.all(a[-500:, 3] > 0.5 * vel)
+    # spring balance: k (x - y) + d (x' - y') = the vessel's force on the catheter
+    assert (p.shaft_stiffness * (x - y) + p.shaft_damping * (vel - yd)
+            == pytest.approx(f, rel=2e-3))
+    assert f == pytest.approx(v.steady_force(y, yd), rel=2e-3)
+
+
+def test_compliant_shaft_that_cannot_be_integrated_says_so():
+    p = VesselParams(shaft_stiffness=1e5, catheter_mass=1e-6, shaft_damping=0.0)
+    v = VesselModel(p)
+    with pytest.raises(ValueError, match='diverged'):
+        for k in range(2000):
+            v.force(k * DT, 0.03 + 0.02 * k * DT, 0.02)

@@ -55,9 +55,13 @@ VESSEL_PARAM_RANGES = {
     'cardiac_amplitude': (1.0, 'N, cardiac disturbance amplitude'),
     'cardiac_frequency': (5.0, 'Hz, heart rate'),
     'cardiac_depth': (1.0, 'm, depth of full cardiac amplitude'),
+    'shaft_stiffness': (1e5, 'N/m, axial shaft compliance (0 = rigid; > 0 gives stick-slip)'),
+    'shaft_damping': (100.0, 'N s/m, shaft damping (compliant shaft only)'),
+    'catheter_mass': (1.0, 'kg, moving catheter mass (compliant shaft only)'),
 }
 _VESSEL_LOWER = {'stribeck_ratio': 1.0, 'capstan_length': 1e-6, 'stribeck_velocity': 1e-6,
-                 'presliding_displacement': 1e-7, 'wall_exponent': 0.1, 'cardiac_depth': 1e-6}
+                 'presliding_displacement': 1e-7, 'wall_exponent': 0.1, 'cardiac_depth': 1e-6,
+                 'catheter_mass': 1e-5}
 
 
 class SimSlaveNode(Node):

@@ -13,7 +13,10 @@ assumes (Eq. 29): the force is the sum of
 * **wall contact**, Hunt-Crossley ``k d^n (1 + a d')`` once the tip passes ``wall_depth``
   (nonlinear, dissipative, never pulls);
 * a **cardiac disturbance**, a ``cardiac_frequency`` sinusoid (72 beats/min) whose amplitude
-  grows with inserted length up to ``cardiac_depth``.
+  grows with inserted length up to ``cardiac_depth``;
+* optionally (``shaft_stiffness > 0``) an axially compliant shaft between the robot's drive
+  and the inserted part (a mass): with the Stribeck breakaway this gives genuine stick-slip
+  (a sawtooth force at slow insertion). Off by default (rigid shaft, kinematic drive).
 
 Sign convention: the returned force is the axial force the vessel exerts against the
 catheter, as the slave's force sensor reads it: positive resists insertion (x increasing),
@@ -75,6 +78,14 @@ class VesselParams:
         cardiac_frequency: Hz, 1.2. Heart rate of 72 beats per minute.
         cardiac_depth: m, 0.03. Inserted length at which the cardiac disturbance reaches full
             amplitude (linear ramp from zero at x = 0: a catheter outside the body feels none).
+        shaft_stiffness: N/m, 0.0 = rigid (default). Opt-in axial compliance of the catheter
+            shaft between the robot's drive and the inserted part: with it the inserted part
+            is a mass on a spring-damper and genuine stick-slip (sawtooth force at slow
+            insertion) appears. A 7 Fr polymer shaft (E ~ 50 MPa, A = 1.9 mm^2) over ~1 m
+            gives EA/L ~ 90 N/m; slack in the introducer lowers it: 50 N/m is a fair value.
+        shaft_damping: N s/m, 0.5. Damping of the shaft spring (only with a compliant shaft).
+        catheter_mass: kg, 0.005. Moving mass of the catheter (only with a compliant shaft;
+            a 1 m 7 Fr catheter weighs a few grams).
     """
 
     friction_per_length: float = 3.0
@@ -91,16 +102,19 @@ class VesselParams:
     cardiac_amplitude: float = 0.01
     cardiac_frequency: float = 1.2
     cardiac_depth: float = 0.03
+    shaft_stiffness: float = 0.0
+    shaft_damping: float = 0.5
+    catheter_mass: float = 0.005
 
     def __post_init__(self):
         for f in fields(self):
             finite(f.name, getattr(self, f.name))
         for name in ('friction_per_length', 'bristle_damping', 'viscous_per_length',
                      'wall_depth', 'wall_stiffness', 'wall_damping', 'cardiac_amplitude',
-                     'cardiac_frequency'):
+                     'cardiac_frequency', 'shaft_stiffness', 'shaft_damping'):
             nonneg(name, getattr(self, name))
         for name in ('capstan_length', 'stribeck_velocity', 'presliding_displacement',
-                     'wall_exponent', 'cardiac_depth'):
+                     'wall_exponent', 'cardiac_depth', 'catheter_mass'):
             positive(name, getattr(self, name))
         if self.stribeck_ratio < 1.0:
             raise ValueError(f'stribeck_ratio must be >= 1, got {self.stribeck_ratio!r}')
@@ -143,6 +157,9 @@ class VesselModel:
     def reset(self) -> None:
         """Forget the friction state and the time of the last call (catheter at rest, unloaded)."""
         self.z = 0.0                  # m, LuGre bristle deflection
+        self.y: Optional[float] = None   # m, inserted length of the catheter's inserted part
+        self.yd = 0.0                 # m/s (equal to the drive's x, xd with a rigid shaft)
+        self._x_last = 0.0
         self._t_last: Optional[float] = None
         self.last = VesselForce(0.0, 0.0, 0.0, 0.0, 0.0)
 
@@ -194,6 +211,10 @@ class VesselModel:
             xd: insertion velocity in m/s (negative: retraction).
         Returns:
             the force in N (positive resists insertion). Components in ``self.last``.
+
+        With a compliant shaft (``shaft_stiffness > 0``) x, xd are the drive's; the inserted
+        part (``self.y``, ``self.yd``) follows through the shaft spring and the force is the
+        vessel's force on it (what a load cell under the phantom measures).
         """
         t = finite('t', t)
         x = finite('x', x)
@@ -205,6 +226,47 @@ class VesselModel:
             if dt < 0.0:
                 raise ValueError(f't must not decrease: got {t!r} after {self._t_last!r}')
         self._t_last = t
+        p = self.params
+        if p.shaft_stiffness > 0.0:
+            return self._compliant(t, dt, x, xd)
+        self.y, self.yd, self._x_last = x, xd, x
+        self.last = self._evaluate(t, dt, x, xd)
+        return self.last.total
+
+    #: s, largest sub-step of the compliant-shaft integration
+    MAX_SUBSTEP = 1e-4
+
+    def _compliant(self, t: float, dt: float, x: float, xd: float) -> float:
+        """Drive (x, xd) -> shaft spring-damper -> catheter mass (y, yd) -> vessel force.
+        Semi-implicit Euler in sub-steps of at most MAX_SUBSTEP, the drive interpolated."""
+        p = self.params
+        if self.y is None or dt == 0.0:
+            if self.y is None:
+                self.y, self.yd = x, xd
+            self._x_last = x
+            self.last = self._evaluate(t, 0.0, self.y, self.yd)
+            return self.last.total
+        n = max(1, int(math.ceil(dt / self.MAX_SUBSTEP - 1e-9)))
+        h = dt / n
+        x0 = self._x_last
+        ks, ds, inv_m = p.shaft_stiffness, p.shaft_damping, 1.0 / p.catheter_mass
+        y, yd = self.y, self.yd
+        comp = self.last
+        for k in range(1, n + 1):
+            xs = x0 + (x - x0) * (k / n)
+            comp = self._evaluate(t - dt + k * h, h, y, yd)
+            yd += h * (ks * (xs - y) + ds * (xd - yd) - comp.total) * inv_m
+            y += h * yd
+        if not (math.isfinite(y) and math.isfinite(yd)):
+            raise ValueError('compliant shaft integration diverged: check shaft_stiffness, '
+                             'shaft_damping and catheter_mass')
+        self.y, self.yd, self._x_last = y, yd, x
+        self.last = comp
+        return comp.total
+
+    def _evaluate(self, t: float, dt: float, x: float, xd: float) -> VesselForce:
+        """Advance the friction state by dt at velocity xd and return the force components at
+        inserted length x [m] (of the catheter's inserted part)."""
         p = self.params
         zc = p.presliding_displacement
         # LuGre bristle state, integrated exactly for a velocity held over the step
@@ -229,6 +291,4 @@ class VesselModel:
                        * math.sin(2.0 * math.pi * p.cardiac_frequency * t + self.cardiac_phase))
         else:
             cardiac = 0.0
-        total = friction + viscous + wall + cardiac
-        self.last = VesselForce(friction, viscous, wall, cardiac, total)
-        return total
+        return VesselForce(friction, viscous, wall, cardiac, friction + viscous + wall + cardiac)
