@@ -38,9 +38,9 @@ def test_centreline_and_control_points_match_the_exact_shape(cam, shape_helpers,
     np.testing.assert_allclose(obs.points[:, 2], 0.0, atol=1e-15)
     mean, mx, tip, base, bez = _errors(obs, f, shape_helpers.dist)
     assert mean < 0.1e-3                 # issue target at 0.15 mm/pixel
-    assert mx < 0.4e-3
+    assert mx < 0.3e-3
     assert tip < 0.5e-3                  # issue target
-    assert base < 0.5e-3
+    assert base < 0.2e-3                 # the calibrated clamp point starts the centreline
     assert bez < 0.25e-3
     # the control points are close to the best cubic of the true shape
     best = fit_bezier(f.centerline_m)
@@ -88,7 +88,7 @@ def test_mirrored_shape_gives_mirrored_control_points(cam, shape_helpers):
     # the same curve (Hausdorff distance) with the same ends; the inner control points are
     # ill-conditioned (they slide along near-reparameterisations), so a looser bound there
     ss = np.linspace(0, 1, 200)
-    assert bezier_distance(mirrored, bezier_eval(obs_a.control_points, ss)).max() < 0.1e-3
+    assert bezier_distance(mirrored, bezier_eval(obs_a.control_points, ss)).max() < 0.3e-3
     np.testing.assert_allclose(mirrored[[0, 3]], obs_a.control_points[[0, 3]], atol=0.3e-3)
     np.testing.assert_allclose(mirrored, obs_a.control_points, atol=1.5e-3)
     assert np.linalg.norm(obs_a.control_points[0, :2]) < 0.5e-3

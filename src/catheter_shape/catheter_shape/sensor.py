@@ -17,6 +17,9 @@ from catheter_shape.segmentation import METHODS, catheter_component, threshold_f
 __all__ = ['Observation', 'ShapeSensor', 'STATUSES']
 
 #: every status an Observation can carry
+#: how much of the skeleton is dropped at the base before its end is restored (widths)
+BASE_TRIM = 0.5
+
 STATUSES = ('ok', 'bad_input', 'low_contrast', 'no_catheter', 'bad_segmentation',
             'multiple_objects', 'bad_skeleton', 'too_short', 'fit_failed')
 
@@ -130,6 +133,9 @@ class ShapeSensor:
         self._m_per_px = float(np.sqrt(abs(np.linalg.det(A.T @ A)) ** 0.5))
         q, _ = np.linalg.qr(A)
         self._plane = q                                       # (3, 2)
+        # image direction (unit, pixels) of +x of catheter_base: the clamped base tangent
+        ex = np.linalg.lstsq(A, np.array([1.0, 0.0, 0.0]), rcond=None)[0]
+        self._ex_px = ex / np.linalg.norm(ex)
         self._origin = self.psi[:, 3]
         self.background = None
         if background is not None:
@@ -211,8 +217,23 @@ class ShapeSensor:
                            quadratic=False, span_widths=2.0)
         b0 = px[0]
         on_border = min(b0[0], b0[1], W - 1 - b0[0], H - 1 - b0[1]) <= 1.5
-        if not cl.base_cut and not on_border:
-            px, _ = extend_end(px, score, level, w_px, trim_px=half, at_start=True,
+        bp = self.base_px
+        base_known = (bp is not None and 0 <= bp[0] <= W - 1 and 0 <= bp[1] <= H - 1
+                      and np.hypot(*(b0 - bp)) <= 1.5 * w_px)
+        if not cl.base_cut and base_known:
+            # the clamp point is calibrated and the clamped catheter leaves it along +x of
+            # catheter_base: join it to the skeleton (which stops about half a width short,
+            # and curls there) by a quadratic tangent to +x at the clamp
+            sk = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(px, axis=0).T))])
+            px = px[sk >= min(BASE_TRIM * w_px, 0.5 * sk[-1])]
+            q2 = px[0]
+            gap = float(np.hypot(*(q2 - bp)))
+            q1 = bp + 0.5 * gap * self._ex_px
+            k = np.arange(0.0, gap - 0.5)[:, None] / max(gap, 1e-9)
+            joint = (1 - k) ** 2 * bp + 2 * k * (1 - k) * q1 + k ** 2 * q2
+            px = np.vstack([joint, px])
+        elif not cl.base_cut and not on_border:
+            px, _ = extend_end(px, score, level, w_px, trim_px=BASE_TRIM * w_px, at_start=True,
                                half_contrast=flat, quadratic=True, span_widths=2.5)
         if self.smooth >= 3:
             px = smooth_path(px, self.smooth | 1)
