@@ -118,3 +118,26 @@ def test_bad_scenario_values_are_refused(make_scenario):
         make_scenario(force_source='magic')
     with pytest.raises(ValueError, match='outages'):
         make_scenario(link={'outages': [[1.0]]})
+
+
+def test_realtime_split_runs_image_nodes_in_a_worker_process(tmp_path, make_scenario,
+                                                            test_registry, monkeypatch):
+    import os
+    import pathlib
+    here = str(pathlib.Path(__file__).resolve().parent)
+    monkeypatch.setenv('PYTHONPATH', here + os.pathsep + os.environ.get('PYTHONPATH', ''))
+    bag = tmp_path / 'split.mcap'
+    sc = make_scenario(mode='realtime', duration=1.5, outputs=['/test/relayed', '/test/image'],
+                       nodes={'fake_camera': {'module': 'worker_camera_node', 'kind': 'vision',
+                                              'produces': ['/test/image']}})
+    logs = []
+    r = ScenarioRunner(sc, bag=str(bag), registry=test_registry, progress=False,
+                       log=logs.append)
+    res = r.run()
+    assert res.status == 'complete', res.reason
+    assert any('worker process' in m for m in logs), logs
+    assert 'fake_camera' in res.nodes and 'fake_camera' not in res.skipped
+    assert res.lost == {}
+    # the worker's frames reached the main process's recorder through DDS
+    assert res.recorded.get('/test/image', 0) >= 15
+    assert res.recorded['/test/relayed'] > 300

@@ -26,6 +26,8 @@ def build_parser():
                    help='output .mcap (default bags/<scenario>_<date>_<time>.mcap)')
     p.add_argument('--no-record', action='store_true')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
+    p.add_argument('--only', default=None,
+                   help='comma-separated node instances: start only these (a worker process)')
     return p
 
 
@@ -64,7 +66,8 @@ def main(args=None):
         bag = str(root / 'bags' / f"{sc['name']}_{stamp}.mcap")
     runner = ScenarioRunner(sc, bag=bag, mode=opts.mode,
                             duration=opts.duration, progress=not opts.quiet,
-                            record=False if opts.no_record else None)
+                            record=False if opts.no_record else None,
+                            only=opts.only.split(',') if opts.only else None)
     # SIGTERM behaves like Ctrl-C: stop, close the recording
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
     try:

@@ -60,8 +60,9 @@ class RunResult:
     @property
     def lost(self) -> Dict[str, int]:
         """Per recorded topic: published in this process but not in the recording."""
-        return {t: self.published.get(t, 0) - self.recorded.get(t, 0)
-                for t in self.recorded if self.published.get(t, 0) != self.recorded.get(t, 0)}
+        return {t: self.published[t] - self.recorded.get(t, 0)
+                for t in self.recorded
+                if t in self.published and self.published[t] != self.recorded.get(t, 0)}
 
     @property
     def realtime_factor(self) -> float:
@@ -278,7 +279,8 @@ class ScenarioRunner:
 
     def __init__(self, scenario, bag: Optional[str] = None, mode: Optional[str] = None,
                  duration: Optional[float] = None, progress: bool = True,
-                 registry=None, record: Optional[bool] = None, log=print):
+                 registry=None, record: Optional[bool] = None, log=print,
+                 only: Optional[List[str]] = None):
         self.scenario = load_scenario(scenario) if not isinstance(scenario, Mapping) \
             else scenario
         if mode is not None:
@@ -290,6 +292,10 @@ class ScenarioRunner:
                 raise ValueError(f'duration must be >= 0, got {duration!r}')
             self.scenario['duration'] = float(duration)
         self.registry = registry
+        #: start only these node instances (a real-time worker process runs a subset)
+        self.only = set(only) if only else None
+        self.child = None             # the worker process of a split real-time run
+        self.child_nodes: List[str] = []
         self.progress = progress
         self.log = log
         do_record = self.scenario['record']['enabled'] if record is None else record
@@ -343,6 +349,19 @@ class ScenarioRunner:
         classes = available_instances(cands)
         chosen, missing = resolve_nodes(sc, set(classes), self.registry)
         wanted_all, _ = resolve_nodes(sc, None, self.registry)
+        if self.only is not None:
+            chosen = [i for i in chosen if i.name in self.only]
+            wanted_all = [i for i in wanted_all if i.name in self.only]
+        elif (not lockstep and sc.get('realtime_processes', 2) >= 2
+              and sc.get('realtime_transport', 'local') == 'local'
+              and any(i.spec.kind == 'vision' for i in chosen)):
+            # real time: the image pipeline (tens of ms per frame) runs in a worker process so
+            # it never holds up the 1 kHz loops; messages between the two go through DDS
+            worker = [i for i in chosen if i.spec.kind == 'vision']
+            chosen = [i for i in chosen if i.spec.kind != 'vision']
+            self.child_nodes = [i.name for i in worker]
+            wanted_all = [i for i in wanted_all if i.name not in self.child_nodes]
+            self._child_inputs = {t for i in worker for t in i.spec.consumes}
         self.skipped = sorted({i.name for i in wanted_all} - {i.name for i in chosen})
         self.missing = missing
         self.start_errors = {}
@@ -358,6 +377,10 @@ class ScenarioRunner:
             self.counter = self.bus       # the bus counts what was published
             for t in self.inject_topics:
                 self.bus.counts.setdefault(t, 0)
+            if self.child_nodes:
+                self.bus.dds_topics |= self._child_inputs
+            if self.only is not None and not lockstep:
+                self.bus.dds = True       # a worker: its outputs go to the main process
         # lockstep_transport: dds -> messages go through DDS, each step waits for delivery
         # (slower; kept as the reference the benchmark compares with)
         for inst in chosen:
@@ -408,7 +431,62 @@ class ScenarioRunner:
             self.sink.buffered = lockstep
             self._record_publishers()
         self._track()
+        if self.child_nodes:
+            self._start_child()
         return self
+
+    def _start_child(self):
+        """Start the worker process running the image pipeline nodes (real time) and wait
+        until its nodes are in the graph."""
+        import subprocess
+        import tempfile
+        import yaml
+        sc = dict(self.scenario)
+        sc.pop('source', None)
+        fd, path = tempfile.mkstemp(suffix='.yaml', prefix='worker_')
+        with os.fdopen(fd, 'w') as f:
+            yaml.safe_dump(sc, f)
+        self._child_yaml = path
+        cmd = [sys.executable, '-m', 'catheter_bringup.run_scenario', path, '--mode', 'realtime',
+               '--no-record', '--quiet', '--only', ','.join(self.child_nodes),
+               '--duration', str(self.scenario['duration'] + 30.0)]
+        self._child_log = tempfile.TemporaryFile(mode='w+')
+        self.child = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=self._child_log,
+                                      text=True)
+        self.log(f'[run] image pipeline in a worker process (pid {self.child.pid}): '
+                 f'{", ".join(self.child_nodes)}')
+        t_end = time.monotonic() + 60.0
+        while time.monotonic() < t_end:
+            if set(self.child_nodes) <= set(self.runner_node.get_node_names()):
+                break
+            if self.child.poll() is not None:
+                self._child_log.seek(0)
+                err = self._child_log.read()[-2000:]
+                self.log(f'[run] worker process exited ({self.child.returncode}): {err}')
+                self.child = None
+                return
+            time.sleep(0.1)
+        if self.sink is not None:
+            time.sleep(0.5)
+            self.sink.discover()       # the worker's topics, recorded through DDS
+            self._track()
+
+    def _stop_child(self):
+        if self.child is None:
+            return
+        import signal as _signal
+        if self.child.poll() is None:
+            self.child.send_signal(_signal.SIGINT)
+            try:
+                self.child.wait(timeout=10)
+            except Exception:  # noqa: BLE001
+                self.child.kill()
+                self.child.wait()
+        self.child = None
+        try:
+            os.unlink(self._child_yaml)
+        except OSError:
+            pass
 
     def _drive_clock_of(self, node: Node):
         """Lockstep: the runner sets the node's sim time directly each step (what its /clock
@@ -660,29 +738,57 @@ class ScenarioRunner:
         last = 0.0
         self._sim_reached = 0.0
         next_scan = start
+        next_spin = start
         while True:
             now = clock.now().nanoseconds
             self._now_ns = now
             if now >= end:
                 break
             self._drain_bus(100000)
+            if self.bus.external and now >= next_spin:
+                self._spin_external()
+                next_spin = now + 2_000_000
             el = (clock.now().nanoseconds - start) * 1e-9
             self._sim_reached = min(el, sc['duration'])
             if now >= next_scan:
                 self._rescan()
+                if self.sink is not None and self.child_nodes:
+                    if self.sink.discover():
+                        self._track()
                 next_scan = now + 200_000_000
             if bar is not None and el - last >= 0.1:
                 bar.update(round(min(el, sc['duration']) - last, 3))
                 last = min(el, sc['duration'])
             wait = min((t.time_until_next_call() or 0 for t in self._timers
                         if not t.is_canceled()), default=1_000_000)
+            if self.bus.external:
+                wait = min(wait, next_spin - now)
             wait = min(wait, end - clock.now().nanoseconds, 50_000_000)
             if wait > 60_000:
                 time.sleep((wait - 50_000) * 1e-9)   # wake a little early: sleep overshoots
         return 0, self._sim_reached
 
+    def _spin_external(self, limit: int = 50) -> None:
+        """Handle what DDS delivered to subscriptions outside the bus (the worker's topics)."""
+        for _ in range(limit):
+            try:
+                handler, _, _ = self.executor.wait_for_ready_callbacks(timeout_sec=0.0)
+            except TimeoutException:
+                break
+            handler()
+            exc = handler.exception()
+            if exc is not None:
+                raise exc
+        self.bus.deliver_all()
+
     # ------------------------------------------------------------------ teardown
     def _finish(self, status, reason, sim, wall, steps) -> RunResult:
+        if self.child is not None:
+            # what the worker still has in flight, then stop it
+            t_end = time.perf_counter() + 0.3
+            while time.perf_counter() < t_end:
+                self._spin_external()
+            self._stop_child()
         if self.sink is not None:
             self.sink.flush()
         recorded = dict(self.sink.received) if self.sink else {}
@@ -710,13 +816,17 @@ class ScenarioRunner:
                 'scenario_yaml': _scenario_text(self.scenario),
             })
         cost = self.bus.cost.summary(wall) if self.bus is not None else {}
+        if self.child_nodes:
+            res_nodes = sorted(set(self.nodes) | set(self.child_nodes))
+        else:
+            res_nodes = sorted(self.nodes)
         res = RunResult(self.scenario['name'], status, reason, self.bag, sim, wall, steps,
-                        sorted(self.nodes), self.skipped, self.missing, published, recorded,
-                        cost)
+                        res_nodes, self.skipped, self.missing, published, recorded, cost)
         self.close()
         return res
 
     def close(self):
+        self._stop_child()
         if self.executor is not None:
             for n in list(self.nodes.values()) + [self.runner_node]:
                 try:

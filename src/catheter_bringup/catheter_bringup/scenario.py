@@ -72,16 +72,16 @@ REGISTRY: Dict[str, NodeSpec] = {s.executable: s for s in [
              produces=(T.SLAVE_JOINT_STATE, T.SLAVE_FORCE)),
     NodeSpec('camera_node', 'sim_slave.camera_node',
              consumes=(T.SLAVE_JOINT_STATE,),
-             produces=(T.CAMERA_IMAGE, '/camera/tip_force_truth')),
+             produces=(T.CAMERA_IMAGE, '/camera/tip_force_truth'), kind='vision'),
     NodeSpec('shape_node', 'catheter_shape.shape_node',
              consumes=(T.CAMERA_IMAGE,),
-             produces=(T.CONTROL_POINTS, T.SHAPE)),
+             produces=(T.CONTROL_POINTS, T.SHAPE), kind='vision'),
     NodeSpec('force_estimator_node', 'force_estimator.force_estimator_node',
              consumes=(T.CONTROL_POINTS,),
-             produces=(T.TIP_WRENCH,)),
+             produces=(T.TIP_WRENCH,), kind='vision'),
     NodeSpec('fam_solver_node', 'fam_solver.fam_solver_node',
              consumes=(T.TIP_LOAD,),
-             produces=(T.SHAPE, T.SHAPE_MARKER)),
+             produces=(T.SHAPE, T.SHAPE_MARKER), kind='vision'),
 ]}
 
 MODES = ('lockstep', 'realtime')
@@ -238,7 +238,7 @@ def instances(scenario: Mapping, registry: Optional[Mapping[str, NodeSpec]] = No
             module=cfg.get('module', base.module if base else ''),
             consumes=tuple(cfg.get('consumes', base.consumes if base else ())),
             produces=tuple(cfg.get('produces', base.produces if base else ())),
-            kind=cfg.get('kind', 'node'))
+            kind=cfg.get('kind', base.kind if base else 'node'))
         remap = {str(k): str(v) for k, v in (cfg.get('remap') or {}).items()}
         params = dict(common)
         params.update(cfg.get('params') or {})
