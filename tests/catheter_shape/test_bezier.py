@@ -201,3 +201,18 @@ def test_chord_length_params_eq2():
 def test_bad_input_is_refused_with_value_error(pts, kw):
     with pytest.raises(ValueError):
         fit_bezier(pts, **kw)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(5, 80), st.integers(0, 2 ** 31 - 1), st.sampled_from([2, 3]))
+def test_thesis_fit_is_the_moore_penrose_solution_eq4(n, seed, dim):
+    """refine=0 is Eq. 4 with Eq. 2 parameters: (p0..p3) = Gamma Lambda^T (Lambda Lambda^T)^-1."""
+    rng = np.random.default_rng(seed)
+    pts = np.cumsum(rng.normal(0, 1, (n, dim)), axis=0)
+    s = chord_length_params(pts)
+    lam = np.stack([(1 - s) ** 3, 3 * s * (1 - s) ** 2, 3 * s ** 2 * (1 - s), s ** 3])  # 4 x N
+    gamma = pts.T                                                                      # D x N
+    expected = (gamma @ lam.T @ np.linalg.inv(lam @ lam.T)).T
+    np.testing.assert_allclose(fit_bezier(pts, refine=0), expected, atol=1e-7 * np.abs(pts).max())
+    np.testing.assert_allclose(fit_bezier(pts, correction='none'), expected,
+                               atol=1e-7 * np.abs(pts).max())
