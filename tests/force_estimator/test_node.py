@@ -97,3 +97,23 @@ def test_node_rejects_model_of_wrong_kind(ros, toy_model_files):
         NODE_CLASS(context=ros.context, parameter_overrides=[
             Parameter('method', value='svr'),
             Parameter('svr_model', value=str(toy_model_files['mlp']))])
+
+
+def test_node_defaults_use_the_shipped_svr(ros):
+    node = NODE_CLASS(context=ros.context)
+    assert node.method == 'svr' and node.estimator.name == 'blazer-svr'
+
+
+def test_node_fam_method(ros):
+    pytest.importorskip('fam_solver')
+    from catheter_shape import fit_bezier
+    from fam_solver import Catheter, Loads, solve_fam
+    node, pub, got, _ = _setup(ros, [Parameter('method', value='fam'),
+                                     Parameter('n_arcs', value=12)])
+    cl = solve_fam(Catheter(length=0.065, ei=6e-5), Loads(tip_force=(0.0, 0.08)),
+                   n_arcs=12).centerline(200)
+    cp = fit_bezier(np.c_[cl, np.zeros(len(cl))], degree=3)
+    assert _send_until(ros, pub, _msg(cp, 21, 0), got)
+    w = [m for m in got if m.header.stamp.sec == 21][0]
+    assert abs(w.wrench.force.y - 0.08) < 0.005 and abs(w.wrench.force.x) < 0.005
+    assert node.diag.get('estimates') >= 1
