@@ -239,11 +239,12 @@ def table2():
     for k, ld in cases:
         sh = solve_fam(cat, ld, n_arcs=12)
         shapes.append(sh)
-        s = stats.setdefault(k, dict(n=0, nonconv=0, nan=0, unstable=0, maxit=0))
+        s = stats.setdefault(k, dict(n=0, nonconv=0, nan=0, unstable=0, snap=0, maxit=0))
         s['n'] += 1
         s['nonconv'] += not sh.converged
         s['nan'] += not (np.all(np.isfinite(sh.arc_angles)) and np.all(np.isfinite(sh.tip)))
         s['unstable'] += not sh.stable
+        s['snap'] += 'snap' in sh.warning
         s['maxit'] = max(s['maxit'], sh.iterations)
     wall = time.perf_counter() - t0
     # reference comparison on a subsample of stable, converged cases
@@ -261,15 +262,15 @@ def table2():
         if e > worst.get(k, (-1, None))[0]:
             worst[k] = (e, ld.load_parameter(cat))
     print(f'{count} cases in {wall:.1f} s wall ({wall / count * 1e3:.2f} ms per solve incl. continuation fallbacks)')
-    print('| kind | cases | non-converged | NaN | flagged unstable | max iterations | worst tip error %L (subsample) | at load parameter |')
-    print('|---|---|---|---|---|---|---|---|')
-    tot = dict(n=0, nonconv=0, nan=0, unstable=0)
+    print('| kind | cases | non-converged | NaN | flagged unstable | snap-through | max iterations | worst tip error %L (subsample) | at load parameter |')
+    print('|---|---|---|---|---|---|---|---|---|')
+    tot = dict(n=0, nonconv=0, nan=0, unstable=0, snap=0)
     for k, s in stats.items():
         e, a = worst.get(k, (float('nan'), float('nan')))
-        print(f'| {k} | {s["n"]} | {s["nonconv"]} | {s["nan"]} | {s["unstable"]} | {s["maxit"]} | {e:.3f} | {a:.1f} |')
+        print(f'| {k} | {s["n"]} | {s["nonconv"]} | {s["nan"]} | {s["unstable"]} | {s["snap"]} | {s["maxit"]} | {e:.3f} | {a:.1f} |')
         for key in tot:
             tot[key] += s[key]
-    print(f'| total | {tot["n"]} | {tot["nonconv"]} (target 0) | {tot["nan"]} (target 0) | {tot["unstable"]} | | | |')
+    print(f'| total | {tot["n"]} | {tot["nonconv"]} (target 0) | {tot["nan"]} (target 0) | {tot["unstable"]} | {tot["snap"]} | | | |')
     print('(errors at N = 12 are discretisation errors; they grow with the load parameter, up to 50 here)')
     print()
 
