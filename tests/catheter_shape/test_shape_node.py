@@ -124,10 +124,17 @@ def test_node_drops_frames_instead_of_queueing(ros, shape_helpers):
     node = ros.add(ShapeNode(context=ros.context, parameter_overrides=[
         Parameter('psi', value=[float(x) for x in cam.psi.reshape(-1)])]))
     img = _image(cam.render(shape_helpers.arc(0.2)).image)
+    # nobody listens: frames are not processed
+    node._on_image(img)
+    node._process()
+    assert node.diag.get('idle') == 1 and node.diag.get('processed') == 0
+    probe = ros.node('cp_listener')
+    probe.create_subscription(PoseArray, T.CONTROL_POINTS, lambda m: None, T.QOS_SENSOR)
+    assert ros.spin_until(lambda: node.pub_cp.get_subscription_count() > 0, 10.0)
     # callbacks without the timer in between: only the newest frame is kept
     for _ in range(5):
         node._on_image(img)
-    assert node.diag.get('frames') == 5 and node.diag.get('dropped') == 4
+    assert node.diag.get('frames') == 6 and node.diag.get('dropped') == 4
     node._process()
     assert node.diag.get('processed') == 1
     node._process()                                   # nothing pending: nothing done
@@ -147,6 +154,9 @@ def test_base_constraint_parameter(ros, shape_helpers):
         Parameter('psi', value=[float(x) for x in cam.psi.reshape(-1)]),
         Parameter('base_px', value=list(cam.base_px)),
         Parameter('base_constraint', value='point')]))
+    probe = ros.node('cp_listener2')
+    probe.create_subscription(PoseArray, T.CONTROL_POINTS, lambda m: None, T.QOS_SENSOR)
+    assert ros.spin_until(lambda: node.pub_cp.get_subscription_count() > 0, 10.0)
     node._on_image(_image(cam.render(shape_helpers.arc(0.4)).image))
     node._process()
     assert node._last_obs.ok

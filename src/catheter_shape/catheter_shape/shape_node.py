@@ -11,7 +11,7 @@ Publishes   /catheter/control_points   geometry_msgs/PoseArray, 4 poses base -> 
 
 Frames are never queued: the callback keeps only the newest frame and a timer on the node
 clock (period `period`) processes it; a frame replaced before it was processed counts as
-dropped.
+dropped. While nobody subscribes to any output, frames are not processed (counted 'idle').
 """
 from __future__ import annotations
 
@@ -221,7 +221,7 @@ class ShapeNode(Node):
                                   base_px=base, method=method, degree=degree,
                                   base_constraint=base_constraint)
         self.diag = Diagnostics(self)
-        for k in ('frames', 'processed', 'dropped', 'published', 'bad_messages') + \
+        for k in ('frames', 'processed', 'dropped', 'idle', 'published', 'bad_messages') + \
                 tuple('fail_' + s for s in STATUSES if s != 'ok'):
             self.diag.count(k, 0)
         qos_in = QoSProfile(history=T.QOS_SENSOR.history, depth=T.QOS_SENSOR.depth,
@@ -273,6 +273,10 @@ class ShapeNode(Node):
             self.get_logger().warning(f'bad image message: {exc}', throttle_duration_sec=5.0)
             return
         want_debug = self.pub_debug.get_subscription_count() > 0
+        if not want_debug and self.pub_cp.get_subscription_count() == 0 and \
+                self.pub_path.get_subscription_count() == 0:
+            self.diag.count('idle')         # nobody listens: skip the heavy work
+            return
         self.sensor.keep_mask = want_debug
         obs = self.sensor.process(frame)
         self._last_obs = obs
