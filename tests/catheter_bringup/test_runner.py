@@ -104,7 +104,7 @@ def test_realtime_run(tmp_path, make_scenario, test_registry):
     sc = make_scenario(mode='realtime', duration=0.5, outputs=['/test/relayed'])
     res = ScenarioRunner(sc, bag=str(bag), registry=test_registry, progress=False).run()
     assert res.status == 'complete', res.reason
-    assert res.published['/test/force'] > 100     # a 1 kHz timer on 2 shared cores
+    assert res.published['/test/force'] > 50      # a 1 kHz timer on 2 shared, loaded cores
     assert res.lost == {}
     assert read_run_metadata(bag)['mode'] == 'realtime'
 
@@ -140,4 +140,4 @@ def test_realtime_split_runs_image_nodes_in_a_worker_process(tmp_path, make_scen
     assert res.lost == {}
     # the worker's frames reached the main process's recorder through DDS
     assert res.recorded.get('/test/image', 0) >= 15
-    assert res.recorded['/test/relayed'] > 300
+    assert res.recorded['/test/relayed'] > 150
