@@ -357,9 +357,13 @@ class SyntheticCamera:
         cv2.circle(m, tuple(int(x) for x in np.rint(centre * _SCALE)), int(round(R * _SCALE)), 255,
                    -1, cv2.LINE_AA, _SHIFT)
         a = m.astype(np.float32) / 255.0
-        v, u = np.mgrid[0:self.height, 0:self.width]
-        tex = 150.0 + 12.0 * np.sin(u * 0.21 + 0.5 * np.sin(v * 0.13)) * np.cos(v * 0.17)
-        bg = (self._bg * (1 - a) + tex.astype(np.float32) * a).astype(np.float32)
+        tex = getattr(self, '_tissue_tex', None)
+        if tex is None:                                  # static texture: computed once
+            v, u = np.mgrid[0:self.height, 0:self.width]
+            tex = (150.0 + 12.0 * np.sin(u * 0.21 + 0.5 * np.sin(v * 0.13)) * np.cos(v * 0.17)
+                   ).astype(np.float32)
+            self._tissue_tex = tex
+        bg = self._bg + a * (tex - self._bg)
         self._tissue_mask = m
         d = np.sqrt(np.sum((px - centre) ** 2, axis=1))
         outside = d > R
