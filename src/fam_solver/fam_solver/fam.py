@@ -620,8 +620,9 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
     n_arcs: number of equal arcs N (1..100000). arc_model: 'exact' (default, true circular
     arcs) or 'bezier' (the thesis' Bezier arcs, Eqs. 7-12). Never returns NaN: a case that
     does not converge has converged=False and the best finite iterate.
-    initial: optional warm start (a previous Shape or its arc angles (N,)); used when the
-    Newton iteration from it converges to a stable equilibrium, else ignored.
+    initial: optional warm start (a previous Shape or its arc angles (N,)); used (exact
+    model, tip loads, N <= 64) when Newton from it converges to an equilibrium whose
+    Jacobian eigenvalues all have positive real parts, else ignored (cold start).
     """
     _check_common(cat, n_arcs, arc_model)
     if not isinstance(loads, Loads):
