@@ -72,3 +72,13 @@ def test_config_refuses_bad_values():
         ExperimentConfig(loss=1.5)
     with pytest.raises(ValueError, match='pretrain'):
         ExperimentConfig(pretrain='III')
+
+
+def test_runs_are_deterministic_for_a_seed():
+    cfg = ExperimentConfig(experiment='II', mode='ima', duration=3.0, loss=0.1, jitter=0.005,
+                           seed=4)
+    a, b = run_experiment(cfg), run_experiment(cfg)
+    for key in ('f_hand', 'reference', 'x_slave', 'f_slave_meas'):
+        assert np.array_equal(a.series[key], b.series[key])
+    c = run_experiment(cfg, seed=5)
+    assert not np.array_equal(a.series['x_hand'], c.series['x_hand'])
