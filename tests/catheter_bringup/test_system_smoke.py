@@ -63,3 +63,20 @@ def test_main_command_writes_metrics_and_plots(tmp_path, capsys):
     assert m['status'] == 'complete' and 'ima' in m['force_tracking']
     assert (tmp_path / 'smoke_tracking.png').stat().st_size > 10_000
     assert (tmp_path / 'smoke_errors.png').exists()
+
+
+def test_full_default_graph_with_image_pipeline_is_deterministic(tmp_path):
+    pytest.importorskip('sim_slave.camera_node')
+    pytest.importorskip('catheter_shape.shape_node')
+    pytest.importorskip('force_estimator.force_estimator_node')
+    runs = []
+    for k in range(2):
+        sc = load_scenario('experiment_ii')
+        sc['duration'] = 0.5
+        res = ScenarioRunner(sc, bag=str(tmp_path / f'{k}.mcap'), progress=False,
+                             log=lambda *_: None).run()
+        assert res.status == 'complete', res.reason
+        assert {'camera_node', 'shape_node', 'force_estimator_node'} <= set(res.nodes)
+        runs.append(_decoded(res.bag))
+    assert sum(1 for t, _, _ in runs[0] if t == '/catheter/tip_wrench') >= 10
+    assert runs[0] == runs[1]
