@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, HealthCheck
 from hypothesis import strategies as st
-from hypothesis.extra.numpy import arrays
 
 from catheter_shape import (STATUSES, ShapeSensor, SyntheticCamera, bezier_distance,
                             bezier_eval, fit_bezier)
