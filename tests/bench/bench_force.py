@@ -110,11 +110,15 @@ def main(argv=None):
     t_fam_init = time.perf_counter() - t
     fam12 = FamInverseEstimator(cat, n_arcs=12)
 
+    from force_estimator.train import fingerprint_drift
+    print(f'camera-path drift since the shipped models were trained: '
+          f'{1e3 * fingerprint_drift(svr):.3f} mm (control points of 3 fixed shapes; '
+          f'retrain with python -m force_estimator.train if this is not ~0)')
     res, flags, lat = {}, {}, {}
     for name, est in (('svr', svr), ('mlp', mlp)):
         P, fl = est.predict(cp, return_flags=True)
         res[name], flags[name] = P, fl
-    P, fl, tt, resid = [], [], [], []
+    P, fl, tt, resid, solves = [], [], [], [], []
     for c in cp:
         fam.reset()                                 # independent frames: cold start each
         t = time.perf_counter()
@@ -123,6 +127,7 @@ def main(argv=None):
         P.append(r.force)
         fl.append(r.in_envelope)
         resid.append(r.residual)
+        solves.append(r.solves)
     res['fam'], flags['fam'] = np.array(P), np.array(fl)
     lat['fam_cold'] = np.array(tt)
     P, fl, tt = [], [], []
@@ -220,10 +225,27 @@ def main(argv=None):
     rows.append(('fam 24 arcs: cold start, p90 ms', f'{1e3 * np.percentile(lat["fam_cold"], 90):.2f}', '-', ''))
     rows.append(('fam 24 arcs: warm start (stream), median ms/estimate', f'{1e3 * np.median(tw):.2f}',
                  '2 ms target', f'{np.median(tw) / 2e-3:.2f}'))
+    rows.append(('fam 24 arcs: FAM batch calls per estimate (3 forces each), mean',
+                 f'{np.mean(solves) / 3:.2f}', '-', ''))
+    from fam_solver import solve_fam_batch
+    f3 = np.array([[0.05, 0.1], [0.0501, 0.1], [0.05, 0.1001]])
+    t_call = timeit(lambda: solve_fam_batch(cat, f3, np.zeros(3), n_arcs=24).points_at(
+        np.linspace(0, 1, 24)), n=100)
+    rows.append(('one solve_fam_batch call (3 forces, 24 arcs) + points, ms',
+                 f'{1e3 * t_call:.2f}', '-', ''))
     rows.append(('fam: residual median, mm', f'{1e3 * np.median(resid):.3f}', '-', ''))
     rows.append(('fam: start-table construction, s', f'{t_fam_init:.2f}', '-', ''))
     table('Speed (single sample unless stated)', rows)
 
+    te = (grid['split'] == 1)
+    rows = []
+    for name, m, ref in (('SVR', svr_g, 0.010), ('MLP 1x10', mlp_g, 0.0113)):
+        P = m.predict_features(grid['X'][te])
+        mae = np.abs(np.hypot(*P.T) - grid['magnitude'][te]).mean()
+        rows.append((f'{name} on the thesis grid, 30 % test part, MAE of |f|, N (rendered '
+                     f'features, n={te.sum()})', f'{mae:.4f}', f'{ref:.4f} thesis (FE shapes)',
+                     f'{mae / ref:.2f}'))
+    table('The thesis experiment (16 x 25 grid, 70:30 split)', rows)
     rows = [('SVR fit (thesis grid, 70 %, with the epsilon/gamma search), s', f'{t_svr:.2f}', '-', ''),
             ('MLP 1x10 fit (thesis grid, 70 %, best of 3 inits), s', f'{t_mlp:.2f}', '-', '')]
     for m in (svr, mlp):

@@ -26,6 +26,16 @@ def test_shipped_models_load_by_name(name):
     assert not est.predict(far, return_flags=True)[1]
 
 
+def test_shipped_models_carry_a_camera_path_fingerprint():
+    pytest.importorskip('fam_solver')
+    pytest.importorskip('catheter_shape')
+    from force_estimator.train import fingerprint_drift
+    for name in SHIPPED_MODELS:
+        fp = load_estimator(name).header['camera_path_fingerprint']
+        assert np.array(fp['control_points']).shape == (3, 4, 3)
+        assert np.isfinite(fingerprint_drift(load_estimator(name)))
+
+
 def test_shipped_models_on_unseen_rendered_frames():
     pytest.importorskip('fam_solver')
     pytest.importorskip('catheter_shape')

@@ -12,19 +12,23 @@ catheter.
 
 Why shapes, not control points. The brief suggested comparing the FAM shape's control
 points (its centreline fitted with the camera path's `fit_bezier`) with the observed ones.
-Measured here: the cubic Bezier control points of one and the same curve move by 2-25 mm
-between fitting variants (plain Eq. 4 on arc-length parameters, or with parameter
-correction), because a cubic only approximates the catheter and its parameterisation is
-free; the camera fit also stops its correction rounds adaptively, which makes control points
-a non-smooth function of the force (poison for a finite-difference Jacobian) and costs
-0.5-6 ms per fit. The curve itself is what both sides agree on (the camera fit lies within
-0.001-0.2 mm of the true centreline), and needs no fit inside the loop: each iteration is
-one batched FAM solve.
+Measured during development: the cubic control points of one and the same curve moved by
+up to 5.8 mm between the camera path and a fit of the exact centreline, and by more between
+fitting variants, because a cubic only approximates the catheter and its inner control
+points can slide along the curve at almost no cost in fit error; a fit with adaptive
+stopping also makes them a non-smooth function of the force (poison for a finite-difference
+Jacobian), and each fit costs milliseconds. The curve itself is what both sides agree on
+(the camera fit lies within about 0.1 mm of the true centreline), and comparing curves needs
+no fit inside the loop: each iteration is one batched FAM solve. Two nuisance parameters
+absorb where the observed curve starts and how its arc length stretches (a fitted cubic ends
+a fraction of a millimetre short of the true ends); without them the force error through
+the camera was 3x larger.
 
-Accuracy is set by the FAM model error: on clean rod-solver (elastica) shapes the force error
-was 1-18 mN with 12 arcs (tip error about 0.07 mm = 0.1 % L), 0.3-13 mN with 24 arcs and
-0.1-12 mN with 48 (the largest errors for post-buckled, curled shapes whose form barely
-changes with the load). More arcs cost time in proportion.
+Accuracy is set by the FAM model error: on eight clean rod-solver (elastica) shapes fitted
+with the camera path's `fit_bezier`, the force error was 1-11 mN with 12 arcs (FAM tip error
+about 0.07 mm = 0.1 % L) and 0.3-2.4 mN with 24 arcs (the largest errors for post-buckled,
+curled shapes whose form barely changes with the load). More arcs cost time in proportion;
+the node uses 24.
 
 Solver: Gauss-Newton with Levenberg-Marquardt damping and a forward-difference Jacobian; the
 base force and its two perturbations are one `solve_fam_batch` call per iteration. The start

@@ -48,6 +48,35 @@ def _vec_mae(model, X, Y) -> float:
     return float(np.hypot(*(model.predict_features(X) - Y).T).mean())
 
 
+#: forces of the fingerprint shapes, N
+FINGERPRINT_FORCES = ((0.0, 0.05), (-0.1, 0.15), (0.1, 0.2))
+
+
+def camera_path_fingerprint(features: str = 'render') -> dict:
+    """Control points the feature path gives for three fixed shapes. Stored in the model
+    header: if `catheter_shape` changes its segmentation or fit later, the features move
+    (cubic control points are sensitive to the fit) and the models must be retrained;
+    `fingerprint_drift` measures that."""
+    F = np.array(FINGERPRINT_FORCES)
+    cls, _ = D.fam_centerlines(F)
+    if features == 'render':
+        cp, _ = D.render_control_points(cls, seed=0)
+    else:
+        cp = D.fit_control_points(cls)
+    return dict(features=features, forces=F.tolist(), control_points=cp.tolist())
+
+
+def fingerprint_drift(model) -> float:
+    """Largest change (m) of the fingerprint control points between the model's training
+    time and the current camera path (nan if the model has no fingerprint)."""
+    fp = model.header.get('camera_path_fingerprint')
+    if not fp:
+        return float('nan')
+    now = camera_path_fingerprint(fp['features'])
+    return float(np.nanmax(np.abs(np.array(now['control_points']) -
+                                  np.array(fp['control_points']))))
+
+
 def has_camera() -> bool:
     try:
         from catheter_shape import ShapeSensor, SyntheticCamera  # noqa: F401
@@ -107,7 +136,8 @@ def build(out: str = DEFAULT_OUT, n_random: int = 1000, features: str = 'auto',
         f'generated in {rep["data_time_s"]:.1f} s')
     extra = dict(dataset=dict(features=features, point_noise=noise, n_random=n_random,
                               seed=seed, mirror=True,
-                              catheter=dict(length=D.BLAZER_LENGTH, ei=D.BLAZER_EI)))
+                              catheter=dict(length=D.BLAZER_LENGTH, ei=D.BLAZER_EI)),
+                 camera_path_fingerprint=camera_path_fingerprint(features))
 
     # 3. models
     t = time.perf_counter()
