@@ -22,7 +22,8 @@ fi
 want=$(cat requirements.txt requirements.lock | sha256sum | cut -d' ' -f1)
 if [ "$(cat .venv/.requirements.sha 2>/dev/null || true)" != "$want" ]; then
   echo "[setup] installing pinned packages (requirements.txt, versions from requirements.lock)"
-  .venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.txt -c requirements.lock
+  .venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.txt -c requirements.lock \
+    > .venv/pip-install.log 2>&1 || { grep -v '^WARNING: Location' .venv/pip-install.log; echo "[setup] pip install FAILED"; exit 1; }
   echo "$want" > .venv/.requirements.sha
 fi
 

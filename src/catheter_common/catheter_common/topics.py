@@ -27,6 +27,8 @@ MASTER_RENDERED_FORCE = '/master/rendered_force'  # geometry_msgs/WrenchStamped
 # delivered on these master-local topics, which the renderer consumes.
 MASTER_LINK_IMPEDANCE = '/master/link/impedance'  # /slave/impedance as delivered at the master
 MASTER_LINK_FORCE = '/master/link/force'          # /slave/force as delivered at the master
+MASTER_HAND_FORCE = '/master/hand_force'        # geometry_msgs/WrenchStamped: force at the operator's hand
+CAMERA_TIP_FORCE_TRUTH = '/camera/tip_force_truth'  # geometry_msgs/WrenchStamped: tip force the sim camera drew
 DIAGNOSTICS = '/diagnostics'                   # diagnostic_msgs/DiagnosticArray
 CLOCK = '/clock'                               # rosgraph_msgs/Clock
 

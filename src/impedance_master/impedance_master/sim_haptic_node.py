@@ -39,7 +39,7 @@ from impedance_master.operator import experiment_trajectory
 from sim_slave.link import Link, LinkConfig
 
 #: force at the operator's hand (not in DESIGN section 4; local to this package)
-MASTER_HAND_FORCE = '/master/hand_force'
+from catheter_common.topics import MASTER_HAND_FORCE  # noqa: E402  (re-exported)
 JOINT_NAMES = ['insertion', 'rotation']
 
 

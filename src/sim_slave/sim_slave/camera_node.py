@@ -31,7 +31,7 @@ from sim_slave.camera import BLAZER_EI, BLAZER_LENGTH, DEFAULT_CAMERA, TipCamera
 from sim_slave.vessel import VesselParams
 
 #: the tip force each frame was drawn with (ground truth of image-based estimation)
-CAMERA_TIP_FORCE_TRUTH = '/camera/tip_force_truth'
+from catheter_common.topics import CAMERA_TIP_FORCE_TRUTH  # noqa: E402  (re-exported)
 _WALL_FIELDS = ('wall_depth', 'wall_stiffness', 'wall_exponent', 'wall_damping')
 
 
