@@ -186,10 +186,12 @@ class FamInverseEstimator:
             return r, J, np.inf
         return r, J, cost
 
-    def _solve(self, obs: np.ndarray, f0: np.ndarray):
-        """LM from f0. Returns (x = (fx, fy, delta, eps), shape cost, iterations, FAM solves,
-        converged); the shape cost excludes the prior rows."""
-        x = np.array([f0[0], f0[1], 0.0, 0.0], dtype=float)
+    def _solve(self, obs: np.ndarray, x0: np.ndarray):
+        """LM from x0 = (fx, fy[, delta, eps]). Returns (x = (fx, fy, delta, eps), shape cost,
+        iterations, FAM solves, converged); the shape cost excludes the prior rows."""
+        x = np.zeros(4)
+        x0 = np.asarray(x0, dtype=float)
+        x[:len(x0)] = x0
         r, J, cost = self._eval(x, obs)
         solves = 3
         if not np.isfinite(cost):
@@ -206,6 +208,11 @@ class FamInverseEstimator:
                 xn[:2] *= 1.5 * self.f_max / nf
                 step = xn - x
             small = bool(np.hypot(step[0], step[1]) < self.tol)
+            if small and mu < 1e-2:
+                # a Gauss-Newton step below the tolerance: take it without another solve
+                x = xn
+                converged = True
+                break
             rn, Jn, cn = self._eval(xn, obs)
             solves += 3
             if cn <= cost:
@@ -235,17 +242,17 @@ class FamInverseEstimator:
             if f0 is None:
                 f0 = self._table_start(obs)
             x, cost, it, solves, conv = self._solve(obs, f0)
-            f = x[:2]
             total += solves
             res = float(np.sqrt(cost / self.n_points))
             if best is None or res < best[1]:
-                best = (f, res, it, conv)
+                best = (x, res, it, conv)
             if conv and res <= self.max_residual:
                 break
-        f, res, it, conv = best
+        x, res, it, conv = best
+        f = x[:2].copy()
         inside = bool(conv and res <= self.max_residual and np.hypot(*f) <= self.f_max)
         if np.isfinite(res):
-            self._last = f.copy()
+            self._last = x.copy()
         out = FamInverseResult(force=np.asarray(f, dtype=float), residual=res, iterations=it,
                                solves=total, converged=bool(conv), in_envelope=inside)
         self.last_result = out
