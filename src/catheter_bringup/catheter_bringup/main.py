@@ -46,8 +46,13 @@ def main(argv=None):
     print(f"== {sc['name']}: {sc.get('description', '')}", flush=True)
     runner = ScenarioRunner(sc, bag=a.bag, mode=a.mode, duration=a.duration, progress=True,
                             log=lambda m: print(m, flush=True))
-    runner.setup()
-    res = runner.run()
+    from catheter_bringup.run_scenario import install_stop_handlers, restore_handlers
+    old = install_stop_handlers(runner)
+    try:
+        runner.setup()
+        res = runner.run()
+    finally:
+        restore_handlers(old)
     print(summarize(res), flush=True)
     if res.bag is None or not pathlib.Path(res.bag).exists():
         return 1

@@ -48,6 +48,25 @@ def summarize(res) -> str:
     return '\n'.join(lines)
 
 
+def install_stop_handlers(runner) -> dict:
+    """Ctrl-C and SIGTERM ask the runner to stop: it finishes the current step, closes the
+    recording (status interrupted) and returns. The handler only sets a flag: an exception
+    raised from a signal handler inside a C extension call (message (de)serialisation) would
+    surface as an unrelated error."""
+    def on_signal(signum, frame):
+        runner.stop_requested = True
+
+    old = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    return old
+
+
+def restore_handlers(old) -> None:
+    for sig, handler in (old or {}).items():
+        signal.signal(sig, handler)
+
+
 def main(args=None):
     from rclpy.utilities import remove_ros_args
     argv = list(sys.argv[1:] if args is None else args)
@@ -68,13 +87,8 @@ def main(args=None):
                             duration=opts.duration, progress=not opts.quiet,
                             record=False if opts.no_record else None,
                             only=opts.only.split(',') if opts.only else None)
-    # SIGTERM behaves like Ctrl-C: stop, close the recording
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
-    try:
-        runner.setup()
-    except KeyboardInterrupt:
-        runner.close()
-        return 0
+    install_stop_handlers(runner)
+    runner.setup()
     res = runner.run()
     print(summarize(res), flush=True)
     return 1 if res.status == 'failed' else 0

@@ -319,6 +319,8 @@ class ScenarioRunner:
         self._steps_since_spin = 0
         self._now_ns = 0
         self.on_step: Optional[Callable[[float], None]] = None
+        #: set (e.g. by a signal handler) to stop the run after the current step
+        self.stop_requested = False
         #: lockstep only: called with the step time (ns) and a phase, 'pre' (before the step's
         #: timers run) or 'post' (after them); returns (topic, cdr bytes) pairs delivered to the
         #: nodes as if published in that phase (reprocess)
@@ -339,7 +341,11 @@ class ScenarioRunner:
         self.context = context or Context()
         self._own_context = context is None
         if self._own_context:
-            rclpy.init(context=self.context, args=[])
+            # no rclpy signal handlers: Ctrl-C stays a plain KeyboardInterrupt that the run loop
+            # turns into a clean stop (run_scenario installs a once-only handler)
+            from rclpy.signals import SignalHandlerOptions
+            rclpy.init(context=self.context, args=[],
+                       signal_handler_options=SignalHandlerOptions.NO)
         self.runner_node = rclpy.create_node(RUNNER_NODE, context=self.context)
         declare(self.runner_node, 'scenario', sc['name'], 'scenario being run (read only)',
                 read_only=True)
@@ -384,6 +390,8 @@ class ScenarioRunner:
         # lockstep_transport: dds -> messages go through DDS, each step waits for delivery
         # (slower; kept as the reference the benchmark compares with)
         for inst in chosen:
+            if self.stop_requested:
+                break
             cli = []
             if inst.name != inst.spec.executable:
                 cli += ['-r', f'__node:={inst.name}']
@@ -671,6 +679,8 @@ class ScenarioRunner:
                 self._rescan()
             if self.on_step is not None:
                 self.on_step(self._sim_reached)
+            if self.stop_requested:
+                raise KeyboardInterrupt
             if bar is not None and (k - last_bar >= 100 or k == n_steps):
                 bar.update(round((k - last_bar) * sc['step'], 6))
                 last_bar = k
@@ -712,6 +722,8 @@ class ScenarioRunner:
             self._now_ns = now
             if now >= end:
                 break
+            if self.stop_requested:
+                raise KeyboardInterrupt
             self.executor.spin_once(timeout_sec=min(0.05, (end - now) * 1e-9))
             el = (clock.now().nanoseconds - start) * 1e-9
             self._sim_reached = min(el, sc['duration'])
@@ -744,6 +756,8 @@ class ScenarioRunner:
             self._now_ns = now
             if now >= end:
                 break
+            if self.stop_requested:
+                raise KeyboardInterrupt
             self._drain_bus(100000)
             if self.bus.external and now >= next_spin:
                 self._spin_external()
@@ -827,6 +841,8 @@ class ScenarioRunner:
 
     def close(self):
         self._stop_child()
+        if self.recorder is not None and not self.recorder.closed:
+            self.recorder.close('interrupted', 'closed before the run finished')
         if self.executor is not None:
             for n in list(self.nodes.values()) + [self.runner_node]:
                 try:
