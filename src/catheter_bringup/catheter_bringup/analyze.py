@@ -28,7 +28,7 @@ from catheter_bringup import metrics as M
 from catheter_bringup.recorder import read_run_metadata
 
 RENDERED = '/master/rendered_force'
-HAND_FORCE = '/master/hand_force'
+HAND_FORCE = '/master/hand_force'         # catheter_common.topics.MASTER_HAND_FORCE
 SLAVE_FORCE = '/slave/force'
 TIP_WRENCH = '/catheter/tip_wrench'
 IMPEDANCE = '/master/link/impedance'
