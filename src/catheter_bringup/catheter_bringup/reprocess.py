@@ -168,6 +168,10 @@ def main(argv=None):
     ap.add_argument('--tol', type=float, default=1e-9)
     a = ap.parse_args(argv)
     res = reprocess(a.bag, a.nodes, a.tol)
+    if not res:
+        print('no node of the recorded scenario has its inputs and outputs in this recording '
+              '(record them, or name nodes with --nodes)')
+        return 0
     print(format_results(res))
     return 0 if all(c.get('ok') for c in res.values()) else 1
 

@@ -1,4 +1,5 @@
-"""Scenarios (no rclpy): the YAML files in ros_ws/config/, the node registry and the resolution
+"""Scenarios (no nodes, no executor; topic names from catheter_common.topics): the YAML files in
+ros_ws/config/, the node registry and the resolution
 of which nodes a scene needs.
 
 A scenario file::
