@@ -93,6 +93,8 @@ def test_compression_past_buckling_stays_straight_and_is_flagged():
     assert np.all(sh.arc_angles == 0.0)
     below = solve_fam(CAT, Loads(tip_force=(-0.5 * P / 3, 0.0)), n_arcs=12)
     assert below.stable and below.warning == ''
+    big = solve_fam(CAT, Loads(tip_force=(-P, 0.0)), n_arcs=100)     # judged on N = 32
+    assert big.converged and not big.stable and np.all(big.arc_angles == 0.0)
 
 
 def test_jacobian_matches_finite_differences():
