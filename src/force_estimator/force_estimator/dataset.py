@@ -151,7 +151,7 @@ def fam_centerlines(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI
 
 def render_control_points(centerlines, seed: int = 0, progress: bool = False,
                           camera_kwargs: Optional[dict] = None, sensor_kwargs: Optional[dict] = None,
-                          return_timing: bool = False):
+                          return_timing: bool = False, tissue_depth: float = 0.0):
     """Control points through the full image pipeline: synthetic camera -> ShapeSensor
     (background removal, threshold 132, the clamp pixel known from calibration).
 
@@ -159,7 +159,8 @@ def render_control_points(centerlines, seed: int = 0, progress: bool = False,
     (default TRAIN_CAMERA, seeded with `seed`); sensor_kwargs: extra ShapeSensor arguments.
     Returns (control_points (B, 4, 3) m, ok (B,) bool); frames the sensor rejects or that
     leave the view give ok = False and NaN control points. With return_timing also the
-    sensor time per frame (B,) s.
+    sensor time per frame (B,) s. tissue_depth: m of the tip hidden under tissue (as in the
+    thesis's ex-vivo frames; 0 = fully visible), one number or one per shape (B,).
     """
     from catheter_shape import ShapeSensor, SyntheticCamera
     kw = dict(TRAIN_CAMERA)
@@ -167,6 +168,9 @@ def render_control_points(centerlines, seed: int = 0, progress: bool = False,
     kw.setdefault('seed', seed)
     cam = SyntheticCamera(**kw)
     c = np.asarray(centerlines, dtype=float)
+    depth = np.broadcast_to(np.asarray(tissue_depth, dtype=float), (c.shape[0],))
+    if not (np.isfinite(depth).all() and (depth >= 0).all()):
+        raise ValueError('tissue_depth must be finite and >= 0')
     out = np.full((c.shape[0], 4, 3), np.nan)
     ok = np.zeros(c.shape[0], dtype=bool)
     times = np.full(c.shape[0], np.nan)
@@ -178,7 +182,7 @@ def render_control_points(centerlines, seed: int = 0, progress: bool = False,
         from tqdm import tqdm
         it = tqdm(it, desc='render+sense', unit='frame', leave=False)
     for i in it:
-        frame = cam.render(c[i], rng=rng)
+        frame = cam.render(c[i], rng=rng, tissue_depth=float(depth[i]))
         if not frame.in_view:
             continue
         t0 = time.perf_counter()
@@ -193,7 +197,7 @@ def render_control_points(centerlines, seed: int = 0, progress: bool = False,
 def make_dataset(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI,
                  n_arcs: int = N_ARCS, point_noise: float = 0.0, render: bool = False,
                  test_frac: float = 0.3, seed: int = 0, progress: bool = True,
-                 name: str = '', mirror: bool = False) -> dict:
+                 name: str = '', mirror: bool = False, tissue_depth=0.0) -> dict:
     """Build a data set from tip forces (n, 2) N: FAM shapes, control points, 70:30 split.
 
     Non-converged FAM solves (and failed renders) are dropped and counted in the header.
@@ -207,7 +211,8 @@ def make_dataset(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI,
         raise ValueError(f'test_frac must be in [0, 1), got {test_frac}')
     cls, conv = fam_centerlines(F, length, ei, n_arcs, progress=progress)
     if render:
-        cp, ok = render_control_points(cls, seed=seed, progress=progress)
+        cp, ok = render_control_points(cls, seed=seed, progress=progress,
+                                       tissue_depth=tissue_depth)
     else:
         cp = fit_control_points(cls, point_noise=point_noise, seed=seed, progress=progress)
         ok = np.ones(len(F), dtype=bool)
@@ -230,6 +235,7 @@ def make_dataset(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI,
                   generator='fam_solver.solve_fam_batch',
                   fitter='render+ShapeSensor' if render else 'catheter_shape.fit_bezier',
                   point_noise=point_noise, seed=seed, test_frac=test_frac, mirror=mirror,
+                  tissue_depth_max=float(np.max(tissue_depth)),
                   n_requested=int(len(F)), n_not_converged=n_not_conv,
                   n_render_failed=n_render_failed, n=n,
                   units=dict(control_points='m', X='m', Y='N', angle='rad'))
