@@ -1,5 +1,6 @@
 """fam_solver_node in-process: load in, Path and Marker out; lazy; robust to bad input."""
 import math
+import os
 
 import numpy as np
 import pytest
@@ -22,20 +23,29 @@ def _wrench(fx, fy, mz=0.0, sec=7):
     return m
 
 
+# Topics are remapped to a per-process prefix: other test processes on this machine may
+# share the ROS domain and subscribe to /catheter/shape, which would make "no subscriber"
+# untrue.
+PREFIX = f'/fam_test_{os.getpid()}'
+LOAD_T, SHAPE_T, MARKER_T = PREFIX + TIP_LOAD, PREFIX + SHAPE, PREFIX + SHAPE_MARKER
+
+
 def _setup(ros, **params):
     from rclpy.parameter import Parameter
     overrides = [Parameter(k, value=v) for k, v in params.items()]
-    node = ros.add(FamSolverNode(context=ros.context, parameter_overrides=overrides))
+    remap = ['--ros-args', '-r', f'{TIP_LOAD}:={LOAD_T}', '-r', f'{SHAPE}:={SHAPE_T}',
+             '-r', f'{SHAPE_MARKER}:={MARKER_T}']
+    node = ros.add(FamSolverNode(context=ros.context, parameter_overrides=overrides, cli_args=remap))
     client = ros.node('fam_test_client')
-    pub = client.create_publisher(WrenchStamped, TIP_LOAD, QOS_DEFAULT)
+    pub = client.create_publisher(WrenchStamped, LOAD_T, QOS_DEFAULT)
     return node, client, pub
 
 
 def test_publishes_path_and_marker(ros):
     node, client, pub = _setup(ros, path_points=21)
     paths, markers = [], []
-    client.create_subscription(Path, SHAPE, paths.append, QOS_DEFAULT)
-    client.create_subscription(Marker, SHAPE_MARKER, markers.append, QOS_DEFAULT)
+    client.create_subscription(Path, SHAPE_T, paths.append, QOS_DEFAULT)
+    client.create_subscription(Marker, MARKER_T, markers.append, QOS_DEFAULT)
     assert ros.spin_until(lambda: pub.get_subscription_count() > 0 and node._listeners() >= 2, 10)
     pub.publish(_wrench(0.05, 0.2, 1e-4))
     assert ros.spin_until(lambda: paths and markers, 10)
@@ -63,7 +73,7 @@ def test_no_solve_without_subscribers_then_solves_when_one_appears(ros):
     ros.spin_for(0.3)
     assert node.diag.get('solves') == 0
     paths = []
-    client.create_subscription(Path, SHAPE, paths.append, QOS_DEFAULT)
+    client.create_subscription(Path, SHAPE_T, paths.append, QOS_DEFAULT)
     assert ros.spin_until(lambda: paths, 10)
     assert node.diag.get('solves') == 1
 
@@ -71,7 +81,7 @@ def test_no_solve_without_subscribers_then_solves_when_one_appears(ros):
 def test_bad_wrench_is_counted_and_node_keeps_running(ros):
     node, client, pub = _setup(ros)
     paths = []
-    client.create_subscription(Path, SHAPE, paths.append, QOS_DEFAULT)
+    client.create_subscription(Path, SHAPE_T, paths.append, QOS_DEFAULT)
     assert ros.spin_until(lambda: pub.get_subscription_count() > 0 and node._listeners() > 0, 10)
     pub.publish(_wrench(float('nan'), 0.1))
     assert ros.spin_until(lambda: node.diag.get('bad_messages') == 1, 10)
