@@ -98,3 +98,14 @@ def test_bad_arguments():
         D.make_dataset(np.zeros((2, 2)), test_frac=1.5)
     with pytest.raises(ValueError, match='n'):
         D.random_forces(0)
+
+
+def test_tissue_hides_the_tip():
+    F = np.array([[0.0, 0.05], [0.0, 0.05]])
+    cls, _ = D.fam_centerlines(F)
+    cp, ok = D.render_control_points(cls, seed=4, tissue_depth=np.array([0.0, 0.004]))
+    assert ok.all()
+    # the visible catheter is shorter: the tip control point moves back towards the base
+    assert np.hypot(*cp[1, 3, :2]) < np.hypot(*cp[0, 3, :2]) - 0.002
+    with pytest.raises(ValueError, match='tissue_depth'):
+        D.render_control_points(cls, tissue_depth=-1.0)

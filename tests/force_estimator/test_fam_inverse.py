@@ -100,3 +100,24 @@ def test_bad_input(inv):
         FamInverseEstimator(Catheter(length=L, ei=EI), f_max=-1.0)
     with pytest.raises(ValueError, match='n_arcs'):
         FamInverseEstimator(Catheter(length=L, ei=EI), n_arcs=0)
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.floats(0.02, 0.3), st.floats(np.pi / 8, np.pi - np.pi / 8), st.booleans())
+def test_property_inverse_of_forward(inv, mag, ang, flip):
+    """Off the pull/push axis, the inverse recovers any force from its own FAM shape, and the
+    mirrored shape gives the mirrored force."""
+    f = np.array([mag * np.cos(ang), mag * np.sin(ang) * (-1 if flip else 1)])
+    cat = Catheter(length=L, ei=EI)
+    cp = _cp(solve_fam(cat, Loads(tip_force=tuple(f)), n_arcs=12).centerline(200))
+    inv.reset()
+    r = inv.estimate(cp)
+    assert np.all(np.isfinite(r.force)) and np.isfinite(r.residual)
+    assert np.hypot(*(r.force - f)) < 2e-3 + 0.05 * mag, (f, r)
+    inv.reset()
+    m = inv.estimate(cp * [1, -1, 1])
+    assert np.hypot(*(m.force - r.force * [1, -1])) < 2e-3 + 0.03 * mag

@@ -110,7 +110,10 @@ class FamInverseEstimator:
         self._Bu = np.stack([(1 - u) ** 3, 3 * u * (1 - u) ** 2, 3 * u ** 2 * (1 - u), u ** 3],
                             axis=1)
         # start table: FAM shapes on a polar grid of forces (+ the unloaded catheter)
-        ang = np.linspace(-np.pi, np.pi, int(table_angles), endpoint=False)
+        # half a step off the axis: a start exactly on the pull/push axis would sit on the
+        # buckling branch point (FAM then bends to one side arbitrarily)
+        ang = np.linspace(-np.pi, np.pi, int(table_angles), endpoint=False) \
+            + np.pi / int(table_angles)
         mag = self.f_max * np.arange(1, int(table_magnitudes) + 1) / int(table_magnitudes)
         A, M = np.meshgrid(ang, mag, indexing='ij')
         F = np.concatenate([[[0.0, 0.0]],
@@ -246,7 +249,7 @@ class FamInverseEstimator:
             res = float(np.sqrt(cost / self.n_points))
             if best is None or res < best[1]:
                 best = (x, res, it, conv)
-            if conv and res <= self.max_residual:
+            if conv and res <= 0.5 * self.max_residual:
                 break
         x, res, it, conv = best
         f = x[:2].copy()
