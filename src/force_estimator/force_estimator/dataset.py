@@ -156,7 +156,9 @@ def render_control_points(centerlines, seed: int = 0, progress: bool = False,
     (background removal, threshold 132, the clamp pixel known from calibration).
 
     centerlines: (B, k, 2) m, catheter_base. camera_kwargs: SyntheticCamera arguments
-    (default TRAIN_CAMERA, seeded with `seed`); sensor_kwargs: extra ShapeSensor arguments.
+    (default TRAIN_CAMERA, seeded with `seed`); sensor_kwargs: ShapeSensor arguments (default:
+    the camera's background frame and clamp pixel, as in training; pass background=None or
+    base_px=None to measure without them).
     Returns (control_points (B, 4, 3) m, ok (B,) bool); frames the sensor rejects or that
     leave the view give ok = False and NaN control points. With return_timing also the
     sensor time per frame (B,) s. tissue_depth: m of the tip hidden under tissue (as in the
@@ -174,8 +176,9 @@ def render_control_points(centerlines, seed: int = 0, progress: bool = False,
     out = np.full((c.shape[0], 4, 3), np.nan)
     ok = np.zeros(c.shape[0], dtype=bool)
     times = np.full(c.shape[0], np.nan)
-    sensor = ShapeSensor(cam.psi, background=cam.background, base_px=cam.base_px,
-                         **(sensor_kwargs or {}))
+    skw = dict(background=cam.background, base_px=cam.base_px)
+    skw.update(sensor_kwargs or {})
+    sensor = ShapeSensor(cam.psi, **skw)
     rng = np.random.default_rng(seed + 12345)
     it = range(c.shape[0])
     if progress:
