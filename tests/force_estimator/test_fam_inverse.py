@@ -100,6 +100,19 @@ def test_bad_input(inv):
         FamInverseEstimator(Catheter(length=L, ei=EI), f_max=-1.0)
     with pytest.raises(ValueError, match='n_arcs'):
         FamInverseEstimator(Catheter(length=L, ei=EI), n_arcs=0)
+    with pytest.raises(ValueError, match='solver'):
+        FamInverseEstimator(Catheter(length=L, ei=EI), solver='gpu')
+
+
+def test_batch_and_single_solvers_agree():
+    cat = Catheter(length=L, ei=EI)
+    cp = _cp(solve_fam(cat, Loads(tip_force=(-0.05, 0.1)), n_arcs=12).centerline(200))
+    a = FamInverseEstimator(cat, n_arcs=12, solver='single', table_angles=16,
+                            table_magnitudes=8).predict(cp)
+    b = FamInverseEstimator(cat, n_arcs=12, solver='batch', table_angles=16,
+                            table_magnitudes=8).predict(cp)
+    np.testing.assert_allclose(a, b, atol=5e-4)
+    np.testing.assert_allclose(a, [-0.05, 0.1], atol=3e-3)
 
 
 from hypothesis import given, settings  # noqa: E402
