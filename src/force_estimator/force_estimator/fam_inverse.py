@@ -170,8 +170,9 @@ class FamInverseEstimator:
         The FAM shape is compared at arc lengths a'_j = delta + (1 + eps) a_j: delta (m) and
         eps absorb where the observed curve starts and how its parameterisation stretches
         (a fitted cubic ends a fraction of a millimetre short of the true ends), so only the
-        shape decides the force. One batched FAM solve of f and its two forward-difference
-        perturbations; the delta/eps columns come from the FAM tangent. Two prior rows keep
+        shape decides the force. FAM solves of f and its two forward-difference perturbations
+        (three warm-started single solves, or one batched call); the delta/eps columns come
+        from the FAM tangent. Two prior rows keep
         delta ~ 0 +- `ALIGN_SIGMA` m and eps ~ 0 +- `STRETCH_SIGMA`."""
         h = self.fd_step
         f = x[:2]
@@ -276,6 +277,7 @@ class FamInverseEstimator:
         for f0 in starts:
             if f0 is None:
                 f0 = self._table_start(obs)
+                self._prev_shape = None        # a far warm start could pick another branch
             x, cost, it, solves, conv = self._solve(obs, f0)
             total += solves
             res = float(np.sqrt(cost / self.n_points))
