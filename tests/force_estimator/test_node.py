@@ -117,3 +117,18 @@ def test_node_fam_method(ros):
     w = [m for m in got if m.header.stamp.sec == 21][0]
     assert abs(w.wrench.force.y - 0.08) < 0.005 and abs(w.wrench.force.x) < 0.005
     assert node.diag.get('estimates') >= 1
+
+
+def test_node_idles_without_subscribers(ros, toy_models, toy_model_files):
+    node = NODE_CLASS(context=ros.context, parameter_overrides=[
+        Parameter('svr_model', value=str(toy_model_files['svr']))])
+    ros.add(node)
+    client = ros.node('fe_idle_client')
+    pub = client.create_publisher(PoseArray, CONTROL_POINTS, QOS_SENSOR)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    msg = _msg(toy_models[0][0].reshape(4, 3), 5, 0)
+    for _ in range(20):
+        pub.publish(msg)
+        if ros.spin_until(lambda: node.diag.get('skipped_no_subscriber') > 0, 0.2):
+            break
+    assert node.diag.get('skipped_no_subscriber') > 0 and node.diag.get('estimates') == 0
