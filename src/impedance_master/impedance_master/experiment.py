@@ -13,7 +13,8 @@ Per control period k (t = k dt):
 5. the master's renderer (ImaRenderer or DfrRenderer) computes the desired force for the
    next period from what has arrived and (IMA) the local trajectory.
 
-Error metric (documented choice): the reference at master time t is the TRUE (noise-free)
+Error metric (documented choice; implemented once in `impedance_master.metrics`, which
+`catheter_bringup.analyze` uses for the ROS graph's recordings too): the reference at master time t is the TRUE (noise-free)
 vessel force that the master's motion produces at the slave, time-aligned by the command
 delay: a twin VesselModel with the slave's parameters and seed is driven by the master's
 trajectory at time t + delay. In normal intervals this equals the slave's own force at
@@ -36,6 +37,8 @@ import numpy as np
 from impedance_master._check import finite, nonneg, positive
 from impedance_master.haptic import DeviceParams, HapticDevice
 from impedance_master.identification import SlidingWindowIdentifier, make_identifier
+from impedance_master.metrics import (default_eval_start, error_stats, outage_mask,
+                                      tracking_metrics, twin_reference)
 from impedance_master.operator import experiment_trajectory
 from impedance_master.rendering import DfrRenderer, ImaRenderer
 
@@ -60,7 +63,9 @@ class ExperimentConfig:
     thesis_offset: the ima_thesis identifier fits the constant term (True) or exactly the
     thesis's Eq. 29 f = m x'' + c x' + k x (False); blend_time s and max_rate N/s of the
     ImaRenderer (bumpless model switch and slew limit; 0 and inf: switch at once);
-    passivity: the renderer's time-domain passivity controller.
+    passivity: the renderer's time-domain passivity controller;
+    sensor_seed: seed of the slave's force-sensor noise (None: `seed`; sim_slave_node uses
+    seed + 1, so a comparison with the ROS graph passes seed + 1 here).
     """
     experiment: str = 'II'
     mode: str = 'ima'
@@ -81,6 +86,7 @@ class ExperimentConfig:
     blend_time: float = 0.05
     max_rate: float = 20.0
     passivity: bool = False
+    sensor_seed: Optional[int] = None
 
     def __post_init__(self):
         if self.mode not in MODES:
@@ -116,22 +122,6 @@ class ExperimentResult:
     metrics: Dict[str, object] = field(default_factory=dict)
 
 
-def _stats(err: np.ndarray) -> Dict[str, float]:
-    if err.size == 0:
-        return {'mae': float('nan'), 'rmse': float('nan'), 'max': float('nan'), 'n': 0}
-    a = np.abs(err)
-    return {'mae': float(a.mean()), 'rmse': float(np.sqrt(np.mean(err * err))),
-            'max': float(a.max()), 'n': int(err.size)}
-
-
-def outage_mask(t: np.ndarray, outages, delay: float) -> np.ndarray:
-    """Boolean mask of the outage intervals [start + delay, start + length + 2 delay)."""
-    m = np.zeros(t.shape, dtype=bool)
-    for start, length in outages:
-        m |= (t >= start + delay) & (t < start + length + 2.0 * delay)
-    return m
-
-
 def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> ExperimentResult:
     """Run one closed-loop experiment (see module doc); keyword overrides patch `config`."""
     from sim_slave.link import Link, LinkConfig
@@ -157,8 +147,8 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
     vparams = VesselParams()
     robot = SlaveRobot(rate=cfg.rate, x0=x0)
     slave = SlaveSimulation(vessel=VesselModel(vparams, seed=seed),
-                            sensor=ForceSensor(noise_std=0.01, seed=seed), robot=robot)
-    twin = VesselModel(vparams, seed=seed)
+                            sensor=ForceSensor(noise_std=0.01, seed=seed if cfg.sensor_seed is None
+                                                else cfg.sensor_seed), robot=robot)
     device = HapticDevice(DeviceParams(), dt=dt,
                           hand_stiffness=cfg.hand_stiffness if cfg.compliant_hand else None,
                           hand_damping=cfg.hand_damping,
@@ -177,7 +167,7 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
                                max_rate=cfg.max_rate, passivity=cfg.passivity)
     imp_every = max(1, int(round(cfg.rate / cfg.impedance_rate)))
 
-    keys = ('t', 'x_hand', 'x_master', 'x_slave', 'f_hand', 'f_desired', 'reference',
+    keys = ('t', 'x_hand', 'x_master', 'xd_master', 'x_slave', 'f_hand', 'f_desired', 'reference',
             'f_slave_true', 'f_slave_meas')
     S = {k: np.zeros(n) for k in keys}
     id_status: Dict[str, int] = {}
@@ -210,35 +200,32 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
                 renderer.set_force(pkt[1])
         f_des = (renderer.desired_force(dev.x, dev.xd, dev.xdd) if ima
                  else renderer.desired_force())
-        ref = twin.force(t + delay, dev.x, dev.xd)
         S['t'][k] = t
         S['x_hand'][k] = xh
         S['x_master'][k] = dev.x
+        S['xd_master'][k] = dev.xd
         S['x_slave'][k] = s.x
         S['f_hand'][k] = dev.f_hand
         S['f_desired'][k] = f_des
-        S['reference'][k] = ref
         S['f_slave_true'][k] = s.f_true
         S['f_slave_meas'][k] = s.f_meas
 
     t = S['t']
+    # the reference: a twin vessel (the slave's parameters and seed) along the master's motion
+    S['reference'] = twin_reference(t, S['x_master'], S['xd_master'], delay, vparams, seed)
     out_m = outage_mask(t, cfg.outages, delay)
-    evaluated = t >= 1.5 + 2.0 * delay
+    evaluated = t >= default_eval_start(delay)
     S['outage'] = out_m
     S['evaluated'] = evaluated
-    err = S['f_hand'] - S['reference']
-    metrics: Dict[str, object] = {
-        'normal': _stats(err[evaluated & ~out_m]),
-        'outage': _stats(err[evaluated & out_m]),
-        'all': _stats(err[evaluated]),
-        'max_reference': float(np.abs(S['reference']).max()),
-    }
+    metrics: Dict[str, object] = dict(tracking_metrics(t, S['f_hand'], S['reference'],
+                                                       cfg.outages, delay))
+    metrics['max_reference'] = float(np.abs(S['reference']).max())
     # reference check: twin (master motion, t + delay) vs the slave's own true force at t + delay
     d = int(round(delay * cfg.rate))
     if d < n:
         chk = S['reference'][:n - d] - S['f_slave_true'][d:]
         sel = (evaluated & ~out_m)[:n - d]
-        metrics['reference_check'] = _stats(chk[sel])
+        metrics['reference_check'] = error_stats(chk[sel])
     metrics['id_status'] = id_status
     if ima:
         metrics['renderer'] = {'switches': renderer.n_switches, 'ignored': renderer.n_ignored,
