@@ -74,6 +74,7 @@ def generate_launch_description():
                           'link.loss': 0.1,
                           'link.outages': [4.0, 1.0, 8.0, 1.0],
                           'operator.trajectory': 'experiment_ii',
+                          'robot.x0': 0.008,
                           'seed': 11,
                           'use_sim_time': False}]),
         Node(package='catheter_bringup', executable='recorder_node', name='recorder_node', output='screen',

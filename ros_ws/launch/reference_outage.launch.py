@@ -74,8 +74,9 @@ def generate_launch_description():
                           'link.loss': 0.0,
                           'link.outages': [1.0, 0.5],
                           'operator.trajectory': 'experiment_ii',
+                          'robot.x0': 0.008,
                           'seed': 22,
                           'use_sim_time': False}]),
         Node(package='catheter_bringup', executable='recorder_node', name='recorder_node', output='screen',
-             parameters=[{'path': 'bags/reference_outage.mcap', 'exclude': ['/clock', '/rosout', '/parameter_events'], 'topics': ['/master/rendered_force', '/master/dfr/rendered_force', '/slave/force']}]),
+             parameters=[{'path': 'bags/reference_outage.mcap', 'exclude': ['/clock', '/rosout', '/parameter_events'], 'topics': ['/master/rendered_force', '/master/dfr/rendered_force', '/slave/force', '/master/command']}]),
     ])

@@ -6,8 +6,15 @@ Reads the recording with ``mcap_ros2`` (messages decoded from the schemas stored
 the scenario stored in its ``catheter_run`` metadata (link delay, outages), and reports:
 
 - force tracking: each rendered force stream (``/master/rendered_force`` = the scenario's renderer,
-  ``/master/dfr/rendered_force`` = a DFR shadow renderer if recorded) against ``/slave/force``
-  time-aligned by the link delay, in normal and outage intervals (MAE, RMSE, max; N);
+  ``/master/dfr/rendered_force`` = a DFR shadow renderer if recorded, ``/master/hand_force`` = the
+  force at the hand) against the reference of `impedance_master.metrics` (the ONE definition the
+  pure experiment uses too): the true, noise-free vessel force for the MASTER's own motion (a twin
+  VesselModel with sim_slave_node's vessel parameters and seed, driven by the recorded
+  ``/master/command`` at t + delay), in normal and outage intervals ([start + delay, start +
+  length + 2 delay)), evaluated from 1.5 s + 2 delay (or the scenario's ``metrics.skip``);
+  MAE, RMSE, max in N. Secondary (``vs_slave``): against ``/slave/force`` at t + delay, which is
+  not the force for the master's motion during an outage and the catch-up after it. Recordings
+  without ``/master/command`` fall back to the slave-force comparison (``reference`` says which);
 - image force estimation: ``/catheter/tip_wrench`` against the true tip force topic (scenario
   ``metrics.truth_topic``) if recorded, or against the slave's load cell otherwise (flagged);
 - per topic: message count, rate, period p50/p99/max and latency (log time - header stamp) p50/p99.
@@ -32,6 +39,7 @@ HAND_FORCE = '/master/hand_force'         # catheter_common.topics.MASTER_HAND_F
 SLAVE_FORCE = '/slave/force'
 TIP_WRENCH = '/catheter/tip_wrench'
 IMPEDANCE = '/master/link/impedance'
+MASTER_COMMAND = '/master/command'
 SLAVE_IMPEDANCE = '/slave/impedance'
 
 
@@ -150,18 +158,55 @@ def _t0(rec: Recording) -> float:
     return min(allt) if allt else 0.0
 
 
+def twin_vessel(scenario: dict):
+    """(VesselParams, seed) of the run's sim_slave_node (scenario parameters over the
+    defaults): what the twin reference of `impedance_master.metrics` is built with."""
+    from sim_slave.vessel import VesselParams
+    params = {}
+    try:
+        from catheter_bringup.scenario import instances, validate_scenario
+        inst = instances(validate_scenario(scenario)).get('sim_slave_node')
+        if inst is not None:
+            params = inst.params
+    except (ValueError, KeyError):
+        params = {}
+    kw = {k[len('vessel.'):]: float(v) for k, v in params.items() if k.startswith('vessel.')}
+    return VesselParams(**kw), int(params.get('seed', scenario.get('seed', 0)) or 0)
+
+
+def _master_reference(rec: Recording, sc: dict, t0: float, delay: float):
+    """(t rel. to t0, reference N) along the recorded master motion, or None."""
+    from impedance_master.metrics import twin_reference
+    vals = rec.values.get(MASTER_COMMAND) or []
+    if not vals:
+        return None
+    tc = rec.t(MASTER_COMMAND) - t0
+    x = np.asarray([v.get('insertion', (math.nan,) * 3)[0] if isinstance(v, dict) else math.nan
+                    for v in vals], dtype=float)
+    xd = np.asarray([v.get('insertion', (math.nan,) * 3)[1] if isinstance(v, dict) else math.nan
+                     for v in vals], dtype=float)
+    ok = np.isfinite(x) & np.isfinite(xd)
+    if not ok.any():
+        return None
+    params, seed = twin_vessel(sc)
+    tc, x, xd = tc[ok], x[ok], xd[ok]
+    return tc, twin_reference(tc, x, xd, delay, params, seed)
+
+
 def analyze(path, skip: Optional[float] = None) -> dict:
     """All metrics of one recording as a JSON-able dict (see the module docstring).
 
     ``skip``: start-up seconds left out of the force metrics (default: the scenario's
-    ``metrics.skip``, else 0.5)."""
+    ``metrics.skip``, else the experiment's 1.5 s + 2 delay)."""
+    from impedance_master.metrics import default_eval_start, tracking_metrics
     rec = Recording(path)
     sc = rec.scenario or {}
-    if skip is None:
-        skip = float((sc.get('metrics') or {}).get('skip', 0.5))
     link = sc.get('link') or {}
     delay = float(link.get('delay', 0.0))
     outages = [tuple(o) for o in link.get('outages', [])]
+    if skip is None:
+        given = (sc.get('metrics') or {}).get('skip')
+        skip = float(given) if given is not None else default_eval_start(delay)
     t0 = _t0(rec)
     out = {'bag': pathlib.Path(path).name, 'skip_s': skip, 'scenario': sc.get('name', rec.meta.get('scenario', '')),
            'status': rec.meta.get('status', 'unknown'), 'reason': rec.meta.get('reason', ''),
@@ -169,13 +214,32 @@ def analyze(path, skip: Optional[float] = None) -> dict:
            'delay_s': delay, 'outages': [list(o) for o in outages],
            'sim_time_reached_s': float(rec.meta.get('sim_time_reached_s', 'nan')),
            'force_tracking': {}, 'estimation': {}, 'streams': {}}
-    if rec.log.get(SLAVE_FORCE):
+    twin = _master_reference(rec, sc, t0, delay)
+    out['reference'] = 'twin' if twin is not None else 'slave_force'
+    if twin is not None:
+        out['reference_max'] = float(np.max(np.abs(twin[1]))) if twin[1].size else float('nan')
+    streams = renderer_streams(sc, rec.topics)
+    if rec.log.get(SLAVE_FORCE) or twin is not None:
         ts, fs = rec.t(SLAVE_FORCE), rec.force(SLAVE_FORCE)
-        for label, topic in renderer_streams(sc, rec.topics).items():
-            out['force_tracking'][label] = M.force_tracking(
-                rec.t(topic), rec.force(topic), ts, fs, delay, outages, t0=t0, skip=skip)
-            out['force_tracking'][label]['topic'] = topic
-        out['slave_force_max'] = float(np.max(np.abs(fs))) if fs.size else float('nan')
+        for label, topic in streams.items():
+            tf, ff = rec.t(topic), rec.force(topic)
+            # secondary: the slave's force at t + delay, in the same intervals
+            shifted = [(a + delay, b + delay) for a, b in outages] if twin is not None \
+                else outages
+            vs_slave = (M.force_tracking(tf, ff, ts, fs, delay, shifted, t0=t0, skip=skip)
+                        if ts.size else None)
+            if twin is not None:
+                tc, ref = twin
+                f = M.align(tc, tf - t0, ff) if tf.size else np.full(tc.shape, np.nan)
+                res = tracking_metrics(tc, f, ref, outages, delay, t_eval0=skip)
+                if vs_slave is not None:
+                    res['vs_slave'] = vs_slave
+            else:
+                res = vs_slave
+            res['topic'] = topic
+            out['force_tracking'][label] = res
+        if fs.size:
+            out['slave_force_max'] = float(np.max(np.abs(fs)))
     if rec.log.get(TIP_WRENCH):
         truth = (sc.get('metrics') or {}).get('truth_topic')
         ref_topic = truth if truth and rec.log.get(truth) else SLAVE_FORCE
@@ -218,9 +282,19 @@ def format_report(res: dict) -> str:
              f"simulated {res['sim_time_reached_s']:.2f} s", '']
     ft = res.get('force_tracking') or {}
     if ft:
-        lines += ['Force tracking at the master (rendered force vs slave force t + delay), N',
-                  f"{'renderer':<14} {'interval':<8} {'MAE':>8} {'RMSE':>8} {'max':>8} "
-                  f"{'thesis MAE':>11} {'thesis max':>11} {'n':>7}"]
+        twin = res.get('reference') == 'twin'
+        if twin:
+            lines += ['Force tracking at the master, N: rendered force - true vessel force for '
+                      "the master's own motion",
+                      f"(twin vessel driven by /master/command at t + delay; outage = [start + d, "
+                      f"start + length + 2 d); from t = {res['skip_s']:.2f} s; "
+                      "'vs slave' = MAE against /slave/force at t + delay)"]
+        else:
+            lines += ['Force tracking at the master (rendered force vs slave force t + delay; '
+                      '/master/command not recorded), N']
+        lines.append(f"{'renderer':<14} {'interval':<8} {'MAE':>8} {'RMSE':>8} {'max':>8} "
+                     f"{'thesis MAE':>11} {'thesis max':>11} {'n':>7}"
+                     + (f" {'vs slave':>9}" if twin else ''))
         ref = {('ima', 'normal'): (th['ima_mae_normal'], th['ima_max']),
                ('ima', 'outage'): (th['ima_mae_outage'], th['ima_max']),
                ('ima', 'all'): (th['ima_mae'], th['ima_max']),
@@ -234,8 +308,10 @@ def format_report(res: dict) -> str:
             for iv in ('normal', 'outage', 'all'):
                 s = ft[label][iv]
                 tm, tx = ref.get((label.replace('hand_', ''), iv), (None, None))
+                vs = ((ft[label].get('vs_slave') or {}).get(iv) or {}).get('mae')
                 lines.append(f"{label:<14} {iv:<8} {_f(s['mae']):>8} {_f(s['rmse']):>8} "
-                             f"{_f(s['max']):>8} {_f(tm):>11} {_f(tx):>11} {s['n']:>7}")
+                             f"{_f(s['max']):>8} {_f(tm):>11} {_f(tx):>11} {s['n']:>7}"
+                             + (f" {_f(vs):>9}" if twin else ''))
         lines.append('')
     est = res.get('estimation') or {}
     if est:
