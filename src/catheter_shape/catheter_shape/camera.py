@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 
 __all__ = ['SyntheticCamera', 'SyntheticFrame', 'make_psi', 'psi_to_pixels', 'pixels_to_metres',
-           'BLAZER_DIAMETER']
+           'BLAZER_DIAMETER', 'SYSTEM_CAMERA', 'system_psi']
 
 #: Blazer II-XP outer diameter, 7 Fr, m
 BLAZER_DIAMETER = 7.0 / 3.0 * 1e-3
@@ -54,6 +54,21 @@ def make_psi(mm_per_px: float, base_px, angle: float = 0.0) -> np.ndarray:
     psi[0, 3] = -s * ex @ b
     psi[1, 3] = -s * ey @ b
     return psi
+
+
+#: THE calibration of the system's camera, defined once: the simulated fluoroscope of
+#: sim_slave's camera_node (its defaults) and shape_node's default psi/base_px, i.e. the force
+#: estimator's training camera (force_estimator.dataset.TRAIN_CAMERA holds the same numbers
+#: and fingerprints them in its model files). 800 x 800 px at 0.15 mm/px, the clamp
+#: (catheter_base origin) at pixel (u, v) = (260, 400), +x to the right: every Blazer shape
+#: with a tip force up to 0.3 N stays in view.
+SYSTEM_CAMERA = dict(width=800, height=800, mm_per_px=0.15, base_px=(260.0, 400.0), angle=0.0)
+
+
+def system_psi() -> np.ndarray:
+    """The 3x4 calibration matrix (Eq. 1) of `SYSTEM_CAMERA` (a fresh array)."""
+    c = SYSTEM_CAMERA
+    return make_psi(c['mm_per_px'], c['base_px'], c['angle'])
 
 
 def _check_psi(psi) -> np.ndarray:

@@ -30,12 +30,14 @@ from sensor_msgs.msg import Image
 from catheter_common import topics as T
 from catheter_common.ros_node import Diagnostics, declare, run_node, wall_time
 from catheter_shape.bezier import bezier_derivative, bezier_eval
-from catheter_shape.camera import make_psi
+from catheter_shape.camera import SYSTEM_CAMERA, system_psi
 from catheter_shape.segmentation import METHODS
 from catheter_shape.sensor import STATUSES, ShapeSensor
 
-#: default calibration: the default SyntheticCamera (640x480, 0.15 mm/px, base at (51.2, 240))
-DEFAULT_PSI = [float(x) for x in make_psi(0.15, (0.08 * 640, 240.0)).reshape(-1)]
+#: default calibration: the system camera (catheter_shape.camera.SYSTEM_CAMERA, the one
+#: definition sim_slave's camera_node draws with: 800x800, 0.15 mm/px, clamp at (260, 400))
+DEFAULT_PSI = [float(x) for x in system_psi().reshape(-1)]
+DEFAULT_BASE_PX = [float(b) for b in SYSTEM_CAMERA['base_px']]
 
 _CHANNELS = {'mono8': 1, '8UC1': 1, 'bgr8': 3, 'rgb8': 3, 'bgra8': 4, 'rgba8': 4, '8UC3': 3}
 
@@ -182,9 +184,10 @@ class ShapeNode(Node):
         threshold = declare(self, 'threshold', 132,
                             'grey threshold (8 bit): the catheter is darker than this after '
                             'background removal (thesis: 132)', 1, 255)
-        base_px = self._declare_array('base_px', [-1, -1],
+        base_px = self._declare_array('base_px', DEFAULT_BASE_PX,
                                       'pixel (u, v) of the clamp / catheter base (ints or '
-                                      'doubles); [-1, -1] = unknown (the base is the centreline '
+                                      'doubles; default: the system camera\'s, with the default '
+                                      'psi); [-1, -1] = unknown (the base is the centreline '
                                       'end nearest the image border)')
         bg_file = declare(self, 'background_file', '',
                           'optional PNG of the scene without the catheter (background removal)')

@@ -8,7 +8,8 @@ pointing along ``force_angle`` in catheter_base (within the thesis's training ra
 [0, pi]). FAM (fam_solver.solve_fam, warm-started from the previous frame) gives the shape;
 catheter_shape.SyntheticCamera draws it.
 
-No rclpy. fam_solver and catheter_shape are imported when a TipCamera is made.
+No rclpy. fam_solver and the synthetic camera are imported when a TipCamera is made (the
+calibration constant SYSTEM_CAMERA comes from catheter_shape.camera at import).
 """
 from __future__ import annotations
 
@@ -17,13 +18,15 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
+from catheter_shape.camera import SYSTEM_CAMERA
 from sim_slave._check import finite, positive, seed as check_seed
 from sim_slave.vessel import VesselModel, VesselParams
 
 #: the force estimator's training camera (force_estimator.dataset.TRAIN_CAMERA): 800 x 800 at
 #: 0.15 mm/pixel, the clamp at pixel (260, 400), +x to the right; every Blazer shape with a tip
 #: force up to 0.3 N stays in view. The shape node needs the same calibration (see `psi`).
-DEFAULT_CAMERA = dict(width=800, height=800, mm_per_px=0.15, base_px=(260.0, 400.0), angle=0.0)
+#: Defined once, in catheter_shape.camera.SYSTEM_CAMERA (shape_node's default calibration).
+DEFAULT_CAMERA = dict(SYSTEM_CAMERA)
 BLAZER_LENGTH = 0.065       # m
 BLAZER_EI = 6.0e-5          # N m^2
 
