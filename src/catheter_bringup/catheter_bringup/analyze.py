@@ -256,6 +256,8 @@ def analyze(path, skip: Optional[float] = None) -> dict:
             mag_e = np.hypot(fe[:, 0], fe[:, 1])
             mag_r = M.align(te, tr[order], np.hypot(fr[order, 0], fr[order, 1]))
             est['magnitude'] = M.error_stats(mag_e - mag_r)
+            est['reference_max'] = float(np.max(np.hypot(fr[:, 0], fr[:, 1]))) if len(fr) \
+                else float('nan')
             est['reference'] = ref_topic
             est['reference_is_truth'] = ref_topic != SLAVE_FORCE
             out['estimation'] = est
@@ -312,12 +314,23 @@ def format_report(res: dict) -> str:
                 lines.append(f"{label:<14} {iv:<8} {_f(s['mae']):>8} {_f(s['rmse']):>8} "
                              f"{_f(s['max']):>8} {_f(tm):>11} {_f(tx):>11} {s['n']:>7}"
                              + (f" {_f(vs):>9}" if twin else ''))
+        ima = next((k for k in ('ima', 'ima_thesis') if k in ft), None)
+        if ima and 'dfr' in ft:
+            parts = []
+            for iv in ('normal', 'outage'):
+                a, b = ft[ima][iv]['mae'], ft['dfr'][iv]['mae']
+                ok = a is not None and b is not None and math.isfinite(a) and math.isfinite(b) \
+                    and b > 0
+                parts.append(f"{iv} {_f(a)} vs {_f(b)} N" + (f" ({a / b:.2f}x)" if ok else ''))
+            lines.append(f'{ima} vs dfr MAE: ' + ', '.join(parts) + '   (thesis: IMA 0.052 / '
+                         '0.041 N, DFR 0.061 / 0.171 N)')
         lines.append('')
     est = res.get('estimation') or {}
     if est:
         what = 'true tip force' if est.get('reference_is_truth') else \
             'slave load cell (no true tip force recorded)'
-        lines += [f'Image-based tip force estimate (/catheter/tip_wrench) vs {what}, N',
+        lines += [f'Image-based tip force estimate (/catheter/tip_wrench) vs {what}, N '
+                  f"(reference up to {_f(est.get('reference_max'))} N)",
                   f"{'component':<10} {'MAE':>8} {'RMSE':>8} {'max':>8} {'n':>6}   thesis "
                   f"ex-vivo MAE: SVR {th['svr_mae']}, MLP {th['mlp_mae']}"]
         for ax in ('x', 'y', 'magnitude'):

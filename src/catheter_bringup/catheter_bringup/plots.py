@@ -2,8 +2,10 @@
 
     python -m catheter_bringup.plots bags/experiment_ii.mcap [--out out/]
 
-- ``<name>_tracking.png`` (Fig. 24/25 a-b): insertion length and velocity at the slave; each
-  renderer's force against the slave force time-aligned by the link delay; outages shaded.
+- ``<name>_tracking.png`` (Fig. 24/25 a-b): insertion length and velocity at the slave (and the
+  master's insertion); each renderer's force against the reference of analyze /
+  impedance_master.metrics (true vessel force for the master's motion at t + delay; the slave
+  force at t + delay in grey); the outage intervals [start + d, start + length + 2 d) shaded.
 - ``<name>_impedance.png`` (Fig. 25 c): the impedance coefficients m, c, k delivered at the master.
 - ``<name>_errors.png`` (Fig. 24 c, 25 d): tracking error over time and its distribution per
   renderer, normal and outage intervals.
@@ -35,6 +37,16 @@ def _shade(ax, outages, t0=0.0):
         ax.axvspan(t0 + a, t0 + a + length, color='0.85', zorder=0, lw=0)
 
 
+def _reference(rec, sc, t0, delay, tm, ts, fs):
+    """The metric's reference at the times tm (rel. to t0): the twin-vessel force along the
+    master's motion if /master/command is recorded, else the slave force at t + delay."""
+    from catheter_bringup.analyze import _master_reference
+    twin = _master_reference(rec, sc, t0, delay)
+    if twin is None:
+        return M.align(tm, ts, fs, shift=delay), f'slave force (t + {delay * 1e3:.0f} ms)'
+    return M.align(tm, twin[0], twin[1]), "true force for the master's motion"
+
+
 def run_plots(path, out_dir='out', name: Optional[str] = None) -> List[str]:
     """Write the run's PNGs into ``out_dir``; returns their paths."""
     from catheter_bringup.analyze import SLAVE_FORCE, Recording, _t0, renderer_streams
@@ -47,6 +59,8 @@ def run_plots(path, out_dir='out', name: Optional[str] = None) -> List[str]:
     delay = float((sc.get('link') or {}).get('delay', 0.0))
     outages = [tuple(o) for o in (sc.get('link') or {}).get('outages', [])]
     t0 = _t0(rec)
+    # the outage intervals of the metric: feedback missing or stale
+    shaded = [(a + delay, b + delay) for a, b in outages]
     files = []
     streams = renderer_streams(sc, rec.topics)
     if not rec.log.get(SLAVE_FORCE):
@@ -67,18 +81,24 @@ def run_plots(path, out_dir='out', name: Optional[str] = None) -> List[str]:
                  label='velocity (mm/s)')
         ax.set_ylabel('insertion, mm')
         ax2.set_ylabel('velocity, mm/s', color='tab:blue')
-        ax.set_title(f'{name}: slave insertion (a)')
+        if rec.log.get('/master/command'):
+            ax.plot(rec.t('/master/command') - t0, rec.named('/master/command', 'insertion', 0)
+                    * 1e3, color='tab:green', lw=0.8, ls='--', label='master insertion (mm)')
+        ax.legend(loc='lower center', fontsize=7)
+        ax.set_title(f'{name}: slave insertion (a), link outages shaded')
         _shade(ax, outages)
     for ax, (label, topic) in zip(axes[1:], sorted(streams.items())):
         tm = rec.t(topic) - t0
         fm = rec.force(topic)
-        ref = M.align(tm, ts, fs, shift=delay)
-        _shade(ax, outages)
-        ax.plot(tm, ref, 'k', lw=1, label=f'slave force (t + {delay * 1e3:.0f} ms)')
+        ref, what = _reference(rec, sc, t0, delay, tm, ts, fs)
+        _shade(ax, shaded)
+        ax.plot(tm, M.align(tm, ts, fs, shift=delay), color='0.6', lw=0.6,
+                label=f'slave force (t + {delay * 1e3:.0f} ms)')
+        ax.plot(tm, ref, 'k', lw=1, label=what)
         ax.plot(tm, fm, 'tab:red', lw=0.8, label=f'{label} ({topic})')
         ax.set_ylabel('force, N')
         ax.legend(loc='upper left', fontsize=7)
-        ax.set_title(f'{label}: rendered force vs slave force (outages shaded)', fontsize=9)
+        ax.set_title(f'{label}: rendered force vs {what} (outage intervals shaded)', fontsize=9)
     axes[-1].set_xlabel('time, s')
     fig.tight_layout()
     p = out / f'{name}_tracking.png'
@@ -105,12 +125,14 @@ def run_plots(path, out_dir='out', name: Optional[str] = None) -> List[str]:
 
     # errors over time and distribution (Figs. 24c, 25d)
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 3.6), gridspec_kw={'width_ratios': [2, 1]})
-    _shade(ax1, outages)
+    _shade(ax1, shaded)
+    what = ''
     for label, topic in sorted(streams.items()):
         if label.startswith('hand_'):
             continue
         tm = rec.t(topic) - t0
-        err = rec.force(topic) - M.align(tm, ts, fs, shift=delay)
+        ref, what = _reference(rec, sc, t0, delay, tm, ts, fs)
+        err = rec.force(topic) - ref
         ax1.plot(tm, err, lw=0.8, label=label)
         e = err[np.isfinite(err)]
         if e.size:
@@ -118,7 +140,7 @@ def run_plots(path, out_dir='out', name: Optional[str] = None) -> List[str]:
     ax1.set_xlabel('time, s')
     ax1.set_ylabel('tracking error, N')
     ax1.legend(fontsize=8)
-    ax1.set_title(f'{name}: force tracking error (outages shaded)', fontsize=9)
+    ax1.set_title(f'{name}: rendered force - {what} (outage intervals shaded)', fontsize=9)
     ax2.set_xlabel('error, N')
     ax2.set_title('error distribution', fontsize=9)
     ax2.legend(fontsize=8)
