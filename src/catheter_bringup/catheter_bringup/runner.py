@@ -38,6 +38,13 @@ from catheter_common import topics as T
 from catheter_common.ros_node import declare, make_executor
 
 RUNNER_NODE = 'run_scenario'
+#: bytes, MCAP chunk size of real-time recordings (lockstep: 1 MB)
+REALTIME_CHUNK = 64 * 1024
+#: ns, real time with the local bus: how often DDS is polled for subscriptions outside the bus
+#: (the image worker's 30 Hz topics). One poll builds an rclpy wait set, 0.3-1.4 ms measured:
+#: every 2 ms that was the largest avoidable cost per 1 kHz tick; every 10 ms keeps up with
+#: 30 Hz streams (adds at most 10 ms to their delivery)
+EXTERNAL_SPIN_NS = 10_000_000
 
 
 @dataclasses.dataclass
@@ -431,7 +438,10 @@ class ScenarioRunner:
             if lockstep:
                 self._drive_clock_of(node)
         if self.bag:
-            self.recorder = McapRecorder(self.bag)
+            # real time: small chunks, so compressing one (inside a write, in the loop's thread)
+            # takes a fraction of a 1 ms period; 1 MB chunks took up to 6 ms (measured)
+            self.recorder = McapRecorder(self.bag, chunk_size=REALTIME_CHUNK if not lockstep
+                                         else 1 << 20)
             self.sink = RecordingSink(self.runner_node, self.recorder,
                                       exclude=sc['record']['exclude'],
                                       only=sc['record'].get('only') or None)
@@ -761,7 +771,7 @@ class ScenarioRunner:
             self._drain_bus(100000)
             if self.bus.external and now >= next_spin:
                 self._spin_external()
-                next_spin = now + 2_000_000
+                next_spin = now + EXTERNAL_SPIN_NS
             el = (clock.now().nanoseconds - start) * 1e-9
             self._sim_reached = min(el, sc['duration'])
             if now >= next_scan:
