@@ -45,6 +45,8 @@ REALTIME_CHUNK = 64 * 1024
 #: every 2 ms that was the largest avoidable cost per 1 kHz tick; every 10 ms keeps up with
 #: 30 Hz streams (adds at most 10 ms to their delivery)
 EXTERNAL_SPIN_NS = 10_000_000
+#: ns, the least time to the next due timer for a DDS poll to start (a poll takes ~0.7 ms)
+SPIN_SLACK_NS = 800_000
 
 
 @dataclasses.dataclass
@@ -618,7 +620,11 @@ class ScenarioRunner:
                         left = None
                     due[id(tmr)] = now + left if left is not None else 2 ** 62
         self._steps_since_spin += 1
-        if self._steps_since_spin >= 100:
+        # lockstep: every 100 steps; real time: every 1000 (one poll builds an rclpy wait set,
+        # ~0.6 ms: every 100th 1 kHz period late by that was the p99 period), and not at all
+        # when _spin_external polls the same executor anyway
+        every = 100 if cache else (10 ** 9 if bus.external else 1000)
+        if self._steps_since_spin >= every:
             self._steps_since_spin = 0
             for _ in range(20):
                 try:
@@ -770,8 +776,12 @@ class ScenarioRunner:
                 raise KeyboardInterrupt
             self._drain_bus(100000)
             if self.bus.external and now >= next_spin:
-                self._spin_external()
-                next_spin = now + EXTERNAL_SPIN_NS
+                # poll DDS in the idle gap before the next timer, not across it (unless overdue)
+                slack = min((t.time_until_next_call() or 0 for t in self._timers
+                             if not t.is_canceled()), default=1_000_000)
+                if slack >= SPIN_SLACK_NS or now >= next_spin + 5 * EXTERNAL_SPIN_NS:
+                    self._spin_external()
+                    next_spin = now + EXTERNAL_SPIN_NS
             el = (clock.now().nanoseconds - start) * 1e-9
             self._sim_reached = min(el, sc['duration'])
             if now >= next_scan:
