@@ -184,7 +184,10 @@ def image_latency(duration):
     ctx = Context()
     rclpy.init(context=ctx)
     try:
-        shape = Shape(context=ctx)
+        # a 640x480 camera: its calibration, not shape_node's default (the 800x800 system camera)
+        shape = Shape(context=ctx, parameter_overrides=[
+            Parameter('psi', value=[float(v) for v in cam.psi.reshape(-1)]),
+            Parameter('base_px', value=[float(v) for v in cam.base_px])])
         est = Est(context=ctx, parameter_overrides=[Parameter('method', value='fam')])
     except Exception as exc:  # noqa: BLE001
         note('image -> tip force latency', f'not measured ({type(exc).__name__}: {exc})')
