@@ -119,3 +119,51 @@ def test_error_stats_invariants(errs):
     s = M.error_stats(np.asarray(errs))
     assert s['mae'] <= s['rmse'] + 1e-12 <= s['max'] + 2e-12
     assert s['n'] == len(errs)
+
+
+def test_force_error_uses_the_twin_reference_of_the_master_motion(tmp_path):
+    """With /master/command recorded, the reference is impedance_master.metrics' twin vessel
+    (sim_slave_node's seed and vessel parameters from the scenario) along the master's motion
+    at t + delay, and the outage intervals are [start + d, start + length + 2 d)."""
+    from sensor_msgs.msg import JointState
+    from impedance_master.metrics import twin_reference
+    from sim_slave.vessel import VesselParams
+    delay, seed = 0.2, 5
+    sc = {'name': 'twin', 'seed': seed, 'link': {'delay': delay, 'outages': [[1.0, 0.5]]},
+          'nodes': {'ima_master_node': {'params': {'mode': 'ima'}},
+                    'sim_slave_node': {'params': {'vessel.friction_per_length': 4.0}}},
+          'metrics': {'skip': 0.0}}
+    n = 3000
+    t = np.arange(n) * 1e-3
+    x = 0.03 + 0.01 * np.sin(2.0 * t)
+    xd = 0.02 * np.cos(2.0 * t)
+    ref = twin_reference(t, x, xd, delay, VesselParams(friction_per_length=4.0), seed)
+    outage = (t >= 1.2) & (t < 1.9)
+    err = np.where(outage, 0.05, 0.01) * np.where(np.arange(n) % 2, 1.0, -1.0)
+    rec = McapRecorder(tmp_path / 't.mcap')
+    rec.add_topic('/slave/force', 'geometry_msgs/msg/WrenchStamped')
+    rec.add_topic('/master/rendered_force', 'geometry_msgs/msg/WrenchStamped')
+    rec.add_topic('/master/command', 'sensor_msgs/msg/JointState')
+    t0 = 100.0            # the experiment clock starts at the slave's first message
+    for k in range(n):
+        ns = int(round((t0 + t[k]) * 1e9))
+        js = JointState()
+        js.name = ['insertion', 'rotation']
+        js.position, js.velocity, js.effort = [x[k], 0.0], [xd[k], 0.0], [0.0, 0.0]
+        rec.write('/master/command', serialize_message(js), ns)
+        rec.write('/slave/force', serialize_message(_wrench(0.0, t0 + t[k])), ns)
+        rec.write('/master/rendered_force',
+                  serialize_message(_wrench(ref[k] + err[k], t0 + t[k])), ns)
+    rec.close('complete', extra={'scenario_yaml': yaml.safe_dump(sc), 'mode': 'lockstep',
+                                 'sim_time_reached_s': 3.0})
+    res = analyze(tmp_path / 't.mcap')
+    assert res['reference'] == 'twin'
+    ft = res['force_tracking']['ima']
+    assert ft['outage']['n'] == 700 and ft['normal']['n'] == n - 700
+    assert ft['outage']['mae'] == pytest.approx(0.05, abs=1e-9)
+    assert ft['normal']['mae'] == pytest.approx(0.01, abs=1e-9)
+    assert ft['all']['max'] == pytest.approx(0.05, abs=1e-9)
+    # the default vessel (wrong parameters) would not reproduce the reference
+    wrong = twin_reference(t, x, xd, delay, VesselParams(), seed)
+    assert np.max(np.abs(wrong - ref)) > 0.01
+    assert 'vs slave' in format_report(res)
