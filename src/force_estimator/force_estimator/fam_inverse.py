@@ -159,10 +159,21 @@ class FamInverseEstimator:
         self._a = a
         return obs
 
-    def _table_start(self, obs: np.ndarray) -> np.ndarray:
+    def _table_starts(self, obs: np.ndarray, k: int = 3) -> list:
+        """Up to k start forces: the nearest table shape in each force quadrant (sign of fx,
+        fy), nearest first. Slightly bent shapes look alike under a push and a pull, so
+        the search may start on the wrong side; the next quadrant is the fallback."""
         idx = np.rint(self._frac * 64).astype(int)
         d = ((self._table_pts[:, idx] - obs) ** 2).sum(axis=(1, 2))
-        return self._table_f[int(np.argmin(d))].copy()
+        quad = (self._table_f[:, 0] >= 0).astype(int) * 2 + (self._table_f[:, 1] >= 0)
+        best = []
+        for q in range(4):
+            sel = np.flatnonzero(quad == q)
+            if sel.size:
+                i = sel[np.argmin(d[sel])]
+                best.append((d[i], i))
+        best.sort()
+        return [self._table_f[i].copy() for _, i in best[:k]]
 
     def _eval(self, x: np.ndarray, obs: np.ndarray):
         """Residual, Jacobian and cost at x = (fx, fy, delta, eps).
@@ -270,13 +281,12 @@ class FamInverseEstimator:
         obs = self.observed_points(control_points)
         starts = []
         if self._last is not None:
-            starts.append(self._last)
-        starts.append(None)
+            starts.append(('warm', self._last))
+        starts += [('table', f) for f in self._table_starts(obs)]
         best = None
         total = 0
-        for f0 in starts:
-            if f0 is None:
-                f0 = self._table_start(obs)
+        for kind, f0 in starts:
+            if kind == 'table':
                 self._prev_shape = None        # a far warm start could pick another branch
             x, cost, it, solves, conv = self._solve(obs, f0)
             total += solves
