@@ -260,3 +260,18 @@ def test_warm_start_gives_the_same_equilibrium():
     assert np.max(np.abs(warm.tip - cold.tip)) < 1e-12
     with pytest.raises(ValueError, match='initial'):
         solve_fam(cat, Loads(tip_force=(0.1, 3.1)), initial=np.zeros(5))
+
+
+@pytest.mark.parametrize('fy', [2.2250738585e-313, 1e-320, 1e-300])
+def test_denormal_lateral_load_past_buckling_is_finite(fy):
+    """Regression (found by hypothesis): compression past buckling with a denormal lateral load
+    overflowed the start's rescale (target / |theta_lin| = inf) and returned a NaN tip marked
+    converged. The lateral imperfection, however small, picks the buckled branch on its side."""
+    cat = Catheter(0.04, 7.5e-4)
+    fx = -8 * cat.ei / cat.length ** 2                 # F L^2 / EI = 8, past pi^2 / 4
+    for solve in (lambda: solve_fam(cat, Loads(tip_force=(fx, fy))),
+                  lambda: solve_fam_batch(cat, [[fx, fy]], [0.0])):
+        sh = solve()
+        tip = np.asarray(sh.tip if hasattr(sh, 'tip') else sh.tips[0])
+        assert np.all(np.isfinite(tip))
+        assert tip[1] >= 0.0                           # never on the side opposite the load

@@ -402,8 +402,11 @@ def _linear_guess(prob: _Problem):
         L = prob.l * N
         a_ax = np.maximum(0.0, -np.cos(beta)) * np.abs(prob.tip_force) * L * prob.w / prob.l * L / 2
         target = np.where(same, ab * -np.expm1(-(ath + a_ax) / ab), target)
-    scale = np.where(ath > 0, target / np.where(ath > 0, ath, 1.0), 1.0)
-    return lin, th, lin * scale[:, None]
+    # (lin / ath) * target, not lin * (target / ath): with a denormal lateral load the ratio
+    # target / ath overflows to inf, while lin / ath stays a finite direction
+    safe = np.where(ath > 0, ath, 1.0)
+    start = np.where((ath > 0)[:, None], lin / safe[:, None] * target[:, None], lin)
+    return lin, th, start
 
 
 def _accept(prob: _Problem, phi, conv, th_lin, fac=None):
@@ -819,9 +822,9 @@ def _fast_solve(n, L, EI, F, m, follower, initial=None):
         if not follower and m == 0.0 and beta != 0.0 and (beta > 0) == (th_lin > 0):
             a_ax = max(0.0, -math.cos(beta)) * abs(F) * L * L / EI / 2
             target = abs(beta) * -math.expm1(-(ath + a_ax) / abs(beta))
-        phi0 = lin * (target / ath) if ath > 0 else lin
+        phi0 = (lin / ath) * target if ath > 0 else lin   # not target / ath: overflows for denormal loads
     phi, conv, it, res, tip, J = _fast_tip_newton(n, l, w, F, m, follower, phi0, 12)
-    if not conv:
+    if not conv or not (np.all(np.isfinite(phi)) and math.isfinite(tip.real) and math.isfinite(tip.imag)):
         return None
     th = float(phi.sum())
     if not np.any(phi):
