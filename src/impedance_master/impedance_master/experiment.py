@@ -34,7 +34,7 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from impedance_master._check import finite, nonneg, positive
+from catheter_common.checks import finite, nonneg, positive
 from impedance_master.haptic import DeviceParams, HapticDevice
 from impedance_master.identification import SlidingWindowIdentifier, make_identifier
 from impedance_master.metrics import (default_eval_start, error_stats, outage_mask,

@@ -24,7 +24,7 @@ import random
 from dataclasses import dataclass, fields
 from typing import Optional
 
-from impedance_master._check import finite, nonneg, positive, seed as check_seed
+from catheter_common.checks import finite, nonneg, positive, seed as check_seed
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from typing import Optional
 
 import numpy as np
 
-from impedance_master._check import finite, nonneg, positive
+from catheter_common.checks import finite, nonneg, positive
 from impedance_master.impedance import FrictionState, Impedance
 
 

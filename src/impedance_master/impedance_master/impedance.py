@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 from typing import Dict, Optional, Sequence
 
-from impedance_master._check import finite, nonneg, positive
+from catheter_common.checks import finite, nonneg, positive
 
 #: names that always come first on the wire (same tuple as catheter_common.topics)
 BASE_FIELDS = ('m', 'c', 'k', 'offset', 'valid')

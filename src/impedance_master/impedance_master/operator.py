@@ -17,7 +17,7 @@ from typing import List, Tuple
 
 import numpy as np
 
-from impedance_master._check import finite, positive, seed as check_seed
+from catheter_common.checks import finite, positive, seed as check_seed
 
 X_MAX = 0.056        # m, thesis maximum insertion
 V_MAX = 0.0413       # m/s, thesis maximum insertion speed

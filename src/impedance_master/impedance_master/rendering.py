@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from typing import Optional
 
-from impedance_master._check import finite, nonneg, positive
+from catheter_common.checks import finite, nonneg, positive
 from impedance_master.impedance import FrictionState, Impedance
 
 

@@ -19,7 +19,7 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from catheter_shape.camera import SYSTEM_CAMERA
-from sim_slave._check import finite, positive, seed as check_seed
+from catheter_common.checks import finite, positive, seed as check_seed
 from sim_slave.vessel import VesselModel, VesselParams
 
 #: the force estimator's training camera (force_estimator.dataset.TRAIN_CAMERA): 800 x 800 at

@@ -17,7 +17,7 @@ import random
 from dataclasses import asdict, dataclass
 from typing import Any, List, Optional, Tuple
 
-from sim_slave._check import finite, nonneg, probability, seed as check_seed
+from catheter_common.checks import finite, nonneg, probability, seed as check_seed
 
 
 #: s; a packet due within this of the receive time counts as arrived, so that a delay of

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Optional, Tuple
 
-from sim_slave._check import finite, nonneg, positive
+from catheter_common.checks import finite, nonneg, positive
 
 
 class SlaveRobot:

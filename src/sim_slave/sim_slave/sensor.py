@@ -6,7 +6,7 @@ import math
 import random
 from typing import Optional
 
-from sim_slave._check import finite, nonneg, seed as check_seed
+from catheter_common.checks import finite, nonneg, seed as check_seed
 
 
 class ForceSensor:

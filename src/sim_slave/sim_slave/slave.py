@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple, Optional, Tuple
 
-from sim_slave._check import finite
+from catheter_common.checks import finite
 from sim_slave.robot import SlaveRobot
 from sim_slave.sensor import ForceSensor
 from sim_slave.vessel import VesselModel

@@ -31,7 +31,7 @@ import random
 from dataclasses import asdict, dataclass, fields
 from typing import NamedTuple, Optional
 
-from sim_slave._check import finite, nonneg, positive, seed as check_seed
+from catheter_common.checks import finite, nonneg, positive, seed as check_seed
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,5 @@
-"""Argument checks shared by the core modules: ValueError naming the argument, never a NaN."""
+"""Argument checks shared by the core (algorithm) modules of every package: ValueError naming
+the argument, never a NaN. Pure Python: no rclpy, so core modules may import it."""
 from __future__ import annotations
 
 import math
