@@ -71,7 +71,7 @@ class BezierModel:
 
     def residual(self, phi, loads, m):
         prob = self.prob
-        l, EI = prob.l, prob.l / prob.w
+        l, EI = prob.l, prob.EI          # l: arc lengths (N,)
         B, N = phi.shape
         th_end = np.cumsum(phi, axis=1)
         th_start = th_end - phi
@@ -119,7 +119,7 @@ class BezierModel:
                 pk = P_end[:, a]
             else:
                 gt = arc_funcs(phi[:, a] * tau)[0]
-                pk = P_end[:, a] - d[:, a] + l * E[:, a] * tau * gt
+                pk = P_end[:, a] - d[:, a] + l[..., a] * E[:, a] * tau * gt
             if full_upto >= 0:
                 sl = slice(0, full_upto + 1)
                 M_end[:, sl] += ((np.conj(pk[:, None] - P_end[:, sl])) * F[:, None]).imag

@@ -72,13 +72,15 @@ from typing import Sequence
 import numpy as np
 
 from .arcs import arc_funcs
-from .model import BatchShape, Catheter, Loads, Shape, arc_shape
+from .model import SPACINGS, BatchShape, Catheter, Loads, Shape, arc_shape, uniform_fractions
 
 ARC_MODELS = ('exact', 'bezier')
 #: The default arc model. Both models miss the 0.1 % L target at N = 12 by the same
 #: margin (both are second order: 0.17-0.20 % L at F L^2/EI = 21) and are equally accurate
 #: (within 2 %); 'exact' is ~10x faster (N = 12: ~0.13 ms vs ~2 ms), so it is the default.
 DEFAULT_ARC_MODEL = 'exact'
+#: The default arc spacing (see ``model.arc_fractions``).
+DEFAULT_SPACING = 'graded'
 DENSE_MAX_N = 64
 MAX_N = 100_000
 
@@ -172,7 +174,8 @@ def _dense_jacobian(w, fac):
     lower, diag, eye = _masks(N)
     D = np.where(lower, A[:, :, None], C[:, None, :] + e[:, :, None])
     D[:, diag] = Bd
-    J = eye - w * D
+    w = np.asarray(w, dtype=float)
+    J = eye - (w[..., :, None] if w.ndim else w) * D    # row i scaled by w_i = l_i / EI
     return J
 
 
@@ -188,11 +191,13 @@ def _structured_solve(w, fac, rhs):
     S[:, 2] = 1.0
     X = np.zeros((B, N, 3))
     R = np.zeros((B, 3))
+    w = np.broadcast_to(np.asarray(w, dtype=float), (B, N))
     for i in range(N):
-        wi = w
+        wi = w[:, i]
         gam = 1.0 - wi * Bd[:, i] + wi * C[:, i] + wi * e[:, i]
         R[:, 0] = rhs[:, i]
-        xi = (R + wi * A[:, i, None] * P + wi * U + wi * e[:, i, None] * S) / gam[:, None]
+        wc = wi[:, None]
+        xi = (R + wc * A[:, i, None] * P + wc * U + wc * e[:, i, None] * S) / gam[:, None]
         X[:, i] = xi
         P += xi
         U -= C[:, i, None] * xi
@@ -222,10 +227,17 @@ def _newton_step(w, fac, r):
 
 
 class _Problem:
-    """Loads scaled by a continuation factor; builds _Load lists for a given scale."""
+    """Loads scaled by a continuation factor; builds _Load lists for a given scale.
 
-    def __init__(self, n, l, w, tip_force, follower, tip_moment, point_forces):
+    l: arc lengths (N,) m, or (B, N) per case (graded arcs); w = l / EI, same shape;
+    L: catheter length; EI; point_forces: (arc index, fraction inside the arc, complex (B,))
+    (a point force needs arcs common to all cases: l (N,) or B = 1); pf_s: their arc-length
+    fractions of the whole catheter."""
+
+    def __init__(self, n, l, w, tip_force, follower, tip_moment, point_forces, L, EI, pf_s):
         self.n, self.l, self.w = n, l, w
+        self.L, self.EI = L, EI
+        self.pf_s = pf_s
         self.tip_force = tip_force      # complex (B,)
         self.follower = follower
         self.tip_moment = tip_moment    # (B,)
@@ -240,23 +252,33 @@ class _Problem:
         return out, self.tip_moment * scale
 
 
-def _make_problem(n, L, EI, tip_force, follower, tip_moment, point_forces):
-    """Core problem of n equal arcs; point_forces: list of (s fraction, complex (B,))."""
-    l = L / n
+def _make_problem(n, L, EI, tip_force, follower, tip_moment, point_forces, fractions=None):
+    """Core problem of n arcs of lengths L * fractions ((N,) or (B, N); None: equal arcs);
+    point_forces: list of (s fraction, complex (B,)). A point force inside an arc is carried
+    at its fraction tau of that arc (closed form); at an arc end tau = 1."""
+    frac = uniform_fractions(n) if fractions is None else fractions
+    l = L * frac
     w = l / EI
-    pfs = []
+    fr = frac if frac.ndim == 1 else frac[0]          # point forces: B = 1 when per case
+    bounds = np.concatenate([[0.0], np.cumsum(fr)])
+    bounds[-1] = 1.0
+    frac = fr
+    pfs, pf_s = [], []
     for s, F in point_forces:
-        x = s * n
-        a = min(max(int(math.ceil(x - 1e-9)) - 1, 0), n - 1)
-        tau = min(max(x - a, 0.0), 1.0)
+        a = int(np.searchsorted(bounds, s - 1e-9 / n, side='left')) - 1
+        a = min(max(a, 0), n - 1)
+        tau = min(max((s - bounds[a]) / frac[a], 0.0), 1.0)
         if tau >= 1.0 - 1e-9:
             tau = 1.0
         pfs.append((a, tau, F))
-    return _Problem(n, l, w, tip_force, follower, tip_moment, pfs)
+        pf_s.append(s)
+    return _Problem(n, l, w, tip_force, follower, tip_moment, pfs, L, EI, pf_s)
 
 
-def _build_problem(cat: Catheter, n: int, tip_force, follower, tip_moment, point_forces):
-    return _make_problem(n, cat.length, cat.ei, tip_force, follower, tip_moment, point_forces)
+def _build_problem(cat: Catheter, n: int, tip_force, follower, tip_moment, point_forces,
+                   fractions=None):
+    return _make_problem(n, cat.length, cat.ei, tip_force, follower, tip_moment, point_forces,
+                         fractions)
 
 
 def _tol(phi):
@@ -265,8 +287,8 @@ def _tol(phi):
 
 def _alpha(prob: _Problem):
     """Dimensionless load size per case: sum |F| L^2/EI + |m| L/EI, (B,)."""
-    L = prob.l * prob.n
-    EI = prob.l / prob.w
+    L = prob.L
+    EI = prob.EI
     f = np.abs(prob.tip_force)
     for _, _, F in prob.point_forces:
         f = f + np.abs(F)
@@ -275,8 +297,10 @@ def _alpha(prob: _Problem):
 
 def _repeat(prob: _Problem, k):
     rep = lambda x: np.repeat(x, k)  # noqa: E731
-    return _Problem(prob.n, prob.l, prob.w, rep(prob.tip_force), prob.follower,
-                    rep(prob.tip_moment), [(a, t, rep(F)) for a, t, F in prob.point_forces])
+    rl = (lambda x: np.repeat(x, k, axis=0)) if np.ndim(prob.l) == 2 else (lambda x: x)  # noqa: E731
+    return _Problem(prob.n, rl(prob.l), rl(prob.w), rep(prob.tip_force), prob.follower,
+                    rep(prob.tip_moment), [(a, t, rep(F)) for a, t, F in prob.point_forces],
+                    prob.L, prob.EI, prob.pf_s)
 
 
 class _BezierResidual:
@@ -399,8 +423,8 @@ def _linear_guess(prob: _Problem):
         same = (np.sign(beta) == np.sign(th)) & (prob.tip_moment == 0) & (beta != 0)
         ab = np.where(same, np.abs(beta), 1.0)
         # an axial compression past buckling turns the tip further than the linear beam says
-        L = prob.l * N
-        a_ax = np.maximum(0.0, -np.cos(beta)) * np.abs(prob.tip_force) * L * prob.w / prob.l * L / 2
+        L = prob.L
+        a_ax = np.maximum(0.0, -np.cos(beta)) * np.abs(prob.tip_force) * L * L / prob.EI / 2
         target = np.where(same, ab * -np.expm1(-(ath + a_ax) / ab), target)
     # (lin / ath) * target, not lin * (target / ath): with a denormal lateral load the ratio
     # target / ath overflows to inf, while lin / ath stays a finite direction
@@ -448,15 +472,12 @@ def _solve(prob: _Problem, B, arc_model='exact'):
     if N <= DENSE_MAX_N:
         phi0 = guess
     else:
-        L = prob.l * N
-        coarse = _make_problem(COARSE_N, L, prob.l / prob.w, prob.tip_force, prob.follower,
-                               prob.tip_moment, [((a + t) / N, F) for a, t, F in prob.point_forces])
+        coarse = _coarse_problem(prob)
         pc, cc, ic, _, _ = _solve(coarse, B, 'exact')
         iters += ic
         # curvature at the coarse midpoints -> fine arcs (piecewise linear), phi = kappa l
-        sc = (np.arange(COARSE_N) + 0.5) / COARSE_N
-        sf = (np.arange(N) + 0.5) / N
-        phi0 = np.stack([np.interp(sf, sc, pc[b]) for b in range(B)]) * (COARSE_N / N)
+        sc, sf = _midpoints(coarse), _midpoints(prob)
+        phi0 = np.stack([np.interp(sf, sc, pc[b] / coarse.l) for b in range(B)]) * prob.l
     phi, conv, it, res, fac = _newton(prob, phi0, 1.0, 12 if bez is None else 30, bezier=bez)
     iters += it
     ok = _accept(prob, phi, conv, th_lin, fac) if N <= DENSE_MAX_N else conv.copy()
@@ -480,8 +501,23 @@ def _solve(prob: _Problem, B, arc_model='exact'):
 
 
 def _subproblem(prob: _Problem, idx):
-    return _Problem(prob.n, prob.l, prob.w, prob.tip_force[idx], prob.follower,
-                    prob.tip_moment[idx], [(a, t, F[idx]) for a, t, F in prob.point_forces])
+    per_case = np.ndim(prob.l) == 2
+    return _Problem(prob.n, prob.l[idx] if per_case else prob.l, prob.w[idx] if per_case else prob.w,
+                    prob.tip_force[idx], prob.follower,
+                    prob.tip_moment[idx], [(a, t, F[idx]) for a, t, F in prob.point_forces],
+                    prob.L, prob.EI, prob.pf_s)
+
+
+def _coarse_problem(prob: _Problem):
+    """The same loads on COARSE_N equal arcs (start and stability model for N > 64)."""
+    return _make_problem(COARSE_N, prob.L, prob.EI, prob.tip_force, prob.follower, prob.tip_moment,
+                         [(s, F) for s, (_, _, F) in zip(prob.pf_s, prob.point_forces)])
+
+
+def _midpoints(prob: _Problem):
+    """Arc-length fractions (N,) of the arc midpoints (equal arcs)."""
+    c = np.cumsum(prob.l)
+    return (c - 0.5 * prob.l) / prob.L
 
 
 MAX_CONTINUATION_ITERS = 600
@@ -586,12 +622,9 @@ def _stability(prob: _Problem, phi):
     buckling loads differ between the two discretisations by O(1/32^2) only."""
     B, N = phi.shape
     if N > DENSE_MAX_N:
-        L = prob.l * N
-        coarse = _make_problem(COARSE_N, L, prob.l / prob.w, prob.tip_force, prob.follower,
-                               prob.tip_moment, [((a + t) / N, F) for a, t, F in prob.point_forces])
-        sf = (np.arange(N) + 0.5) / N
-        sc = (np.arange(COARSE_N) + 0.5) / COARSE_N
-        phic = np.stack([np.interp(sc, sf, phi[b]) for b in range(B)]) * (N / COARSE_N)
+        coarse = _coarse_problem(prob)
+        sf, sc = _midpoints(prob), _midpoints(coarse)
+        phic = np.stack([np.interp(sc, sf, phi[b] / prob.l) for b in range(B)]) * coarse.l
         return _stability(coarse, phic)
     loads, m = prob.loads(1.0)
     th_end = np.cumsum(phi, axis=1)
@@ -614,7 +647,106 @@ def _stability(prob: _Problem, phi):
     return stable
 
 
-def _check_common(cat, n_arcs, arc_model):
+# ---------------------------------------------------------------------------------------
+# Graded arcs: per-case arc lengths that equidistribute the curvature change.
+# ---------------------------------------------------------------------------------------
+#: monitor exponent p and floor of the grading (see graded_fractions)
+GRADE_POWER = 1.0
+GRADE_FLOOR = 0.2
+
+
+def graded_fractions(phi, tip_force, follower=False, point_forces=()):
+    """Arc lengths (B, N), as fractions of L, for a graded FAM mesh of each case.
+
+    phi: (B, N) arc angles [rad] of the EQUAL-arc solution; tip_force: complex (B,) N (base
+    frame, or tip frame if ``follower``); point_forces: list of (s, complex (B,)) base-fixed.
+
+    The error of a circular arc of length l is its chord's offset from the true curve,
+    -i e^{i theta} kappa' l^3 / 12, with kappa' = dM/ds / EI = -(t x F_distal) / EI (t the
+    tangent, F_distal the resultant of the forces beyond s; a tip moment does not change
+    kappa'). The arcs are placed so that each holds an equal share of the monitor
+    rho = (kappa'^2 + (GRADE_FLOOR kappa'_rms)^2)^(GRADE_POWER / 2), evaluated at the
+    equal-arc solution's midpoints (rho piecewise constant on the equal arcs; the floor keeps
+    every arc within 1/GRADE_FLOOR of the others and the map smooth in the load). Zero kappa'
+    (pure moment, straight catheter) gives equal arcs. Shorter arcs where the curvature
+    changes fastest: near the base for a lateral tip force, toward the tip for a
+    post-buckled compression.
+    """
+    phi = np.asarray(phi, dtype=float)
+    B, N = phi.shape
+    th_end = np.cumsum(phi, axis=1)
+    t = np.exp(1j * (th_end - 0.5 * phi))
+    Fd = np.asarray(tip_force, dtype=complex)[:, None]
+    if follower:
+        Fd = Fd * np.exp(1j * th_end[:, -1:])
+    Fd = np.broadcast_to(Fd, (B, N))
+    if point_forces:
+        mid = (np.arange(N) + 0.5) / N
+        for s, F in point_forces:
+            Fd = Fd + np.where(mid[None, :] < s, np.asarray(F, dtype=complex)[:, None], 0.0)
+    kp = (np.conj(t) * Fd).imag
+    kp2 = kp * kp
+    mx2 = np.max(kp2, axis=1)
+    rho = (kp2 + (GRADE_FLOOR * GRADE_FLOOR) * mx2[:, None]) ** (0.5 * GRADE_POWER)
+    flat = ~(mx2 > 0) | ~np.all(np.isfinite(rho), axis=1)
+    rho[flat] = 1.0
+    C = np.zeros((B, N + 1))
+    np.cumsum(rho, axis=1, out=C[:, 1:])
+    C /= C[:, -1:]
+    u = np.arange(N + 1) / N
+    if N <= DENSE_MAX_N:
+        k = np.minimum(np.sum(C[:, None, 1:-1] <= u[None, :, None], axis=2), N - 1)
+        rows = np.arange(B)[:, None]
+        c0, c1 = C[rows, k], C[rows, k + 1]
+        b = (k + (u[None, :] - c0) / (c1 - c0)) / N
+    else:
+        b = np.stack([np.interp(u, C[i], u) for i in range(B)])
+    b[:, 0], b[:, -1] = 0.0, 1.0
+    frac = np.diff(b, axis=1)
+    frac[flat] = 1.0 / N
+    return frac
+
+
+def _remap(phi, frac_new, frac_old=None):
+    """Arc angles (B, N) of the same tangent-angle curve on arcs frac_new (B, N): theta(s)
+    is linear inside each old arc (old arcs: equal, or frac_old (B, N))."""
+    B, N = phi.shape
+    Th = np.zeros((B, N + 1))
+    np.cumsum(phi, axis=1, out=Th[:, 1:])
+    b = np.zeros((B, N + 1))
+    np.cumsum(frac_new, axis=1, out=b[:, 1:])
+    b[:, -1] = 1.0
+    if frac_old is None:
+        x = b * N
+        k = np.clip(np.floor(x).astype(int), 0, N - 1)
+        f = x - k
+        rows = np.arange(B)[:, None]
+        th = Th[rows, k] + f * (Th[rows, k + 1] - Th[rows, k])
+    else:
+        bo = np.zeros((B, N + 1))
+        np.cumsum(frac_old, axis=1, out=bo[:, 1:])
+        bo[:, -1] = 1.0
+        th = np.stack([np.interp(b[i], bo[i], Th[i]) for i in range(B)])
+    return np.diff(th, axis=1)
+
+
+def _regrade(prob: _Problem, phi, arc_model):
+    """Second pass of spacing='graded' for B cases solved on equal arcs (prob, phi (B, N)):
+    graded arcs from the equal-arc solution, Newton from that solution mapped onto them.
+    Returns phi (B, N), fractions (B, N), ok (B,) (converged, tip angle within 0.5 rad of the
+    equal-arc one), iterations (B,), residual (B,)."""
+    pfl = [(s, F) for s, (_, _, F) in zip(prob.pf_s, prob.point_forces)]
+    frac = graded_fractions(phi, prob.tip_force, prob.follower, pfl)
+    gprob = _make_problem(prob.n, prob.L, prob.EI, prob.tip_force, prob.follower,
+                          prob.tip_moment, pfl, frac)
+    start = _remap(phi, frac)
+    bez = _BezierResidual(gprob) if arc_model == 'bezier' else None
+    p, c, it, r, _ = _newton(gprob, start, 1.0, 12 if bez is None else 30, bezier=bez)
+    ok = c & np.all(np.isfinite(p), axis=1) & (np.abs(p.sum(axis=1) - phi.sum(axis=1)) < 0.5)
+    return p, frac, ok, it, r
+
+
+def _check_common(cat, n_arcs, arc_model, spacing='uniform'):
     if not isinstance(cat, Catheter):
         raise ValueError(f'cat must be a Catheter, got {type(cat).__name__}')
     if isinstance(n_arcs, bool) or not isinstance(n_arcs, (int, np.integer)):
@@ -623,10 +755,12 @@ def _check_common(cat, n_arcs, arc_model):
         raise ValueError(f'n_arcs must be in [1, {MAX_N}], got {n_arcs}')
     if arc_model not in ARC_MODELS:
         raise ValueError(f'arc_model must be one of {ARC_MODELS}, got {arc_model!r}')
+    if not (isinstance(spacing, str) and spacing in SPACINGS):
+        raise ValueError(f'spacing must be one of {SPACINGS}, got {spacing!r}')
 
 
 def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DEFAULT_ARC_MODEL,
-              initial=None) -> Shape:
+              initial=None, spacing: str = DEFAULT_SPACING) -> Shape:
     """Solve the FAM for one load case; returns a Shape (see ``model.Shape``).
 
     cat: Catheter (m, N m^2). loads: Loads (N, N m; base frame, or tip frame if follower).
@@ -637,7 +771,7 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
     model, tip loads, N <= 64) when Newton from it converges to an equilibrium whose
     Jacobian eigenvalues all have positive real parts, else ignored (cold start).
     """
-    _check_common(cat, n_arcs, arc_model)
+    _check_common(cat, n_arcs, arc_model, spacing)
     if not isinstance(loads, Loads):
         raise ValueError(f'loads must be a Loads, got {type(loads).__name__}')
     n = int(n_arcs)
@@ -649,22 +783,37 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
         else:
             pfs.append((s, np.array([complex(fx, fy)])))
     if initial is not None:
+        init_frac = getattr(initial, 'arc_lengths', None)
+        init_len = getattr(initial, 'length', None)
         initial = np.asarray(getattr(initial, 'arc_angles', initial), dtype=float)
         if initial.shape != (n,) or not np.all(np.isfinite(initial)):
             raise ValueError(f'initial must be finite arc angles of shape ({n},)')
+        if init_frac is not None and init_len and np.ptp(init_frac) > 0:
+            # a graded Shape: the same tangent-angle curve on equal arcs (the first pass)
+            initial = _remap(initial[None], np.full((1, n), 1.0 / n),
+                             (np.asarray(init_frac) / init_len)[None])[0]
     if arc_model == 'exact' and not pfs and n <= DENSE_MAX_N:
-        out = _fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower, initial)
+        out = _fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower, initial,
+                          spacing)
         if out is None and initial is not None:
-            out = _fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower)
+            out = _fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower,
+                              spacing=spacing)
         if out is not None:
-            phi, conv, it, res, tipc, stable = out
+            phi, conv, it, res, tipc, stable, frac = out
             return arc_shape(cat.length, phi, tip=tipc, tip_angle=float(phi.sum()),
                              converged=True, iterations=it, stable=stable, warning='',
-                             residual=res, arc_model=arc_model)
+                             residual=res, arc_model=arc_model, spacing=spacing, fractions=frac,
+                             _trusted=True)
     prob = _build_problem(cat, n, np.array([tip]), loads.follower,
                           np.array([loads.tip_moment]), pfs)
     phi, conv, iters, res, snapped = _solve(prob, 1, arc_model)
     stable = _stability(prob, phi)
+    frac = None
+    if spacing == 'graded' and conv[0]:
+        pg, fg, okg, itg, rg = _regrade(prob, phi, arc_model)
+        iters = iters + itg
+        if okg[0]:
+            phi, res, frac = pg, rg, fg[0]
     warning = ''
     if not conv[0]:
         warning = f'not converged: max residual {res[0]:.3g} rad'
@@ -676,19 +825,19 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
             'unstable equilibrium (compressed past buckling; loading from zero kept this shape)'
     return arc_shape(cat.length, phi[0], converged=bool(conv[0]), iterations=int(iters[0]),
                      stable=bool(stable[0]), warning=warning, residual=float(res[0]),
-                     arc_model=arc_model)
+                     arc_model=arc_model, spacing=spacing, fractions=frac)
 
 
 def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 12,
                     follower: bool = False, arc_model: str = DEFAULT_ARC_MODEL,
-                    chunk: int = 4096) -> BatchShape:
+                    chunk: int = 4096, spacing: str = DEFAULT_SPACING) -> BatchShape:
     """Solve B tip-load cases at once (vectorised Newton over the batch).
 
     tip_forces: (B, 2) N (base frame, or tip frame if ``follower``); tip_moments: (B,) N m
     or None (zeros). Returns a BatchShape: tips (B, 2), tip_angles (B,), arc_angles (B, N),
     converged (B,), stable (B,), iterations (B,), centerlines(k) -> (B, k, 2).
     """
-    _check_common(cat, n_arcs, arc_model)
+    _check_common(cat, n_arcs, arc_model, spacing)
     tf = np.asarray(tip_forces, dtype=float)
     if tf.ndim != 2 or tf.shape[1] != 2:
         raise ValueError(f'tip_forces must have shape (B, 2), got {tf.shape}')
@@ -711,14 +860,23 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
     iters = np.zeros(B, dtype=int)
     res = np.zeros(B)
     stable = np.ones(B, dtype=bool)
+    frac = np.full((B, n), 1.0 / n)
     F = tf[:, 0] + 1j * tf[:, 1]
     for lo in range(0, B, chunk):
         hi = min(B, lo + chunk)
         prob = _build_problem(cat, n, F[lo:hi], bool(follower), tm[lo:hi], [])
         p, c, it, r, _ = _solve(prob, hi - lo, arc_model)
-        phi[lo:hi], conv[lo:hi], iters[lo:hi], res[lo:hi] = p, c, it, r
         stable[lo:hi] = _stability(prob, p)
-    return BatchShape(cat.length, phi, conv, iters, stable, res, arc_model)
+        if spacing == 'graded' and np.any(c):
+            idx = np.nonzero(c)[0]
+            pg, fg, okg, itg, rg = _regrade(_subproblem(prob, idx), p[idx], arc_model)
+            it[idx] += itg
+            take = idx[okg]
+            p[take], r[take] = pg[okg], rg[okg]
+            frac[lo + take] = fg[okg]
+        phi[lo:hi], conv[lo:hi], iters[lo:hi], res[lo:hi] = p, c, it, r
+    return BatchShape(cat.length, phi, conv, iters, stable, res, arc_model, spacing=spacing,
+                      fractions=frac)
 
 
 # ---------------------------------------------------------------------------------------
@@ -726,7 +884,7 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
 # Same equations as _evaluate/_dense_jacobian, written with 1-D arrays and as few numpy
 # calls as possible (numpy call overhead dominates at N = 12).
 # ---------------------------------------------------------------------------------------
-from .arcs import _CCOEF, _POW, SERIES_LIMIT  # noqa: E402
+from .arcs import _CCOEF, _K, SERIES_LIMIT  # noqa: E402
 
 _FAST_CACHE = {}
 
@@ -741,8 +899,9 @@ def _fast_consts(n):
     return c
 
 
-def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3):
+def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rtol=1e-12):
     """Damped Newton for one tip-loaded case. F complex (base or tip frame), m float.
+    Stops at max|r| <= 1e-13 + rtol max|phi| (converged is judged with rtol = 1e-12).
 
     Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, and
     the Jacobian of the last Newton step (None if no step was taken)."""
@@ -752,44 +911,50 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3):
     best = (phi, math.inf, 0j)
     it = 0
     J = None
+    wc = w[:, None]
+    V = np.empty((n, _K))       # powers phi^0..phi^(K-1) by a running product (** is 3x slower)
+    V[:, 0] = 1.0
+    V1 = V[:, 1:]
     for it in range(max_iter + 1):
         th_end = acc(phi)
         lE = l * np.exp(1j * (th_end - phi))
-        if -SERIES_LIMIT < _MINR(phi) and _MAXR(phi) < SERIES_LIMIT:
-            G, Q, GP, QP = ((phi[:, None] ** _POW) @ _CCOEF).T
+        pmax = _MAXR(np.abs(phi))
+        if pmax < SERIES_LIMIT:
+            V1[...] = phi[:, None]
+            np.multiply.accumulate(V1, axis=1, out=V1)
+            R = V @ _CCOEF                       # (N, 4): g, q, g', q'
         else:
-            G, Q, GP, QP = arc_funcs(phi)
-        P = acc(lE * G)
+            R = np.stack(arc_funcs(phi), axis=1)
+        R *= lE[:, None]                         # l e^{i theta_start} (g, q, g', q')
+        P = acc(R[:, 0])
         rel = P[-1] - P
         if follower:
             t = float(th_end[-1])
             cF = cF0 * complex(math.cos(t), -math.sin(t))
         else:
             cF = cF0
-        ZF = (rel + lE * Q) * cF
+        ZF = (rel + R[:, 1]) * cF
         r = phi - w * (m - ZF.imag)
-        res = max(_MAXR(r), -_MINR(r))
+        res = _MAXR(np.abs(r))
         if not res < math.inf:
             res = math.inf
-        pmax = max(_MAXR(phi), -_MINR(phi))
         if res < best[1]:
             best = (phi, res, complex(P[-1]))
-        if res <= 1e-13 + 1e-12 * pmax or it == max_iter:
+        if res <= 1e-13 + rtol * pmax or it == max_iter:
             break
-        irel = 1j * rel
-        Bd = ((irel + lE * QP) * cF).imag
-        C = ((irel + lE * GP) * cF).imag
+        X = ((1j * rel)[:, None] + R[:, 2:]) * cF   # columns: g' and q' terms
+        Bd = X[:, 1].imag
+        C = X[:, 0].imag
         if follower:
             D = np.where(lower, 0.0, C - ZF.real[:, None])
-            D[diag] = Bd - ZF.real
+            Bd = Bd - ZF.real
         else:
             D = np.where(lower, ZF.real[:, None], C)
-            D[diag] = Bd
-        D *= w
-        D += eye                          # J = I - w dMbar/dphi, dMbar/dphi = -D / w
+        D *= wc
+        D.flat[::n + 1] = w * Bd + 1.0    # J = I - w dMbar/dphi, dMbar/dphi = -D / w
         J = D
         dx = _dgesv(D, r)[2]
-        mx = max(_MAXR(dx), -_MINR(dx))
+        mx = _MAXR(np.abs(dx))
         if not mx < math.inf:
             break
         if mx > step_limit:
@@ -797,19 +962,26 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3):
         phi = phi - dx
     phi, res, tip = best
     if not res < math.inf:
-        phi, tip = np.zeros(n), complex(n * l)
-    pmax = max(_MAXR(phi), -_MINR(phi))
+        phi, tip = np.zeros(n), complex(float(np.sum(l)))
+    pmax = _MAXR(np.abs(phi))
     return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J
 
 
-def _fast_solve(n, L, EI, F, m, follower, initial=None):
+def _fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform'):
     """Whole single-case solve for tip loads (exact arcs, N <= DENSE_MAX_N), or None when the
     direct attempt is not accepted (the caller then uses the general path).
 
-    Returns phi, converged, iterations, residual, tip (complex), stable."""
-    l = L / n
-    w = l / EI
-    lin = w * (m + F.imag * (L - (np.arange(n) + 0.5) * l))   # small-deflection solution
+    Returns phi, converged, iterations, residual, tip (complex), stable, fractions (None:
+    equal arcs)."""
+    key = (n, L, EI)
+    c = _EQUAL_CACHE.get(key)
+    if c is None:
+        if len(_EQUAL_CACHE) > 64:
+            _EQUAL_CACHE.clear()
+        l = np.full(n, L / n)
+        c = _EQUAL_CACHE[key] = (l, l / EI, L - (np.cumsum(l) - 0.5 * l))
+    l, w, lever = c
+    lin = w * (m + F.imag * lever)    # small-deflection solution
     th_lin = float(lin.sum())
     if m == 0.0 and F == 0:
         return None
@@ -823,7 +995,12 @@ def _fast_solve(n, L, EI, F, m, follower, initial=None):
             a_ax = max(0.0, -math.cos(beta)) * abs(F) * L * L / EI / 2
             target = abs(beta) * -math.expm1(-(ath + a_ax) / abs(beta))
         phi0 = (lin / ath) * target if ath > 0 else lin   # not target / ath: overflows for denormal loads
-    phi, conv, it, res, tip, J = _fast_tip_newton(n, l, w, F, m, follower, phi0, 12)
+    # graded: this equal-arc solution only places the arcs; stop it at 1e-9 (an iterate error
+    # ~1e-9 moves the tip of the graded solution by ~1e-12 L) -- saves one Newton step
+    phi, conv, it, res, tip, J = _fast_tip_newton(n, l, w, F, m, follower, phi0, 12,
+                                                  rtol=1e-9 if spacing == 'graded' else 1e-12)
+    if spacing == 'graded':
+        conv = res <= 1e-13 + 1e-9 * max(_MAXR(phi), -_MINR(phi))
     if not conv or not (np.all(np.isfinite(phi)) and math.isfinite(tip.real) and math.isfinite(tip.imag)):
         return None
     th = float(phi.sum())
@@ -835,6 +1012,23 @@ def _fast_solve(n, L, EI, F, m, follower, initial=None):
     Ft = F if follower else F * complex(math.cos(th), -math.sin(th))
     compress = Ft.real < 0
     stable = True
+    frac = None
+    if spacing == 'graded' and J is not None:
+        # second pass on graded arcs from this equal-arc solution (see graded_fractions);
+        # the branch check below then uses the graded Jacobian
+        f, start = _fast_grade(phi, F, follower)
+        lg = L * f
+        p2, c2, it2, r2, tip2, J2 = _fast_tip_newton(n, lg, lg / EI, F, m, follower, start, 12)
+        it += it2
+        if c2 and J2 is not None and abs(float(p2.sum()) - th) < 0.5 and \
+                math.isfinite(tip2.real) and math.isfinite(tip2.imag):
+            phi, res, tip, J, frac = p2, r2, tip2, J2, f
+        else:   # keep the equal arcs: finish their solution to the full tolerance
+            phi, conv, it2, res, tip, J1 = _fast_tip_newton(n, l, w, F, m, follower, phi, 12)
+            it += it2
+            J = J1 if J1 is not None else J
+            if not conv:
+                return None
     if J is not None and (compress or abs(th_lin) > 0.3 or initial is not None):
         wr = _dgeev(J, compute_vl=0, compute_vr=0)[0]
         stable = bool(_MINR(wr) > 1e-9)
@@ -842,7 +1036,40 @@ def _fast_solve(n, L, EI, F, m, follower, initial=None):
             return None      # possibly another branch: let continuation decide
     elif J is None and compress:
         return None          # straight under compression: the general path judges stability
-    return phi, True, it, res, tip, stable
+    return phi, True, it, res, tip, stable, frac
+
+
+_U_CACHE = {}
+_EQUAL_CACHE = {}
+
+
+def _fast_grade(phi, F, follower):
+    """graded_fractions and _remap for one case with 1-D arrays (few numpy calls):
+    fractions (N,) and the start angles (N,) on those arcs."""
+    n = phi.size
+    u = _U_CACHE.get(n)
+    if u is None:
+        u = _U_CACHE[n] = np.arange(n + 1) / n
+    th_end = np.add.accumulate(phi)
+    t = np.exp(1j * (th_end - 0.5 * phi))
+    if follower:
+        F = F * complex(math.cos(th_end[-1]), math.sin(th_end[-1]))
+    kp = (t.conjugate() * F).imag
+    kp2 = kp * kp
+    mx2 = float(_MAXR(kp2))
+    if not mx2 > 0:
+        return np.full(n, 1.0 / n), phi
+    rho = (kp2 + (GRADE_FLOOR * GRADE_FLOOR) * mx2) ** (0.5 * GRADE_POWER)
+    C = np.empty(n + 1)
+    C[0] = 0.0
+    np.add.accumulate(rho, out=C[1:])
+    C /= C[-1]
+    b = np.interp(u, C, u)
+    b[0], b[-1] = 0.0, 1.0
+    Th = np.empty(n + 1)
+    Th[0] = 0.0
+    Th[1:] = th_end
+    return np.diff(b), np.diff(np.interp(b, u, Th))
 
 
 from scipy.linalg.lapack import dgesv as _dgesv, dgeev as _dgeev  # noqa: E402

@@ -14,6 +14,27 @@ import numpy as np
 from .arcs import g_only
 
 
+SPACINGS = ('uniform', 'graded')
+_FRAC_CACHE = {}
+
+
+def uniform_fractions(n: int) -> np.ndarray:
+    """Arc lengths of n equal arcs as fractions of the catheter length, (n,) (read-only, cached)."""
+    f = _FRAC_CACHE.get(n)
+    if f is None:
+        f = np.full(n, 1.0 / n)
+        f.setflags(write=False)
+        _FRAC_CACHE[n] = f
+    return f
+
+
+def _check_fractions(fractions, shape):
+    f = np.asarray(fractions, dtype=float)
+    if f.shape != shape or not np.min(f) > 0 or not np.isfinite(np.sum(f)):
+        raise ValueError(f'fractions must be positive, finite, of shape {shape}')
+    return f
+
+
 def _finite_float(value, name: str) -> float:
     try:
         v = float(value)
@@ -113,6 +134,7 @@ class Shape:
     warning : str -- '' or a short reason (non-convergence, instability).
     residual : float -- max |residual| of the solved equations (rad for FAM, N m for the rod).
     arc_model : str -- 'exact', 'bezier' or 'elastica'.
+    spacing : str -- 'uniform' or 'graded' arc lengths.  arc_lengths : ndarray (n_arcs,), m.
     """
 
     def __init__(self, length: float, tip, tip_angle: float, arc_angles, converged: bool,
@@ -131,6 +153,16 @@ class Shape:
         self.arc_model = arc_model
         self._points_fn = points_fn
         self._angles_fn = angles_fn
+        self.spacing = 'uniform'
+        self._arc_lengths = None
+
+    @property
+    def arc_lengths(self) -> np.ndarray:
+        """Arc lengths (n_arcs,) in m (equal unless spacing='graded')."""
+        if self._arc_lengths is None:
+            n = self.arc_angles.size
+            self._arc_lengths = np.full(n, self.length / n) if n else np.zeros(0)
+        return self._arc_lengths
 
     def points_at(self, s) -> np.ndarray:
         """Positions (len(s), 2) in m at arc-length fractions s in [0, 1]."""
@@ -158,14 +190,36 @@ class Shape:
                 f'iterations={self.iterations}, stable={self.stable}, model={self.arc_model!r})')
 
 
-def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, **kw) -> Shape:
-    """Shape of N equal circular arcs with bending angles ``phi`` (N,), base at the origin.
+def _locate(bounds, s):
+    """Arc index (int array) and fraction inside it for arc-length fractions s; bounds (N+1,)."""
+    n = bounds.size - 1
+    i = np.clip(np.searchsorted(bounds, s, side='right') - 1, 0, n - 1)
+    return i, (s - bounds[i]) / (bounds[i + 1] - bounds[i])
+
+
+def _bounds(frac):
+    b = np.concatenate([[0.0], np.cumsum(frac)])
+    b[-1] = 1.0
+    return b
+
+
+def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, fractions=None,
+              spacing='uniform', **kw) -> Shape:
+    """Shape of N circular arcs with bending angles ``phi`` (N,), base at the origin; arc
+    lengths ``length * fractions`` ((N,), summing to 1; None: equal arcs).
 
     ``tip`` (complex) and ``tip_angle`` may be passed when already known; the arc geometry
     for ``points_at`` is built lazily on first use."""
     phi = np.asarray(phi, dtype=float)
     n = phi.size
-    l = length / n
+    trusted = kw.pop('_trusted', False)      # internal callers pass checked fractions
+    if not n:
+        frac = np.zeros(0)
+    elif fractions is None:
+        frac = uniform_fractions(n)
+    else:
+        frac = fractions if trusted else _check_fractions(fractions, (n,))
+    l = length * frac
     cache = {}
 
     def geometry():
@@ -175,23 +229,22 @@ def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, **kw) ->
             E = np.exp(1j * th_start)
             d = l * E * g_only(phi)
             P_end = np.cumsum(d)
+            bounds = _bounds(frac) if n else np.array([0.0, 1.0])
             if not np.any(phi):
                 # exactly straight: no accumulated round-off, tip == (L, 0)
-                P_end = length * (np.arange(1, n + 1) / n) + 0j
+                P_end = length * bounds[1:] + 0j
                 P_end[-1] = length
-            cache.update(th_start=th_start, E=E, P_end=P_end,
+            cache.update(th_start=th_start, E=E, P_end=P_end, bounds=bounds,
                          P_start=np.concatenate([[0j], P_end[:-1]]))
         return cache
 
     def locate(s):
-        x = s * n
-        i = np.minimum(np.floor(x).astype(int), n - 1)
-        return i, x - i
+        return _locate(geometry()['bounds'], s)
 
     def points(s):
         c = geometry()
         i, tau = locate(s)
-        z = c['P_start'][i] + l * c['E'][i] * tau * g_only(phi[i] * tau)
+        z = c['P_start'][i] + l[i] * c['E'][i] * tau * g_only(phi[i] * tau)
         z = np.where(s >= 1.0, c['P_end'][-1], z)
         return np.stack([z.real, z.imag], axis=-1)
 
@@ -204,8 +257,11 @@ def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, **kw) ->
         tip = geometry()['P_end'][-1]
     if tip_angle is None:
         tip_angle = float(np.sum(phi)) if n else 0.0
-    return Shape(length, (tip.real, tip.imag), tip_angle, phi,
-                 points_fn=points, angles_fn=angles, **kw)
+    sh = Shape(length, (tip.real, tip.imag), tip_angle, phi,
+               points_fn=points, angles_fn=angles, **kw)
+    sh.spacing = spacing
+    sh._arc_lengths = l
+    return sh
 
 
 class BatchShape:
@@ -216,7 +272,7 @@ class BatchShape:
     """
 
     def __init__(self, length: float, arc_angles, converged, iterations, stable, residual,
-                 arc_model: str):
+                 arc_model: str, spacing='uniform', fractions=None):
         self.length = float(length)
         self.arc_angles = np.asarray(arc_angles, dtype=float)
         self.converged = np.asarray(converged, dtype=bool)
@@ -224,8 +280,18 @@ class BatchShape:
         self.stable = np.asarray(stable, dtype=bool)
         self.residual = np.asarray(residual, dtype=float)
         self.arc_model = arc_model
+        self.spacing = spacing
         B, n = self.arc_angles.shape
-        self._l = self.length / max(n, 1)
+        if fractions is None:
+            frac = np.broadcast_to(uniform_fractions(n) if n else np.zeros(0), (B, n))
+        else:
+            frac = _check_fractions(fractions, (B, n))
+        self._frac = frac
+        self._bounds = np.concatenate([np.zeros((B, 1)), np.cumsum(frac, axis=1)], axis=1)
+        self._bounds[:, -1] = 1.0
+        self._l = self.length * frac
+        #: arc lengths (B, N) m (per case: graded arcs follow each case's curvature)
+        self.arc_lengths = self._l
         th_end = np.cumsum(self.arc_angles, axis=1)
         self.tip_angles = th_end[:, -1].copy() if n else np.zeros(B)
         d = self._l * np.exp(1j * (th_end - self.arc_angles)) * g_only(self.arc_angles)
@@ -241,7 +307,8 @@ class BatchShape:
         """The b-th case as a Shape."""
         return arc_shape(self.length, self.arc_angles[b], converged=bool(self.converged[b]),
                          iterations=int(self.iterations[b]), stable=bool(self.stable[b]),
-                         residual=float(self.residual[b]), arc_model=self.arc_model)
+                         residual=float(self.residual[b]), arc_model=self.arc_model,
+                         spacing=self.spacing, fractions=self._frac[b])
 
     def points_at(self, s) -> np.ndarray:
         """(B, len(s), 2) positions in m at arc-length fractions s in [0, 1]."""
@@ -256,10 +323,16 @@ class BatchShape:
         d = self._l * E * g_only(phi)
         P_end = np.cumsum(d, axis=1)
         P_start = P_end - d
-        x = s * n
-        i = np.minimum(np.floor(x).astype(int), n - 1)
-        tau = x - i
-        z = P_start[:, i] + self._l * E[:, i] * tau * g_only(phi[:, i] * tau)
+        bnd = self._bounds
+        if n:
+            i = np.clip(np.sum(bnd[:, None, 1:-1] <= s[None, :, None], axis=2), 0, n - 1)  # (B, k)
+        else:
+            i = np.zeros((B, s.size), dtype=int)
+        rows = np.arange(B)[:, None]
+        lo, hi = bnd[rows, i], bnd[rows, i + 1]
+        tau = (s[None, :] - lo) / (hi - lo)
+        ph = phi[rows, i]
+        z = P_start[rows, i] + self._l[rows, i] * E[rows, i] * tau * g_only(ph * tau)
         z = np.where(s[None, :] >= 1.0, P_end[:, -1:], z)
         straight = ~np.any(phi != 0.0, axis=1)
         z = np.where(straight[:, None], self.length * s[None, :] + 0j, z)
