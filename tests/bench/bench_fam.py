@@ -3,13 +3,15 @@
     scripts/bench fam            # or: python tests/bench/bench_fam.py [--quick]
 
 Prints three tables:
- 1. run time vs error: N in {1..5000}, both arc models, tip error (% L) against
+ 1. run time vs error: N in {1..5000}, both arc models and both arc spacings ('uniform':
+    equal arcs; 'graded': per-case arc lengths from the curvature change, the default), tip
+    error (% L) against
     solve_elastica (rtol 1e-12) and median solve time; the reference solver at looser
     tolerances; scipy.integrate.solve_bvp; cases: the thesis flexure (40 mm, EI 7.5e-4 N m^2,
     tip forces and moments) and the Blazer II-XP (65 mm, EI 6e-5 N m^2, 0-0.3 N at 0..pi);
  2. stress: a seeded random sweep of 10 000 load cases (near zero, huge, compressive,
     follower, point forces): non-converged / NaN counts, worst error on a subsample;
- 3. batch throughput against a loop of single solves.
+ 3. batch throughput against a loop of single solves (both spacings).
 Times are wall-clock medians (perf_counter) AND process CPU time: the machine is shared,
 so wall times are noisy; the load average is printed.
 """
@@ -29,6 +31,7 @@ sys.path.insert(0, str(ROOT / 'src' / 'fam_solver'))
 from scipy.integrate import solve_bvp  # noqa: E402
 
 from fam_solver import Catheter, Loads, solve_elastica, solve_fam, solve_fam_batch  # noqa: E402
+from fam_solver.fam import DEFAULT_SPACING  # noqa: E402
 
 QUICK = '--quick' in sys.argv
 THESIS = Catheter(length=0.040, ei=7.5e-4)
@@ -117,32 +120,40 @@ def table1():
         print(f'{name}: {len(cases)} cases, load parameter (|F| L^2 + |M| L)/EI up to {max(alphas):.1f}; '
               f'reference median {t_ref[name] * 1e3:.1f} ms')
     print()
-    hdr = (f'| case set | model | N | max err %L | mean err %L | median wall ms | median cpu ms '
-           f'| vs target 0.2 ms | vs thesis C++ 3 ms | converged |')
+    hdr = (f'| case set | model | spacing | N | max err %L | mean err %L | order | median wall ms '
+           f'| median cpu ms | vs target 0.2 ms | vs thesis C++ 3 ms | converged |')
     print(hdr)
-    print('|' + '---|' * 10)
+    print('|' + '---|' * 12)
     summary = {}
     for name, cat, cases in sets:
         for model in ('exact', 'bezier'):
-            errs_by_n = []
-            for n in NS:
-                if QUICK and n > 500:
-                    continue
-                rep = 15 if n <= 48 else (3 if n <= 1000 else 1)
-                errs, walls, cpus, conv = [], [], [], 0
-                for ld, ref in zip(cases, refs[name]):
-                    w, c, sh = timed(lambda: solve_fam(cat, ld, n_arcs=n, arc_model=model), rep)
-                    errs.append(np.max(np.abs(sh.tip - ref.tip)) / cat.length * 100)
-                    walls.append(w)
-                    cpus.append(c)
-                    conv += sh.converged
-                mw, mc = float(np.median(walls)) * 1e3, float(np.median(cpus)) * 1e3
-                errs_by_n.append(max(errs))
-                summary[(name, model, n)] = (max(errs), mw, mc)
-                print(f'| {name} | {model} | {n} | {max(errs):.2e} | {np.mean(errs):.2e} | {mw:.3f} | '
-                      f'{mc:.3f} | {mw / TARGET_MS:.2f}x | {mw / THESIS_MS:.3f}x | {conv}/{len(cases)} |')
-            mono = all(a > b for a, b in zip(errs_by_n[:-1], errs_by_n[1:]))
-            print(f'| {name} | {model} | error falls monotonically with N: {"yes" if mono else "NO"} |')
+            for spacing in ('uniform', 'graded'):
+                errs_by_n, ns = [], []
+                for n in NS:
+                    if QUICK and n > 500:
+                        continue
+                    rep = 15 if n <= 48 else (3 if n <= 1000 else 1)
+                    errs, walls, cpus, conv = [], [], [], 0
+                    for ld, ref in zip(cases, refs[name]):
+                        w, c, sh = timed(lambda: solve_fam(cat, ld, n_arcs=n, arc_model=model,
+                                                           spacing=spacing), rep)
+                        errs.append(np.max(np.abs(sh.tip - ref.tip)) / cat.length * 100)
+                        walls.append(w)
+                        cpus.append(c)
+                        conv += sh.converged
+                    mw, mc = float(np.median(walls)) * 1e3, float(np.median(cpus)) * 1e3
+                    # observed order between this N and the previous one (2 = second order)
+                    order = (math.log(errs_by_n[-1] / max(errs)) / math.log(n / ns[-1])
+                             if errs_by_n else float('nan'))
+                    errs_by_n.append(max(errs))
+                    ns.append(n)
+                    summary[(name, model, spacing, n)] = (max(errs), mw, mc)
+                    print(f'| {name} | {model} | {spacing} | {n} | {max(errs):.2e} | {np.mean(errs):.2e} | '
+                          f'{order:.2f} | {mw:.3f} | {mc:.3f} | {mw / TARGET_MS:.2f}x | {mw / THESIS_MS:.3f}x | '
+                          f'{conv}/{len(cases)} |')
+                mono = all(a > b for a, b in zip(errs_by_n[:-1], errs_by_n[1:]))
+                print(f'| {name} | {model} | {spacing} | error falls monotonically with N up to '
+                      f'{ns[-1]}: {"yes" if mono else "NO"} |')
     print()
     print('### reference solver (shooting, DOP853) at looser tolerances, and scipy solve_bvp')
     print('| case set | solver | tolerance | max err %L | median wall ms | converged |')
@@ -177,21 +188,36 @@ def table1():
             print(f'| {name} | scipy solve_bvp (FAM N=12 guess, time excl. FAM) | tol {tol:.0e} | '
                   f'{max(errs):.2e} | {np.median(walls) * 1e3:.2f} | {conv}/{len(cases)} |')
     print()
-    print('### N = 12 against the targets')
+    print(f'### N = 12 against the targets (default spacing: {DEFAULT_SPACING})')
     print('| what | this project | target / reference | ratio |')
     print('|---|---|---|---|')
     for name, cat, cases in sets:
         for model in ('exact', 'bezier'):
-            e, w, c = summary[(name, model, 12)]
-            print(f'| {name} {model}: max tip error | {e:.3f} % L | {TARGET_ERR} % L | {e / TARGET_ERR:.2f} |')
-            print(f'| {name} {model}: median solve (wall) | {w:.3f} ms | {TARGET_MS} ms | {w / TARGET_MS:.2f} |')
-            print(f'| {name} {model}: median solve (cpu) | {c:.3f} ms | {TARGET_MS} ms | {c / TARGET_MS:.2f} |')
-            print(f'| {name} {model}: vs reference in this run | {w:.3f} ms | solve_elastica '
-                  f'{t_ref[name] * 1e3:.1f} ms | {w / (t_ref[name] * 1e3):.4f} |')
-        for n in (16, 20):
-            e = max(np.max(np.abs(solve_fam(cat, ld, n_arcs=n).tip - r.tip)) / cat.length * 100
-                    for ld, r in zip(cases, refs[name]))
-            print(f'| {name} exact: max tip error at N = {n} | {e:.3f} % L | {TARGET_ERR} % L | {e / TARGET_ERR:.2f} |')
+            for spacing in ('uniform', 'graded'):
+                e, w, c = summary[(name, model, spacing, 12)]
+                k = f'{name} {model} {spacing}'
+                print(f'| {k}: max tip error | {e:.3f} % L | {TARGET_ERR} % L | {e / TARGET_ERR:.2f} |')
+                print(f'| {k}: median solve (wall) | {w:.3f} ms | {TARGET_MS} ms | {w / TARGET_MS:.2f} |')
+                print(f'| {k}: median solve (cpu) | {c:.3f} ms | {TARGET_MS} ms | {c / TARGET_MS:.2f} |')
+                print(f'| {k}: vs reference in this run | {w:.3f} ms | solve_elastica '
+                      f'{t_ref[name] * 1e3:.1f} ms | {w / (t_ref[name] * 1e3):.4f} |')
+        for spacing in ('uniform', 'graded'):
+            for n in (16, 20):
+                e = max(np.max(np.abs(solve_fam(cat, ld, n_arcs=n, spacing=spacing).tip - r.tip)) / cat.length * 100
+                        for ld, r in zip(cases, refs[name]))
+                print(f'| {name} exact {spacing}: max tip error at N = {n} | {e:.3f} % L | {TARGET_ERR} % L | '
+                      f'{e / TARGET_ERR:.2f} |')
+    print()
+    print('### N = 12 per case (exact arcs): uniform -> graded, % L')
+    print('| case set | tip force N | tip moment N m | F L^2/EI | uniform | graded | graded / uniform |')
+    print('|---|---|---|---|---|---|---|')
+    for name, cat, cases in sets:
+        for ld, ref in zip(cases, refs[name]):
+            eu, eg = (np.max(np.abs(solve_fam(cat, ld, n_arcs=12, spacing=sp).tip - ref.tip)) / cat.length * 100
+                      for sp in ('uniform', 'graded'))
+            fx, fy = ld.tip_force
+            print(f'| {name} | ({fx:.3f}, {fy:.3f}) | {ld.tip_moment:g} | {ld.load_parameter(cat):.1f} | '
+                  f'{eu:.4f} | {eg:.4f} | {eg / eu if eu > 0 else float("nan"):.2f} |')
     print()
 
 
@@ -204,13 +230,14 @@ def table1b():
     w, c, ref = timed(lambda: solve_elastica(cat, ld), 1)
     print(f'EI = {cat.ei:.4g} N m^2; reference tip ({ref.tip[0] * 1e3:.2f}, {ref.tip[1] * 1e3:.2f}) mm '
           f'in {w * 1e3:.0f} ms')
-    print('| N | tip error mm | tip error %L | median wall ms | median cpu ms | thesis (C++, vs experiment) |')
-    print('|---|---|---|---|---|---|')
-    for n in (12, 24, 48, 100, 500):
-        w, c, sh = timed(lambda: solve_fam(cat, ld, n_arcs=n), 5)
-        e = float(np.max(np.abs(sh.tip - ref.tip)))
-        print(f'| {n} | {e * 1e3:.3f} | {e / cat.length * 100:.3f} | {w * 1e3:.2f} | {c * 1e3:.2f} | '
-              f'7 ms, 1.41 +- 1.47 mm |')
+    print('| spacing | N | tip error mm | tip error %L | median wall ms | median cpu ms | thesis (C++, vs experiment) |')
+    print('|---|---|---|---|---|---|---|')
+    for spacing in ('uniform', 'graded'):
+        for n in (12, 24, 48, 100, 500):
+            w, c, sh = timed(lambda: solve_fam(cat, ld, n_arcs=n, spacing=spacing), 5)
+            e = float(np.max(np.abs(sh.tip - ref.tip)))
+            print(f'| {spacing} | {n} | {e * 1e3:.3f} | {e / cat.length * 100:.4f} | {w * 1e3:.2f} | {c * 1e3:.2f} | '
+                  f'7 ms, 1.41 +- 1.47 mm |')
     print()
 
 
@@ -247,16 +274,29 @@ def random_cases(rng, count):
 
 
 def table2():
-    print('## 2. Stress: seeded random sweep (N = 12, exact model, unit catheter L = 1, EI = 1)')
     rng = np.random.default_rng(20261125)
     count = 2000 if QUICK else 10000
     cases = random_cases(rng, count)
+    sub = rng.choice(count, 60 if QUICK else 240, replace=False)
+    cat = Catheter(1.0, 1.0)
+    refs = {}
+    for i in sub:
+        ref = solve_elastica(cat, cases[i][1])
+        refs[i] = ref if ref.converged else None
+    for spacing in ('uniform', 'graded'):
+        stress_table(cases, sub, refs, spacing)
+
+
+def stress_table(cases, sub, refs, spacing):
+    print(f'## 2. Stress: seeded random sweep (N = 12, exact model, {spacing} arcs, unit catheter '
+          f'L = 1, EI = 1)')
+    count = len(cases)
     cat = Catheter(1.0, 1.0)
     stats = {}
     t0 = time.perf_counter()
     shapes = []
     for k, ld in cases:
-        sh = solve_fam(cat, ld, n_arcs=12)
+        sh = solve_fam(cat, ld, n_arcs=12, spacing=spacing)
         shapes.append(sh)
         s = stats.setdefault(k, dict(n=0, nonconv=0, nan=0, unstable=0, snap=0, maxit=0))
         s['n'] += 1
@@ -267,29 +307,28 @@ def table2():
         s['maxit'] = max(s['maxit'], sh.iterations)
     wall = time.perf_counter() - t0
     # reference comparison on a subsample of stable, converged cases
-    sub = rng.choice(count, 60 if QUICK else 240, replace=False)
-    worst = {}
+    worst, errs = {}, {}
     for i in sub:
         k, ld = cases[i]
         sh = shapes[i]
-        if not (sh.converged and sh.stable):
-            continue
-        ref = solve_elastica(cat, ld)
-        if not ref.converged:
+        ref = refs[i]
+        if not (sh.converged and sh.stable) or ref is None:
             continue
         e = float(np.max(np.abs(sh.tip - ref.tip))) * 100
+        errs.setdefault(k, []).append(e)
         if e > worst.get(k, (-1, None))[0]:
             worst[k] = (e, ld.load_parameter(cat))
     print(f'{count} cases in {wall:.1f} s wall ({wall / count * 1e3:.2f} ms per solve incl. continuation fallbacks)')
-    print('| kind | cases | non-converged | NaN | flagged unstable | snap-through | max iterations | worst tip error %L (subsample) | at load parameter |')
-    print('|---|---|---|---|---|---|---|---|---|')
+    print('| kind | cases | non-converged | NaN | flagged unstable | snap-through | max iterations | worst tip error %L (subsample) | at load parameter | mean tip error %L (subsample) |')
+    print('|---|---|---|---|---|---|---|---|---|---|')
     tot = dict(n=0, nonconv=0, nan=0, unstable=0, snap=0)
     for k, s in stats.items():
         e, a = worst.get(k, (float('nan'), float('nan')))
-        print(f'| {k} | {s["n"]} | {s["nonconv"]} | {s["nan"]} | {s["unstable"]} | {s["snap"]} | {s["maxit"]} | {e:.3f} | {a:.1f} |')
+        me = float(np.mean(errs[k])) if errs.get(k) else float('nan')
+        print(f'| {k} | {s["n"]} | {s["nonconv"]} | {s["nan"]} | {s["unstable"]} | {s["snap"]} | {s["maxit"]} | {e:.3f} | {a:.1f} | {me:.4f} |')
         for key in tot:
             tot[key] += s[key]
-    print(f'| total | {tot["n"]} | {tot["nonconv"]} (target 0) | {tot["nan"]} (target 0) | {tot["unstable"]} | {tot["snap"]} | | | |')
+    print(f'| total | {tot["n"]} | {tot["nonconv"]} (target 0) | {tot["nan"]} (target 0) | {tot["unstable"]} | {tot["snap"]} | | | | |')
     print('(errors at N = 12 are discretisation errors; they grow with the load parameter, up to 50 here)')
     print()
 
@@ -301,17 +340,22 @@ def table3():
     mag = rng.uniform(0, 0.3, B)
     ang = rng.uniform(0, np.pi, B)
     F = np.stack([mag * np.cos(ang), mag * np.sin(ang)], axis=1)
-    w, c, bt = timed(lambda: solve_fam_batch(BLAZER, F, n_arcs=12), 1 if not QUICK else 1)
-    nloop = 1000 if QUICK else 3000
-    w0, c0 = time.perf_counter(), time.process_time()
-    tips = np.array([solve_fam(BLAZER, Loads(tip_force=F[i]), n_arcs=12).tip for i in range(nloop)])
-    wl, cl = time.perf_counter() - w0, time.process_time() - c0
-    diff = np.max(np.abs(tips - bt.tips[:nloop]))
-    print('| what | this project | reference in this run | target | ratio to target |')
-    print('|---|---|---|---|---|')
-    print(f'| batch solves/s (wall) | {B / w:,.0f} | single-solve loop {nloop / wl:,.0f}/s | {TARGET_BATCH:,} | {B / w / TARGET_BATCH:.2f} |')
-    print(f'| batch solves/s (cpu) | {B / c:,.0f} | single-solve loop {nloop / cl:,.0f}/s | {TARGET_BATCH:,} | {B / c / TARGET_BATCH:.2f} |')
-    print(f'| batch converged | {int(bt.converged.sum())}/{B} | max |batch - single| tip {diff:.1e} m | all | |')
+    print('| spacing | what | this project | reference in this run | target | ratio to target |')
+    print('|---|---|---|---|---|---|')
+    for spacing in ('uniform', 'graded'):
+        w, c, bt = timed(lambda: solve_fam_batch(BLAZER, F, n_arcs=12, spacing=spacing), 1)
+        nloop = 1000 if QUICK else 3000
+        w0, c0 = time.perf_counter(), time.process_time()
+        tips = np.array([solve_fam(BLAZER, Loads(tip_force=F[i]), n_arcs=12, spacing=spacing).tip
+                         for i in range(nloop)])
+        wl, cl = time.perf_counter() - w0, time.process_time() - c0
+        diff = np.max(np.abs(tips - bt.tips[:nloop]))
+        print(f'| {spacing} | batch solves/s (wall) | {B / w:,.0f} | single-solve loop {nloop / wl:,.0f}/s | '
+              f'{TARGET_BATCH:,} | {B / w / TARGET_BATCH:.2f} |')
+        print(f'| {spacing} | batch solves/s (cpu) | {B / c:,.0f} | single-solve loop {nloop / cl:,.0f}/s | '
+              f'{TARGET_BATCH:,} | {B / c / TARGET_BATCH:.2f} |')
+        print(f'| {spacing} | batch converged | {int(bt.converged.sum())}/{B} | max |batch - single| tip '
+              f'{diff:.1e} m | all | |')
     print()
 
 

@@ -57,6 +57,9 @@ def test_graded_follower_and_point_forces_against_reference():
         assert e[0] > e[1] > e[2] and 3.0 < e[1] / e[2] < 5.0, e
         eu = np.max(np.abs(solve_fam(UNIT, ld, n_arcs=24, spacing='uniform').tip - ref.tip))
         assert e[1] < 1.2 * eu, (e, eu)
+    # follower tip forces keep equal arcs (see the fam module docstring)
+    sh = solve_fam(UNIT, cases[0], spacing="graded")
+    assert np.allclose(sh.arc_lengths, 1 / 12, rtol=0, atol=1e-15)
 
 
 def test_mesh_follows_the_curvature_change():

@@ -2,9 +2,10 @@
 
 Model
 -----
-The catheter (length L, rigidity EI) is cut into N equal arcs of length l = L/N; arc i turns
-by phi_i (constant curvature phi_i / l). Headings and positions are rebuilt base -> tip
-(Eq. 28): theta_i = phi_1 + ... + phi_i, P_i = P_{i-1} + l e^{i theta_{i-1}} g(phi_i)
+The catheter (length L, rigidity EI) is cut into N arcs of lengths l_i (sum L; equal,
+l = L/N, or graded, see below); arc i turns by phi_i (constant curvature phi_i / l_i).
+Headings and positions are rebuilt base -> tip
+(Eq. 28): theta_i = phi_1 + ... + phi_i, P_i = P_{i-1} + l_i e^{i theta_{i-1}} g(phi_i)
 (complex notation, see ``arcs``). The internal moment at a point p(s) is (Eq. 16)
 
     M(s) = m_tip + sum over loads k distal to s of (p_k - p(s)) x F_k,
@@ -13,14 +14,43 @@ which is exactly what carrying the loads tip -> base by rotation and translation
 produces. Each arc's angle minimises the moment-balance functional Eq. 19 over that arc:
 
 * ``arc_model="exact"``: a true circular arc, EI kappa = EI phi_i / l constant, so the
-  minimiser of  integral over the arc of (M(s) - EI phi_i / l)^2 ds  is
-  ``phi_i = (l / EI) * mean over the arc of M(s)``; the mean of p(s) over an arc is closed
+  minimiser of  integral over the arc of (M(s) - EI phi_i / l_i)^2 ds  is
+  ``phi_i = (l_i / EI) * mean over the arc of M(s)``; the mean of p(s) over an arc is closed
   form (``arcs.h``), also for a point load inside an arc (``tau^2 q(phi tau)``).
 * ``arc_model="bezier"`` (the thesis): each arc is the cubic Bezier of Eqs. 7-9 with
   lambda = (4/3) tan(phi/4)/phi (``arcs.bezier_lambda``), the curvature is Eq. 12, and
   phi_i solves d Pi_i / d phi_i = 0 (Eq. 23) with the arc's END wrench held fixed in the
   arc's own frame (the thesis' sequential tip -> base algorithm), Pi_i evaluated with
   8-point Gauss-Legendre quadrature in the Bezier parameter. See ``bezier``.
+
+Arc spacing (decision): graded arcs by default
+---------------------------------------------
+Each arc's angle is exact given the positions (mean moment); the error is in the positions:
+a circular arc replaces a curve whose curvature changes along it, kappa' = dM/ds / EI =
+-(t x F_distal) / EI, and its chord is off by -i e^{i theta} kappa' l^3 / 12. Both the chord
+errors and the lever-arm errors they cause are O(l^2) overall (second order in N).
+``spacing="graded"`` (the default) first solves on N equal arcs, then places N arcs that
+equidistribute rho = sqrt(kappa'^2 + (0.2 max|kappa'|)^2) of that solution
+(``graded_fractions``: shorter arcs at the base for a lateral tip force, mid-length for a
+post-buckled compression; equal arcs for a pure moment or no load; arc-length ratio <= 5.1)
+and solves again from the first solution mapped onto them (2-3 Newton steps). A fixed
+grading was tried first: a geometric one (ratio e^c, best c ~ 1.0-1.5) reaches 0.12-0.13 %
+L on the benchmark sets at N = 12 but doubles the error of near-buckling compressions
+(their kappa' is largest at the tip); the per-case grading is better on 90 % of 300 random
+tip loads (F L^2/EI <= 21, moments), mean error 0.103 -> 0.060 % L, never much worse.
+It stays a FAM: N arcs of constant curvature, the same equations with per-arc l_i; still
+second order (the monitor converges with N); point forces sit inside arcs at their fraction
+(closed form, as before). Stability and the branch checks use the equal-arc solution (the
+graded one is on the same branch: accepted only if its tip angle is within 0.5 rad); a
+failed graded pass keeps the equal arcs (``shape.arc_lengths`` says which). Follower tip
+forces keep equal arcs too: there the grading helped 69 % of 80 random cases (alpha <= 8)
+but made the worst ones up to 2.9x worse (0.15 -> 0.44 % L, forces near the tip tangent):
+the follower's coupling of the whole shape to the tip angle is not in the kappa' monitor.
+``spacing="uniform"`` is the equal-arc FAM (half the single-solve time, 1.5x the batch
+throughput, ~1.5-2.2x the tip error). Measured at N = 12 (bench_fam): Blazer set 0.203 ->
+0.091 % L, thesis set 0.171 -> 0.122 % L (its post-buckled 170 deg compression; all other
+cases <= 0.096 % L); a 6-knot density optimised against the reference for that case
+reaches only 0.089 % L, so no arc placement meets 0.1 % L there by a wide margin.
 
 Loads fixed in the base frame (decision)
 ----------------------------------------
@@ -75,11 +105,11 @@ from .arcs import arc_funcs
 from .model import SPACINGS, BatchShape, Catheter, Loads, Shape, arc_shape, uniform_fractions
 
 ARC_MODELS = ('exact', 'bezier')
-#: The default arc model. Both models miss the 0.1 % L target at N = 12 by the same
-#: margin (both are second order: 0.17-0.20 % L at F L^2/EI = 21) and are equally accurate
-#: (within 2 %); 'exact' is ~10x faster (N = 12: ~0.13 ms vs ~2 ms), so it is the default.
+#: The default arc model. Both models are second order and equally accurate (within ~7 %);
+#: 'exact' is ~10-17x faster (N = 12: ~0.1-0.2 ms vs ~1.6-3.4 ms), so it is the default.
 DEFAULT_ARC_MODEL = 'exact'
-#: The default arc spacing (see ``model.arc_fractions``).
+#: The default arc spacing: 'graded' (per-case arc lengths, see graded_fractions) or
+#: 'uniform' (equal arcs).
 DEFAULT_SPACING = 'graded'
 DENSE_MAX_N = 64
 MAX_N = 100_000
@@ -764,11 +794,14 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
     """Solve the FAM for one load case; returns a Shape (see ``model.Shape``).
 
     cat: Catheter (m, N m^2). loads: Loads (N, N m; base frame, or tip frame if follower).
-    n_arcs: number of equal arcs N (1..100000). arc_model: 'exact' (default, true circular
-    arcs) or 'bezier' (the thesis' Bezier arcs, Eqs. 7-12). Never returns NaN: a case that
-    does not converge has converged=False and the best finite iterate.
-    initial: optional warm start (a previous Shape or its arc angles (N,)); used (exact
-    model, tip loads, N <= 64) when Newton from it converges to an equilibrium whose
+    n_arcs: number of arcs N (1..100000). arc_model: 'exact' (default, true circular
+    arcs) or 'bezier' (the thesis' Bezier arcs, Eqs. 7-12). spacing: 'graded' (default:
+    per-case arc lengths from the curvature change of the equal-arc solution, ~2x more
+    accurate) or 'uniform' (N equal arcs); ``shape.arc_lengths`` (N,) m gives the arcs.
+    Never returns NaN: a case that does not converge has converged=False and the best
+    finite iterate.
+    initial: optional warm start (a previous Shape, or arc angles (N,) of EQUAL arcs); used
+    (exact model, tip loads, N <= 64) when Newton from it converges to an equilibrium whose
     Jacobian eigenvalues all have positive real parts, else ignored (cold start).
     """
     _check_common(cat, n_arcs, arc_model, spacing)
@@ -809,7 +842,7 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
     phi, conv, iters, res, snapped = _solve(prob, 1, arc_model)
     stable = _stability(prob, phi)
     frac = None
-    if spacing == 'graded' and conv[0]:
+    if spacing == 'graded' and conv[0] and n > 1 and not loads.follower:
         pg, fg, okg, itg, rg = _regrade(prob, phi, arc_model)
         iters = iters + itg
         if okg[0]:
@@ -834,8 +867,10 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
     """Solve B tip-load cases at once (vectorised Newton over the batch).
 
     tip_forces: (B, 2) N (base frame, or tip frame if ``follower``); tip_moments: (B,) N m
-    or None (zeros). Returns a BatchShape: tips (B, 2), tip_angles (B,), arc_angles (B, N),
-    converged (B,), stable (B,), iterations (B,), centerlines(k) -> (B, k, 2).
+    or None (zeros). spacing: 'graded' (default) or 'uniform', as in ``solve_fam`` (each case
+    gets its own arcs; the results equal solve_fam's to ~1e-13 m). Returns a BatchShape:
+    tips (B, 2), tip_angles (B,), arc_angles (B, N), arc_lengths (B, N), converged (B,),
+    stable (B,), iterations (B,), centerlines(k) -> (B, k, 2).
     """
     _check_common(cat, n_arcs, arc_model, spacing)
     tf = np.asarray(tip_forces, dtype=float)
@@ -867,7 +902,7 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
         prob = _build_problem(cat, n, F[lo:hi], bool(follower), tm[lo:hi], [])
         p, c, it, r, _ = _solve(prob, hi - lo, arc_model)
         stable[lo:hi] = _stability(prob, p)
-        if spacing == 'graded' and np.any(c):
+        if spacing == 'graded' and np.any(c) and n > 1 and not follower:
             idx = np.nonzero(c)[0]
             pg, fg, okg, itg, rg = _regrade(_subproblem(prob, idx), p[idx], arc_model)
             it[idx] += itg
@@ -997,9 +1032,10 @@ def _fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform'):
         phi0 = (lin / ath) * target if ath > 0 else lin   # not target / ath: overflows for denormal loads
     # graded: this equal-arc solution only places the arcs; stop it at 1e-9 (an iterate error
     # ~1e-9 moves the tip of the graded solution by ~1e-12 L) -- saves one Newton step
+    graded = spacing == 'graded' and n > 1 and not follower
     phi, conv, it, res, tip, J = _fast_tip_newton(n, l, w, F, m, follower, phi0, 12,
-                                                  rtol=1e-9 if spacing == 'graded' else 1e-12)
-    if spacing == 'graded':
+                                                  rtol=1e-9 if graded else 1e-12)
+    if graded:
         conv = res <= 1e-13 + 1e-9 * max(_MAXR(phi), -_MINR(phi))
     if not conv or not (np.all(np.isfinite(phi)) and math.isfinite(tip.real) and math.isfinite(tip.imag)):
         return None
@@ -1013,16 +1049,23 @@ def _fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform'):
     compress = Ft.real < 0
     stable = True
     frac = None
-    if spacing == 'graded' and J is not None:
+    if graded and J is None and not res <= 1e-13 + 1e-12 * _MAXR(np.abs(phi)):
+        # the loose first pass stopped without a Newton step (tiny loads): finish it
+        phi, conv, it2, res, tip, J = _fast_tip_newton(n, l, w, F, m, follower, phi, 12)
+        it += it2
+        if not conv:
+            return None
+    if graded and np.any(phi):
         # second pass on graded arcs from this equal-arc solution (see graded_fractions);
         # the branch check below then uses the graded Jacobian
         f, start = _fast_grade(phi, F, follower)
         lg = L * f
         p2, c2, it2, r2, tip2, J2 = _fast_tip_newton(n, lg, lg / EI, F, m, follower, start, 12)
         it += it2
-        if c2 and J2 is not None and abs(float(p2.sum()) - th) < 0.5 and \
+        if c2 and abs(float(p2.sum()) - th) < 0.5 and \
                 math.isfinite(tip2.real) and math.isfinite(tip2.imag):
-            phi, res, tip, J, frac = p2, r2, tip2, J2, f
+            phi, res, tip, frac = p2, r2, tip2, f
+            J = J2 if J2 is not None else J
         else:   # keep the equal arcs: finish their solution to the full tolerance
             phi, conv, it2, res, tip, J1 = _fast_tip_newton(n, l, w, F, m, follower, phi, 12)
             it += it2

@@ -8,8 +8,8 @@ Publishes ``/catheter/shape`` (nav_msgs/Path in ``catheter_base``, the input's s
 subscribes to an output (a load that arrives while nobody listens is solved when a
 subscriber appears). Bad (non-finite) wrenches are logged, counted and dropped.
 
-Parameters (read at start): length [m], ei [N m^2], n_arcs, arc_model, follower,
-path_points, line_width [m]. Diagnostics: solves, non_converged, unstable, bad_messages,
+Parameters (read at start): length [m], ei [N m^2], n_arcs, arc_model, spacing
+(graded|uniform arc lengths), follower, path_points, line_width [m]. Diagnostics: solves, non_converged, unstable, bad_messages,
 last solve time. The physics lives in ``fam_solver.fam``; this module only converts.
 """
 from __future__ import annotations
@@ -25,6 +25,7 @@ from catheter_common.ros_node import Diagnostics, declare, run_node, wall_time
 from catheter_common.topics import (FRAME_CATHETER_BASE, QOS_DEFAULT, SHAPE, SHAPE_MARKER,
                                     TIP_LOAD)
 from fam_solver import ARC_MODELS, DEFAULT_ARC_MODEL, Catheter, Loads, solve_fam
+from fam_solver.fam import DEFAULT_SPACING, SPACINGS
 
 
 class FamSolverNode(Node):
@@ -36,6 +37,10 @@ class FamSolverNode(Node):
         self.arc_model = declare(self, 'arc_model', DEFAULT_ARC_MODEL,
                                  'arc model: exact (circular arcs) or bezier (thesis)',
                                  choices=ARC_MODELS)
+        self.spacing = declare(self, 'spacing', DEFAULT_SPACING,
+                               'arc lengths: graded (shorter arcs where the curvature changes '
+                               'fastest, ~2x more accurate) or uniform (equal arcs, ~2x faster)',
+                               choices=SPACINGS)
         self.follower = declare(self, 'follower', False,
                                 'true: the tip force turns with the tip (tendon pull, tip frame)')
         self.path_points = declare(self, 'path_points', 50, 'poses in the published Path', 2, 10000)
@@ -51,6 +56,7 @@ class FamSolverNode(Node):
         self._poll = self.create_timer(0.1, self._flush)
         self.get_logger().info(
             f'FAM solver: L={length} m, EI={ei} N m^2, N={self.n_arcs}, model={self.arc_model}, '
+            f'spacing={self.spacing}, '
             f'follower={self.follower}; {TIP_LOAD} -> {SHAPE}, {SHAPE_MARKER}')
 
     def _listeners(self) -> int:
@@ -82,7 +88,8 @@ class FamSolverNode(Node):
         self._pending = None
         t0 = wall_time()
         shape = solve_fam(self.cat, loads, n_arcs=self.n_arcs, arc_model=self.arc_model,
-                          initial=self._last_shape if self.arc_model == 'exact' else None)
+                          initial=self._last_shape if self.arc_model == 'exact' else None,
+                          spacing=self.spacing)
         dt = wall_time() - t0
         self.diag.count('solves')
         self.diag.set('last_solve_ms', dt * 1e3)

@@ -126,6 +126,7 @@ class Shape:
     ----------
     tip : ndarray (2,), m.          tip_angle : float, rad (tangent angle at the tip).
     arc_angles : ndarray (n_arcs,), rad -- the bending angle phi_i of each arc, base -> tip
+        (arc i has length arc_lengths[i]: equal arcs, or graded, see fam.graded_fractions)
         (for the reference rod: tangent-angle increments over 100 equal pieces).
     converged : bool.  iterations : int (Newton iterations, all continuation steps).
     stable : bool -- False when the returned equilibrium is known to be unstable (a straight
@@ -267,8 +268,9 @@ def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, fraction
 class BatchShape:
     """Results of ``solve_fam_batch``: B load cases with N arcs each.
 
-    arc_angles (B, N) rad; tips (B, 2) m; tip_angles (B,) rad; converged (B,) bool;
-    stable (B,) bool; iterations (B,) int; residual (B,) rad.
+    arc_angles (B, N) rad; arc_lengths (B, N) m; tips (B, 2) m; tip_angles (B,) rad;
+    converged (B,) bool; stable (B,) bool; iterations (B,) int; residual (B,) rad;
+    spacing 'uniform' or 'graded' (fractions (B, N) of L per case, None: equal arcs).
     """
 
     def __init__(self, length: float, arc_angles, converged, iterations, stable, residual,
