@@ -58,8 +58,8 @@ def make_psi(mm_per_px: float, base_px, angle: float = 0.0) -> np.ndarray:
 
 #: THE calibration of the system's camera, defined once: the simulated fluoroscope of
 #: sim_slave's camera_node (its defaults) and shape_node's default psi/base_px, i.e. the force
-#: estimator's training camera (force_estimator.dataset.TRAIN_CAMERA holds the same numbers
-#: and fingerprints them in its model files). 800 x 800 px at 0.15 mm/px, the clamp
+#: estimator's training camera (force_estimator.dataset.TRAIN_CAMERA is this dict; the model
+#: files fingerprint the control points it gives). 800 x 800 px at 0.15 mm/px, the clamp
 #: (catheter_base origin) at pixel (u, v) = (260, 400), +x to the right: every Blazer shape
 #: with a tip force up to 0.3 N stays in view.
 SYSTEM_CAMERA = dict(width=800, height=800, mm_per_px=0.15, base_px=(260.0, 400.0), angle=0.0)

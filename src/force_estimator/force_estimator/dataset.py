@@ -36,6 +36,8 @@ from typing import Optional
 
 import numpy as np
 
+from catheter_shape.camera import SYSTEM_CAMERA
+
 #: Blazer II-XP: 65 mm long, EI = 60 N mm^2
 BLAZER_LENGTH = 0.065
 BLAZER_EI = 6.0e-5
@@ -51,7 +53,8 @@ N_CENTERLINE = 200
 #: x in [-36, 65] mm, y in [-50, 57] mm (post-buckled shapes can cross to the other side);
 #: the view is x in [-39, 81] mm, y in [-60, 60] mm); fluoroscopy-like noise, blur and
 #: texture as catheter_shape draws them
-TRAIN_CAMERA = dict(width=800, height=800, mm_per_px=0.15, base_px=(260.0, 400.0))
+#: It is the system's camera, defined once in catheter_shape.camera.SYSTEM_CAMERA.
+TRAIN_CAMERA = dict(SYSTEM_CAMERA)
 
 
 def thesis_grid(n_angles: int = 16, n_magnitudes: int = 25, f_max: float = F_MAX) -> np.ndarray:
