@@ -199,3 +199,13 @@ def test_bad_spacing_is_refused():
         solve_fam(BLAZER, Loads(), spacing='chebyshev')
     with pytest.raises(ValueError, match='spacing'):
         solve_fam_batch(BLAZER, np.zeros((2, 2)), spacing=None)
+
+
+def test_graded_fractions_tiny_curvature_change_does_not_underflow():
+    """Regression (found by hypothesis): kappa'^2 of a 1e-161 bend underflowed, so the mesh
+    changed with the force scale; the monitor is normalised by max|kappa'| first."""
+    phi = np.array([[0.0, 2.8002983266425355e-161]])
+    F = np.array([1.0 + 0.0j])
+    a = core.graded_fractions(phi, F)
+    assert np.allclose(core.graded_fractions(phi, 0.5 * F), a, atol=1e-15)
+    assert np.allclose(core._fast_grade(phi[0], 0.5, False)[0], a[0], atol=1e-15)

@@ -714,11 +714,11 @@ def graded_fractions(phi, tip_force, follower=False, point_forces=()):
         mid = (np.arange(N) + 0.5) / N
         for s, F in point_forces:
             Fd = Fd + np.where(mid[None, :] < s, np.asarray(F, dtype=complex)[:, None], 0.0)
-    kp = (np.conj(t) * Fd).imag
-    kp2 = kp * kp
-    mx2 = np.max(kp2, axis=1)
-    rho = (kp2 + (GRADE_FLOOR * GRADE_FLOOR) * mx2[:, None]) ** (0.5 * GRADE_POWER)
-    flat = ~(mx2 > 0) | ~np.all(np.isfinite(rho), axis=1)
+    kp = np.abs((np.conj(t) * Fd).imag)
+    mx = np.max(kp, axis=1)
+    flat = ~(mx > 0) | ~np.isfinite(mx)
+    kp = kp / np.where(flat, 1.0, mx)[:, None]          # scale-free, no underflow of kp^2
+    rho = (kp * kp + GRADE_FLOOR * GRADE_FLOOR) ** (0.5 * GRADE_POWER)
     rho[flat] = 1.0
     C = np.zeros((B, N + 1))
     np.cumsum(rho, axis=1, out=C[:, 1:])
@@ -1097,12 +1097,12 @@ def _fast_grade(phi, F, follower):
     t = np.exp(1j * (th_end - 0.5 * phi))
     if follower:
         F = F * complex(math.cos(th_end[-1]), math.sin(th_end[-1]))
-    kp = (t.conjugate() * F).imag
-    kp2 = kp * kp
-    mx2 = float(_MAXR(kp2))
-    if not mx2 > 0:
+    kp = np.abs((t.conjugate() * F).imag)
+    mx = float(_MAXR(kp))
+    if not (mx > 0 and mx < math.inf):
         return np.full(n, 1.0 / n), phi
-    rho = (kp2 + (GRADE_FLOOR * GRADE_FLOOR) * mx2) ** (0.5 * GRADE_POWER)
+    kp /= mx
+    rho = (kp * kp + GRADE_FLOOR * GRADE_FLOOR) ** (0.5 * GRADE_POWER)
     C = np.empty(n + 1)
     C[0] = 0.0
     np.add.accumulate(rho, out=C[1:])
