@@ -695,12 +695,14 @@ def graded_fractions(phi, tip_force, follower=False, point_forces=()):
     -i e^{i theta} kappa' l^3 / 12, with kappa' = dM/ds / EI = -(t x F_distal) / EI (t the
     tangent, F_distal the resultant of the forces beyond s; a tip moment does not change
     kappa'). The arcs are placed so that each holds an equal share of the monitor
-    rho = (kappa'^2 + (GRADE_FLOOR kappa'_rms)^2)^(GRADE_POWER / 2), evaluated at the
-    equal-arc solution's midpoints (rho piecewise constant on the equal arcs; the floor keeps
-    every arc within 1/GRADE_FLOOR of the others and the map smooth in the load). Zero kappa'
-    (pure moment, straight catheter) gives equal arcs. Shorter arcs where the curvature
-    changes fastest: near the base for a lateral tip force, toward the tip for a
-    post-buckled compression.
+    rho = (kappa'^2 + (GRADE_FLOOR max|kappa'|)^2)^(GRADE_POWER / 2) (p = 1, floor 0.2),
+    evaluated at the equal-arc solution's midpoints (rho piecewise constant on the equal
+    arcs; the floor keeps every arc within sqrt(1 + f^2)/f = 5.1x of the others and the map
+    continuous in the load). Zero kappa' (pure moment, straight catheter) gives equal arcs.
+    p = 1 (density ~ |kappa'|) measured better than p = 1/2 (the minimiser of
+    sum l^3 |kappa'|): mean tip error over 300 random tip loads at N = 12 0.060 vs 0.066 % L
+    (that run: floor 0.1 x rms|kappa'|). Shorter arcs where the curvature changes fastest:
+    near the base for a lateral tip force, mid-length for a post-buckled compression.
     """
     phi = np.asarray(phi, dtype=float)
     B, N = phi.shape
