@@ -290,12 +290,19 @@ def test_ima_renders_the_model_on_the_local_trajectory():
     assert ima.n_ignored == 1
 
 
-def test_ima_defaults_render_the_first_model_exactly_and_clamp():
-    ima = ImaRenderer()
+def test_ima_first_model_blends_in_without_a_step_and_output_is_clamped():
     imp = Impedance(0.01, 3.0, 8.0, 0.02)
+    exact = ImaRenderer(blend_time=0.0)                 # no blending: the model as is
+    exact.set_impedance(imp)
+    assert exact.desired_force(0.03, 0.02, 0.5) == pytest.approx(imp.force(0.03, 0.02, 0.5))
+    ima = ImaRenderer()                                 # default: the first model blends in from 0 N
     ima.set_impedance(imp)
-    assert ima.desired_force(0.03, 0.02, 0.5) == pytest.approx(imp.force(0.03, 0.02, 0.5))
-    strong = ImaRenderer()
+    target = imp.force(0.03, 0.02, 0.5)
+    out = [ima.desired_force(0.03, 0.02, 0.5) for _ in range(400)]
+    assert abs(out[0]) < 0.03 * abs(target)             # no step at the hand
+    assert max(abs(b - a) for a, b in zip([0.0] + out, out)) < 0.03 * abs(target)
+    assert out[-1] == pytest.approx(target, rel=1e-3)   # 8 blend time constants later
+    strong = ImaRenderer(blend_time=0.0)
     strong.set_impedance(Impedance(0.0, 0.0, 1000.0, 0.0))
     assert strong.desired_force(0.05, 0.0, 0.0) == 2.0
     assert strong.desired_force(-0.05, 0.0, 0.0) == -2.0 and strong.n_clamped == 2
@@ -346,7 +353,7 @@ def test_passivity_controller_keeps_an_active_model_passive():
             assert ima.energy >= -1e-12 and ima.n_passivity > 0
     assert energies[False] < -1e-3 and energies[True] >= -1e-6
     # a passive (dissipative) model is untouched
-    ima = ImaRenderer(passivity=True)
+    ima = ImaRenderer(passivity=True, blend_time=0.0)   # passivity alone, no blend-in
     ima.set_impedance(Impedance(0.0, 3.0, 0.0, 0.0))
     for k in range(500):
         assert ima.desired_force(0.03, 0.02, 0.0) == pytest.approx(0.06)

@@ -46,9 +46,9 @@ class ImaRenderer:
         limit: N, safe output limit (|f_d| <= limit).
         blend_time: s, time constant of the bumpless transfer at a model switch (0: jump).
         max_rate: N/s, slew-rate limit of the output (> 0; default inf: none; the nodes use
-            20 N/s as a safety net, which ramps in the very first model).
-    The first valid model is rendered as is (there is nothing to blend from); every later
-    switch is bumpless.
+            20 N/s as a safety net).
+    Every switch is bumpless, the first one too: it blends in from the force rendered before
+    (0 N), so the first model does not step the operator's hand either.
         dt: s, the call period (1 kHz loop), used by blending and slew limiting.
         passivity: add the time-domain passivity controller (TDPA, Ryu & Hannaford): the
             observer E = sum f x' dt is the energy the operator has put into the rendered
@@ -120,10 +120,13 @@ class ImaRenderer:
             st.reset(x, *z0)
             self._state = st
             self._z = z0
-        if self.model is not None and self.blend_time > 0.0:
+        if self.blend_time > 0.0:
             z = self._z if self._state is not None else None
-            old_f = self.model.force(x, xd, xdd, z if self.model.S is not None else None)
             new_f = new.force(x, xd, xdd, z if new.S is not None else None)
+            if self.model is not None:
+                old_f = self.model.force(x, xd, xdd, z if self.model.S is not None else None)
+            else:
+                old_f = self._last_out      # the first model: blend in from what was rendered (0 N)
             self._bump += old_f - new_f
         self.model = new
         self.n_switches += 1
