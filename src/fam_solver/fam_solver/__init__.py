@@ -9,8 +9,8 @@ Public API (DESIGN section 5)::
     shape.tip, shape.tip_angle, shape.centerline(50), shape.arc_angles, shape.arc_lengths
     solve_fam(cat, loads, n_arcs=12, spacing='uniform')        # equal arcs ('graded': default)
 
-The algorithm modules (``arcs``, ``model``, ``fam``, ``bezier``, ``elastica``) never
-import rclpy; ``fam_solver_node`` is the thin ROS 2 node.
+The algorithm modules (``arcs``, ``model``, ``fam``, ``bezier``, ``elastica``) are free of
+rclpy; ``fam_solver_node`` is the thin ROS 2 node.
 """
 from .model import BatchShape, Catheter, Loads, Shape
 from .fam import (ARC_MODELS, DEFAULT_ARC_MODEL, DEFAULT_SPACING, SPACINGS, graded_fractions,

@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 
 from geometry_msgs.msg import WrenchStamped
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
@@ -36,7 +35,8 @@ from catheter_common.topics import (FRAME_CATHETER_BASE, MASTER_COMMAND, MASTER_
                                     SLAVE_FORCE, SLAVE_IMPEDANCE)
 from impedance_master.haptic import HapticDevice
 from impedance_master.operator import experiment_trajectory
-from sim_slave.link import Link, LinkConfig
+from sim_slave.link import Link
+from sim_slave.ros_link import declare_link
 
 #: force at the operator's hand (not in DESIGN section 4; local to this package)
 from catheter_common.topics import MASTER_HAND_FORCE  # noqa: E402  (re-exported)
@@ -60,20 +60,7 @@ class SimHapticNode(Node):
         k_hand = declare(self, 'hand_stiffness', 300.0, 'compliant hand stiffness, N/m',
                          1.0, 1e5)
         b_hand = declare(self, 'hand_damping', 15.0, 'compliant hand damping, N s/m', 0.0, 1e3)
-        delay = declare(self, 'link.delay', 0.2, 'one-way delay slave -> master, s', 0.0, 10.0)
-        jitter = declare(self, 'link.jitter', 0.0, 'extra delay U(0, jitter) per packet, s',
-                         0.0, 5.0)
-        loss = declare(self, 'link.loss', 0.0, 'probability that a packet is lost', 0.0, 1.0)
-        outages = self.declare_parameter(
-            'link.outages', [4.0, 1.0, 8.0, 1.0],
-            ParameterDescriptor(description='link outages as a flat list start,length,... in s '
-                                'after the first timer tick; [] or [0.0, 0.0] for none',
-                                dynamic_typing=True)).value
-        try:
-            flat = [float(v) for v in (outages or [])]
-        except (TypeError, ValueError):
-            raise ValueError(f'link.outages must be a list of numbers, got {outages!r}') from None
-        self.link_cfg = LinkConfig.from_flat(delay, jitter, loss, flat)
+        self.link_cfg = declare_link(self, 'impedance and force from the slave')
         self.traj = experiment_trajectory(self.experiment, seed=self.seed)
         self.device = HapticDevice(dt=1.0 / self.rate,
                                    hand_stiffness=k_hand if compliant else None,

@@ -24,14 +24,14 @@ import math
 from dataclasses import fields
 
 from geometry_msgs.msg import WrenchStamped
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common.ros_node import Diagnostics, declare, run_node
 from catheter_common.topics import (FRAME_CATHETER_BASE, MASTER_COMMAND, QOS_FAST,
                                     SLAVE_FORCE, SLAVE_JOINT_STATE)
-from sim_slave.link import Link, LinkConfig
+from sim_slave.link import Link
+from sim_slave.ros_link import declare_link
 from sim_slave.robot import SlaveRobot
 from sim_slave.sensor import ForceSensor
 from sim_slave.slave import SlaveSimulation, default_rotation_axis
@@ -73,15 +73,7 @@ class SimSlaveNode(Node):
                             10.0, 10000.0)
         seed = declare(self, 'seed', 0, 'random seed (vessel phase, sensor noise, link)',
                        0, 2 ** 31 - 1)
-        delay = declare(self, 'link.delay', 0.2, 'one-way delay of master commands, s', 0.0, 10.0)
-        jitter = declare(self, 'link.jitter', 0.0, 'extra delay U(0, jitter) per command, s',
-                         0.0, 5.0)
-        loss = declare(self, 'link.loss', 0.0, 'probability that a command is lost', 0.0, 1.0)
-        outages = self.declare_parameter(
-            'link.outages', [4.0, 1.0, 8.0, 1.0],
-            ParameterDescriptor(description='link outages as a flat list start,length,... in s '
-                                'after the first timer tick; [] or [0.0, 0.0] for none',
-                                dynamic_typing=True)).value
+        link_cfg = declare_link(self, 'master commands')
         noise = declare(self, 'sensor.noise_std', 0.01, 'force sensor noise (std), N', 0.0, 1.0)
         bias = declare(self, 'sensor.bias', 0.0, 'force sensor bias, N', -10.0, 10.0)
         kp = declare(self, 'robot.kp', 60.0, 'insertion axis position gain, 1/s', 0.1, 1000.0)
@@ -100,11 +92,7 @@ class SimSlaveNode(Node):
             hi, desc = VESSEL_PARAM_RANGES[f.name]
             vessel_kw[f.name] = declare(self, 'vessel.' + f.name, float(getattr(defaults, f.name)),
                                         desc, _VESSEL_LOWER.get(f.name, 0.0), hi)
-        try:
-            flat = [float(v) for v in (outages or [])]
-        except (TypeError, ValueError):
-            raise ValueError(f'link.outages must be a list of numbers, got {outages!r}') from None
-        self.link = Link(LinkConfig.from_flat(delay, jitter, loss, flat), seed=seed + 2)
+        self.link = Link(link_cfg, seed=seed + 2)
         robot = SlaveRobot(rate=self.rate, kp=kp, max_speed=vmax, max_accel=amax, x0=x0)
         self.sim = SlaveSimulation(vessel=VesselModel(VesselParams(**vessel_kw), seed=seed),
                                    sensor=ForceSensor(noise_std=noise, bias=bias, seed=seed + 1),
