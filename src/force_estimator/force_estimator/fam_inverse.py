@@ -53,6 +53,8 @@ from force_estimator.models import control_points_to_features
 
 #: prior width of the arc-length offset of the observed curve's start, m
 ALIGN_SIGMA = 1e-3
+#: Jacobian variants: analytic force columns (default) or forward differences
+SOLVERS = ('analytic', 'single', 'batch')
 #: prior width of the relative stretch of the observed curve's arc length
 STRETCH_SIGMA = 0.02
 
@@ -78,15 +80,17 @@ class FamInverseEstimator:
     search, sets the start table). tol: step tolerance, N. max_iter: iterations per start.
     max_residual: RMS distance above which the estimate is flagged, m. fd_step:
     finite-difference step, N. table_angles x table_magnitudes: start table over the full
-    circle of force directions. solver: "single" (default; three `solve_fam` calls per
-    iteration, warm-started: measured 1.8 ms per streamed estimate against 2.5 ms) or
-    "batch" (one `solve_fam_batch` call of three forces per iteration).
+    circle of force directions. solver: "analytic" (default; one warm-started `solve_fam`
+    per iteration, force columns of the Jacobian from `fam_solver.sensitivity`), "single"
+    (forward differences: three warm-started `solve_fam` calls per iteration; fd_step is
+    used only by this and "batch") or "batch" (one `solve_fam_batch` call of three forces
+    per iteration).
     """
 
     def __init__(self, cat, n_arcs: int = 12, n_points: int = 24, f_max: float = 0.45,
                  tol: float = 1e-4, max_iter: int = 8, max_residual: float = 5e-4,
                  fd_step: float = 1e-4, table_angles: int = 64, table_magnitudes: int = 30,
-                 solver: str = 'single'):
+                 solver: str = 'analytic'):
         for name, v in (('f_max', f_max), ('tol', tol), ('max_residual', max_residual),
                         ('fd_step', fd_step)):
             if not (np.isfinite(v) and v > 0):
@@ -96,9 +100,11 @@ class FamInverseEstimator:
                             ('table_magnitudes', table_magnitudes, 1)):
             if int(v) != v or v < lo:
                 raise ValueError(f'{name} must be an integer >= {lo}, got {v!r}')
-        if solver not in ('single', 'batch'):
-            raise ValueError(f'solver must be "single" or "batch", got {solver!r}')
+        if solver not in SOLVERS:
+            raise ValueError(f'solver must be one of {SOLVERS}, got {solver!r}')
         from fam_solver import Loads, solve_fam, solve_fam_batch
+        from fam_solver.sensitivity import shape_sensitivity
+        self._sens = shape_sensitivity
         self.solver = solver
         self._solve_one = solve_fam
         self._Loads = Loads
@@ -135,6 +141,12 @@ class FamInverseEstimator:
         self._table_f = F[ok]
         self._table_frac = np.linspace(0.0, 1.0, 65)
         self._table_pts = b.points_at(self._table_frac)[ok]          # (T, 65, 2)
+        # the same, laid out for the start search: rows by fraction, contiguous over T
+        self._tab_x = np.ascontiguousarray(self._table_pts[:, :, 0].T)   # (65, T)
+        self._tab_y = np.ascontiguousarray(self._table_pts[:, :, 1].T)
+        self._tab_n2 = self._tab_x ** 2 + self._tab_y ** 2
+        quad = (self._table_f[:, 0] >= 0).astype(int) * 2 + (self._table_f[:, 1] >= 0)
+        self._tab_quads = [np.flatnonzero(quad == q) for q in range(4)]
 
     def reset(self) -> None:
         """Forget the warm start (e.g. after a jump in the image stream)."""
@@ -164,11 +176,12 @@ class FamInverseEstimator:
         fy), nearest first. Slightly bent shapes look alike under a push and a pull, so
         the search may start on the wrong side; the next quadrant is the fallback."""
         idx = np.rint(self._frac * 64).astype(int)
-        d = ((self._table_pts[:, idx] - obs) ** 2).sum(axis=(1, 2))
-        quad = (self._table_f[:, 0] >= 0).astype(int) * 2 + (self._table_f[:, 1] >= 0)
+        # squared distances |table - obs|^2 summed over the points, minus the constant |obs|^2
+        # (rows gathered contiguously; the cross term as two matrix-vector products)
+        d = self._tab_n2[idx].sum(axis=0) - 2.0 * (obs[:, 0] @ self._tab_x[idx]
+                                                   + obs[:, 1] @ self._tab_y[idx])
         best = []
-        for q in range(4):
-            sel = np.flatnonzero(quad == q)
+        for sel in self._tab_quads:
             if sel.size:
                 i = sel[np.argmin(d[sel])]
                 best.append((d[i], i))
@@ -185,10 +198,19 @@ class FamInverseEstimator:
         (three warm-started single solves, or one batched call); the delta/eps columns come
         from the FAM tangent. Two prior rows keep
         delta ~ 0 +- `ALIGN_SIGMA` m and eps ~ 0 +- `STRETCH_SIGMA`."""
-        h = self.fd_step
         f = x[:2]
         ap = np.clip(x[2] + (1.0 + x[3]) * self._a, 0.0, self.length)
         frac = ap / self.length
+        n = self.n_points
+        J = np.zeros((2 * n + 2, 4))
+        if self.solver == 'analytic':
+            base = self._solve_base(f)
+            if base is None:
+                return None, None, np.inf
+            P0, dP, T = self._sens(base, f, frac, self.cat.ei)
+            J[:2 * n, :2] = dP.reshape(2 * n, 2)
+            return self._finish(x, obs, P0, T, J)
+        h = self.fd_step
         dh = 1e-4
         fr2 = np.where(frac + dh / self.length <= 1.0, frac + dh / self.length,
                        frac - dh / self.length)
@@ -202,28 +224,40 @@ class FamInverseEstimator:
         else:
             # three single solves, each warm-started (the base from the previous base shape,
             # the perturbations from the base): cheaper than one batched call
-            base = self._solve_one(self.cat, self._Loads(tip_force=(float(f[0]), float(f[1]))),
-                                   n_arcs=self.n_arcs, initial=self._prev_shape)
-            if not base.converged:
-                base = self._solve_one(self.cat, self._Loads(tip_force=(float(f[0]),
-                                                                        float(f[1]))),
-                                       n_arcs=self.n_arcs)
+            base = self._solve_base(f)
+            if base is None:
+                return None, None, np.inf
             sx = self._solve_one(self.cat, self._Loads(tip_force=(float(f[0]) + h, float(f[1]))),
                                  n_arcs=self.n_arcs, initial=base)
             sy = self._solve_one(self.cat, self._Loads(tip_force=(float(f[0]), float(f[1]) + h)),
                                  n_arcs=self.n_arcs, initial=base)
-            if not (base.converged and sx.converged and sy.converged):
+            if not (sx.converged and sy.converged):
                 return None, None, np.inf
-            self._prev_shape = base
             P = np.stack([base.points_at(frac), sx.points_at(frac), sy.points_at(frac)])
             P2 = base.points_at(fr2)
         T = (P2 - P[0]) / (fr2 - frac)[:, None] / self.length   # unit tangent
-        n = self.n_points
-        r = np.concatenate([(P[0] - obs).reshape(-1),
-                            [x[2] / ALIGN_SIGMA * self._w, x[3] / STRETCH_SIGMA * self._w]])
-        J = np.zeros((2 * n + 2, 4))
         J[:2 * n, 0] = (P[1] - P[0]).reshape(-1) / h
         J[:2 * n, 1] = (P[2] - P[0]).reshape(-1) / h
+        return self._finish(x, obs, P[0], T, J)
+
+    def _solve_base(self, f):
+        """Warm-started FAM solve at force f (from the previous base shape; cold if that
+        fails). The converged Shape (also kept as the next warm start), or None."""
+        loads = self._Loads(tip_force=(float(f[0]), float(f[1])))
+        base = self._solve_one(self.cat, loads, n_arcs=self.n_arcs, initial=self._prev_shape)
+        if not base.converged and self._prev_shape is not None:
+            base = self._solve_one(self.cat, loads, n_arcs=self.n_arcs)
+        if not base.converged:
+            return None
+        self._prev_shape = base
+        return base
+
+    def _finish(self, x, obs, P0, T, J):
+        """Residual, Jacobian (force columns already in J) and cost from the FAM points P0
+        (n_points, 2) m and unit tangents T (n_points, 2) at the compared arc lengths."""
+        n = self.n_points
+        r = np.concatenate([(P0 - obs).reshape(-1),
+                            [x[2] / ALIGN_SIGMA * self._w, x[3] / STRETCH_SIGMA * self._w]])
         J[:2 * n, 2] = T.reshape(-1)
         J[:2 * n, 3] = (T * self._a[:, None]).reshape(-1)
         J[2 * n, 2] = self._w / ALIGN_SIGMA
@@ -240,7 +274,8 @@ class FamInverseEstimator:
         x0 = np.asarray(x0, dtype=float)
         x[:len(x0)] = x0
         r, J, cost = self._eval(x, obs)
-        solves = 3
+        per = 1 if self.solver == 'analytic' else 3       # FAM solves per evaluation
+        solves = per
         if not np.isfinite(cost):
             return x, np.inf, 0, solves, False
         mu = 1e-4
@@ -261,7 +296,7 @@ class FamInverseEstimator:
                 converged = True
                 break
             rn, Jn, cn = self._eval(xn, obs)
-            solves += 3
+            solves += per
             if cn <= cost:
                 x, r, J, cost = xn, rn, Jn, cn
                 mu = max(0.2 * mu, 1e-9)
