@@ -27,8 +27,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from scipy.linalg.lapack import dgesv as _dgesv
+
 from .arcs import arc_funcs
 from .model import _bounds, _locate
+
+_MASKS = {}
+
+
+def _masks(n):
+    """Strictly-lower mask (N, N), flat diagonal stride and the column index row."""
+    m = _MASKS.get(n)
+    if m is None:
+        if len(_MASKS) > 32:
+            _MASKS.clear()
+        m = _MASKS[n] = (np.tri(n, n, -1, dtype=bool), np.arange(n))
+    return m
 
 
 def shape_sensitivity(shape, tip_force, s, ei: float, tip_moment: float = 0.0):
@@ -64,7 +78,12 @@ def shape_sensitivity(shape, tip_force, s, ei: float, tip_moment: float = 0.0):
     th_start = th_end - phi
     E = np.exp(1j * th_start)
     lE = l * E
-    g, q, gp, qp = arc_funcs(phi)
+    i, tau = _locate(_bounds(l / l.sum()), s)
+    k = s.size
+    # one call for the arcs and the partial arcs up to the points
+    G, Q, GP, QP = arc_funcs(np.concatenate([phi, phi[i] * tau]))
+    g, q, gp, qp = G[:n], Q[:n], GP[:n], QP[:n]
+    gt, gpt = G[n:], GP[n:]
     P = np.cumsum(lE * g)                                  # arc end points
     rel = P[-1] - P
     cF = complex(f[0], -f[1])
@@ -73,19 +92,21 @@ def shape_sensitivity(shape, tip_force, s, ei: float, tip_moment: float = 0.0):
     # dr/dphi, as in fam._fast_tip_newton (dead load)
     C = ((1j * rel + lE * gp) * cF).imag
     Bd = ((1j * rel + lE * qp) * cF).imag
-    lower = np.tri(n, n, -1, dtype=bool)
-    J = np.where(lower, ZF.real[:, None], C[None, :]) * w[:, None]
-    J[np.diag_indices(n)] = w * Bd + 1.0
-    dr_dF = np.stack([w * Z.imag, -w * Z.real], axis=1)   # (N, 2)
-    dphi = -np.linalg.solve(J, dr_dF)                      # (N, 2)
+    lower, cols = _masks(n)
+    J = np.where(lower, ZF.real[:, None], C) * w[:, None]
+    J.flat[::n + 1] = w * Bd + 1.0
+    dr_dF = np.empty((n, 2))
+    dr_dF[:, 0] = -w * Z.imag                              # minus: dphi = J^-1 (-dr/dF)
+    dr_dF[:, 1] = w * Z.real
+    _, _, dphi, info = _dgesv(J, dr_dF)                   # (N, 2)
+    if info != 0:
+        raise ValueError('shape is singular (a critical load): no sensitivity')
     # points and their derivative with respect to phi
-    i, tau = _locate(_bounds(l / l.sum()), s)
-    gt, _, gpt, _ = arc_funcs(phi[i] * tau)
-    P_start = P - lE * g
-    z = P_start[i] + lE[i] * tau * gt
-    Dz = lE[None, :] * gp[None, :] + 1j * (z[:, None] - P[None, :])
-    Dz = np.where(np.arange(n)[None, :] < i[:, None], Dz, 0.0)
-    Dz[np.arange(s.size), i] = lE[i] * tau * tau * gpt
+    lEi = lE[i]
+    z = P[i] - lEi * g[i] + lEi * tau * gt
+    Dz = (lE * gp) + 1j * (z[:, None] - P)
+    Dz = np.where(cols < i[:, None], Dz, 0.0)
+    Dz[np.arange(k), i] = lEi * tau * tau * gpt
     dz = Dz @ dphi                                         # (k, 2) complex
     points = np.stack([z.real, z.imag], axis=1)
     dpoints = np.stack([dz.real, dz.imag], axis=1)

@@ -121,6 +121,9 @@ class FamInverseEstimator:
         self._w = 1e-4          # prior rows in metres of shape residual per sigma
         self._solve_batch = solve_fam_batch
         self._last: Optional[np.ndarray] = None
+        self._last_eval: Optional[np.ndarray] = None
+        self._shapes = {}          # analytic: FAM shapes by force evaluated in this estimate
+        self._n_solves = 0         # FAM solve calls made (solve_fam, or batched calls x 3)
         self.last_result: Optional[FamInverseResult] = None
         # dense Bernstein basis to measure and re-sample the observed curve
         u = np.linspace(0.0, 1.0, 257)
@@ -151,7 +154,9 @@ class FamInverseEstimator:
     def reset(self) -> None:
         """Forget the warm start (e.g. after a jump in the image stream)."""
         self._last = None
+        self._last_eval = None
         self._prev_shape = None
+        self._shapes = {}
 
     def observed_points(self, control_points) -> np.ndarray:
         """The observed curve re-sampled at n_points equal arc lengths from its base up to
@@ -207,7 +212,10 @@ class FamInverseEstimator:
             base = self._solve_base(f)
             if base is None:
                 return None, None, np.inf
-            P0, dP, T = self._sens(base, f, frac, self.cat.ei)
+            try:
+                P0, dP, T = self._sens(base, f, frac, self.cat.ei)
+            except ValueError:                   # singular FAM Jacobian (critical load)
+                return None, None, np.inf
             J[:2 * n, :2] = dP.reshape(2 * n, 2)
             return self._finish(x, obs, P0, T, J)
         h = self.fd_step
@@ -217,6 +225,7 @@ class FamInverseEstimator:
         if self.solver == 'batch':
             b = self._solve_batch(self.cat, np.array([f, f + (h, 0.0), f + (0.0, h)]),
                                   np.zeros(3), n_arcs=self.n_arcs)
+            self._n_solves += 3
             if not b.converged.all():
                 return None, None, np.inf
             P = b.points_at(frac)
@@ -227,6 +236,7 @@ class FamInverseEstimator:
             base = self._solve_base(f)
             if base is None:
                 return None, None, np.inf
+            self._n_solves += 2
             sx = self._solve_one(self.cat, self._Loads(tip_force=(float(f[0]) + h, float(f[1]))),
                                  n_arcs=self.n_arcs, initial=base)
             sy = self._solve_one(self.cat, self._Loads(tip_force=(float(f[0]), float(f[1]) + h)),
@@ -243,13 +253,22 @@ class FamInverseEstimator:
     def _solve_base(self, f):
         """Warm-started FAM solve at force f (from the previous base shape; cold if that
         fails). The converged Shape (also kept as the next warm start), or None."""
-        loads = self._Loads(tip_force=(float(f[0]), float(f[1])))
+        key = (float(f[0]), float(f[1]))
+        base = self._shapes.get(key)
+        if base is not None:
+            self._prev_shape = base
+            return base
+        loads = self._Loads(tip_force=key)
         base = self._solve_one(self.cat, loads, n_arcs=self.n_arcs, initial=self._prev_shape)
+        self._n_solves += 1
         if not base.converged and self._prev_shape is not None:
             base = self._solve_one(self.cat, loads, n_arcs=self.n_arcs)
+            self._n_solves += 1
         if not base.converged:
             return None
         self._prev_shape = base
+        if self.solver == 'analytic':
+            self._shapes[key] = base
         return base
 
     def _finish(self, x, obs, P0, T, J):
@@ -270,14 +289,16 @@ class FamInverseEstimator:
     def _solve(self, obs: np.ndarray, x0: np.ndarray):
         """LM from x0 = (fx, fy[, delta, eps]). Returns (x = (fx, fy, delta, eps), shape cost,
         iterations, FAM solves, converged); the shape cost excludes the prior rows."""
+        # returns (x, x_eval, ...): x_eval is the last evaluated point (its FAM shape is
+        # cached), x may be one Gauss-Newton step below the tolerance beyond it
         x = np.zeros(4)
         x0 = np.asarray(x0, dtype=float)
         x[:len(x0)] = x0
+        n0 = self._n_solves
         r, J, cost = self._eval(x, obs)
-        per = 1 if self.solver == 'analytic' else 3       # FAM solves per evaluation
-        solves = per
         if not np.isfinite(cost):
-            return x, np.inf, 0, solves, False
+            return x, x, np.inf, 0, self._n_solves - n0, False
+        xe = x                                   # the last x with a FAM solve behind it
         mu = 1e-4
         converged = False
         it = 0
@@ -296,9 +317,9 @@ class FamInverseEstimator:
                 converged = True
                 break
             rn, Jn, cn = self._eval(xn, obs)
-            solves += per
             if cn <= cost:
                 x, r, J, cost = xn, rn, Jn, cn
+                xe = x
                 mu = max(0.2 * mu, 1e-9)
                 if small:
                     converged = True
@@ -309,32 +330,44 @@ class FamInverseEstimator:
                     converged = True
                     break
         shape_cost = float(r[:-2] @ r[:-2])
-        return x, shape_cost, it, solves, converged
+        return x, xe, shape_cost, it, self._n_solves - n0, converged
 
     def estimate(self, control_points) -> FamInverseResult:
         """Full result for one observation: control_points (4, 3) m (z ignored)."""
         obs = self.observed_points(control_points)
         starts = []
         if self._last is not None:
-            starts.append(('warm', self._last))
-        starts += [('table', f) for f in self._table_starts(obs)]
+            # analytic: from the last evaluated point, whose FAM shape is cached (saves the
+            # first solve; the step beyond it was below the tolerance)
+            starts.append(('warm', self._last_eval if self.solver == 'analytic'
+                           else self._last))
+            key = (float(self._last_eval[0]), float(self._last_eval[1]))
+            self._shapes = {key: self._shapes[key]} if key in self._shapes else {}
+        else:
+            self._shapes = {}
+        starts.append(('table', None))         # the table starts, looked up only if needed
         best = None
         total = 0
-        for kind, f0 in starts:
+        while starts:
+            kind, f0 = starts.pop(0)
+            if f0 is None:
+                starts = [('table', f) for f in self._table_starts(obs)]
+                continue
             if kind == 'table':
                 self._prev_shape = None        # a far warm start could pick another branch
-            x, cost, it, solves, conv = self._solve(obs, f0)
+            x, xe, cost, it, solves, conv = self._solve(obs, f0)
             total += solves
             res = float(np.sqrt(cost / self.n_points))
             if best is None or res < best[1]:
-                best = (x, res, it, conv)
+                best = (x, res, it, conv, xe)
             if conv and res <= 0.5 * self.max_residual:
                 break
-        x, res, it, conv = best
+        x, res, it, conv, xe = best
         f = x[:2].copy()
         inside = bool(conv and res <= self.max_residual and np.hypot(*f) <= self.f_max)
         if np.isfinite(res):
             self._last = x.copy()
+            self._last_eval = xe.copy()
         out = FamInverseResult(force=np.asarray(f, dtype=float), residual=res, iterations=it,
                                solves=total, converged=bool(conv), in_envelope=inside)
         self.last_result = out
