@@ -9,7 +9,9 @@ the full image pipeline (ShapeSensor: background removal, threshold, skeleton, B
 
 Also: single-sample latency of the numpy forward passes against scikit-learn's predict of
 the same model (trained here on the rendered thesis grid), training times, FAM inversion
-latency cold (table start) and warm (a slowly varying stream), and the thesis's numbers.
+latency cold (table start) and warm (a slowly varying stream) beside the same estimator with
+the previous forward-difference Jacobian (solver='single', three FAM solves per iteration)
+measured in the same run, and the thesis's numbers.
 
 Run: scripts/bench force   (or python tests/bench/bench_force.py [--n 150])
 """
@@ -116,6 +118,7 @@ def main(argv=None):
     fam = FamInverseEstimator(cat, n_arcs=24)
     t_fam_init = time.perf_counter() - t
     fam12 = FamInverseEstimator(cat, n_arcs=12)
+    fam_fd = FamInverseEstimator(cat, n_arcs=24, solver='single')   # same-run reference
 
     from force_estimator.train import fingerprint_drift
     print(f'camera-path drift since the shipped models were trained: '
@@ -137,6 +140,16 @@ def main(argv=None):
         solves.append(r.solves)
     res['fam'], flags['fam'] = np.array(P), np.array(fl)
     lat['fam_cold'] = np.array(tt)
+    P, tt, solves_fd = [], [], []
+    for c in cp:
+        fam_fd.reset()
+        t = time.perf_counter()
+        r = fam_fd.estimate(c)
+        tt.append(time.perf_counter() - t)
+        P.append(r.force)
+        solves_fd.append(r.solves)
+    res['fam_fd'] = np.array(P)
+    lat['fam_fd_cold'] = np.array(tt)
     P, fl, tt = [], [], []
     for c in cp:
         fam12.reset()
@@ -239,22 +252,41 @@ def main(argv=None):
     from fam_solver import Loads, solve_fam
     stream = [solve_fam(cat, Loads(tip_force=tuple(f)), n_arcs=24).centerline(200) for f in drift]
     scp = D.render_control_points(np.array(stream), seed=9, camera_kwargs=BENCH_CAMERA)[0]
-    tw = []
+    fam_fd.reset()
+    tw, tw_fd, sw, sw_fd = [], [], [], []
     for c in scp:
         if np.isfinite(c).all():
             t = time.perf_counter()
-            fam.estimate(c)
+            sw.append(fam.estimate(c).solves)
             tw.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            sw_fd.append(fam_fd.estimate(c).solves)
+            tw_fd.append(time.perf_counter() - t)
     rows.append(('fam 12 arcs: cold start, median ms/estimate',
                  f'{1e3 * np.median(lat["fam12_cold"]):.2f}', '2 ms target',
                  f'{np.median(lat["fam12_cold"]) / 2e-3:.2f}'))
     rows.append(('fam 24 arcs: cold start (table), median ms/estimate',
                  f'{1e3 * np.median(lat["fam_cold"]):.2f}', '2 ms target',
                  f'{np.median(lat["fam_cold"]) / 2e-3:.2f}'))
-    rows.append(('fam 24 arcs: cold start, p90 ms', f'{1e3 * np.percentile(lat["fam_cold"], 90):.2f}', '-', ''))
+    rows.append(('  the same beside the finite-difference Jacobian (solver=single), ms',
+                 f'{1e3 * np.median(lat["fam_cold"]):.2f}',
+                 f'{1e3 * np.median(lat["fam_fd_cold"]):.2f} fd',
+                 f'{np.median(lat["fam_fd_cold"]) / np.median(lat["fam_cold"]):.1f}x faster'))
+    rows.append(('fam 24 arcs: cold start, p90 ms', f'{1e3 * np.percentile(lat["fam_cold"], 90):.2f}',
+                 f'{1e3 * np.percentile(lat["fam_fd_cold"], 90):.2f} fd', ''))
     rows.append(('fam 24 arcs: warm start (stream), median ms/estimate', f'{1e3 * np.median(tw):.2f}',
                  '2 ms target', f'{np.median(tw) / 2e-3:.2f}'))
-    rows.append(('fam 24 arcs: FAM solves per estimate, mean', f'{np.mean(solves):.1f}', '-', ''))
+    rows.append(('  the same beside the finite-difference Jacobian, ms', f'{1e3 * np.median(tw):.2f}',
+                 f'{1e3 * np.median(tw_fd):.2f} fd', f'{np.median(tw_fd) / np.median(tw):.1f}x faster'))
+    rows.append(('fam 24 arcs: FAM solves per estimate, mean, cold', f'{np.mean(solves):.1f}',
+                 f'{np.mean(solves_fd):.1f} fd', ''))
+    rows.append(('fam 24 arcs: FAM solves per estimate, mean, warm', f'{np.mean(sw):.1f}',
+                 f'{np.mean(sw_fd):.1f} fd', ''))
+    e_an, e_fd = errors(res['fam'], F), errors(res['fam_fd'], F)
+    rows.append(('fam 24 arcs: MAE, N (analytic vs fd Jacobian, same frames)',
+                 f'{e_an["mae"]:.5f}', f'{e_fd["mae"]:.5f} fd', f'{e_an["mae"] / e_fd["mae"]:.3f}'))
+    rows.append(('fam 24 arcs: max |f_analytic - f_fd| over the frames, N',
+                 f'{np.hypot(*(res["fam"] - res["fam_fd"]).T).max():.2e}', '-', ''))
     from fam_solver import solve_fam_batch
     f3 = np.array([[0.05, 0.1], [0.0501, 0.1], [0.05, 0.1001]])
     t_call = timeit(lambda: solve_fam_batch(cat, f3, np.zeros(3), n_arcs=24).points_at(
@@ -268,6 +300,11 @@ def main(argv=None):
                                      initial=s0).points_at(sfr), n=200)
     rows.append(('one warm-started solve_fam (24 arcs) + points, ms (what the inversion uses)',
                  f'{1e3 * t_one:.3f}', '-', ''))
+    from fam_solver.sensitivity import shape_sensitivity
+    s1 = solve_fam(cat, _L(tip_force=(0.0501, 0.1)), n_arcs=24)
+    t_sens = timeit(lambda: shape_sensitivity(s1, (0.0501, 0.1), sfr, cat.ei), n=500)
+    rows.append(('one shape_sensitivity (24 arcs, 24 points): points, d points/d f, tangents, ms',
+                 f'{1e3 * t_sens:.3f}', '-', ''))
     rows.append(('fam: residual median, mm', f'{1e3 * np.median(resid):.3f}', '-', ''))
     rows.append(('fam: start-table construction, s', f'{t_fam_init:.2f}', '-', ''))
     table('Speed (single sample unless stated)', rows)
