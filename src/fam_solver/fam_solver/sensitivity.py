@@ -29,10 +29,11 @@ import numpy as np
 
 from scipy.linalg.lapack import dgesv as _dgesv
 
-from .arcs import arc_funcs
+from .arcs import _CCOEF, SERIES_LIMIT, _powers, arc_funcs
 from .model import _bounds, _locate
 
 _MASKS = {}
+_MAXR = np.maximum.reduce
 
 
 def _masks(n):
@@ -81,7 +82,11 @@ def shape_sensitivity(shape, tip_force, s, ei: float, tip_moment: float = 0.0):
     i, tau = _locate(_bounds(l / l.sum()), s)
     k = s.size
     # one call for the arcs and the partial arcs up to the points
-    G, Q, GP, QP = arc_funcs(np.concatenate([phi, phi[i] * tau]))
+    x = np.concatenate([phi, phi[i] * tau])
+    if _MAXR(np.abs(x)) < SERIES_LIMIT:      # arc_funcs' series, without its dispatch
+        G, Q, GP, QP = (_powers(x) @ _CCOEF).T
+    else:
+        G, Q, GP, QP = arc_funcs(x)
     g, q, gp, qp = G[:n], Q[:n], GP[:n], QP[:n]
     gt, gpt = G[n:], GP[n:]
     P = np.cumsum(lE * g)                                  # arc end points
