@@ -272,12 +272,14 @@ def main(argv=None):
                  f'{1e3 * np.median(lat["fam_cold"]):.2f}',
                  f'{1e3 * np.median(lat["fam_fd_cold"]):.2f} fd',
                  f'{np.median(lat["fam_fd_cold"]) / np.median(lat["fam_cold"]):.1f}x faster'))
-    rows.append(('fam 24 arcs: cold start, p90 ms', f'{1e3 * np.percentile(lat["fam_cold"], 90):.2f}',
+    rows.append(('fam 24 arcs: cold start, p90 ms',
+                 f'{1e3 * np.percentile(lat["fam_cold"], 90):.2f}',
                  f'{1e3 * np.percentile(lat["fam_fd_cold"], 90):.2f} fd', ''))
     rows.append(('fam 24 arcs: warm start (stream), median ms/estimate', f'{1e3 * np.median(tw):.2f}',
                  '2 ms target', f'{np.median(tw) / 2e-3:.2f}'))
-    rows.append(('  the same beside the finite-difference Jacobian, ms', f'{1e3 * np.median(tw):.2f}',
-                 f'{1e3 * np.median(tw_fd):.2f} fd', f'{np.median(tw_fd) / np.median(tw):.1f}x faster'))
+    rows.append(('  the same beside the finite-difference Jacobian, ms',
+                 f'{1e3 * np.median(tw):.2f}', f'{1e3 * np.median(tw_fd):.2f} fd',
+                 f'{np.median(tw_fd) / np.median(tw):.1f}x faster'))
     rows.append(('fam 24 arcs: FAM solves per estimate, mean, cold', f'{np.mean(solves):.1f}',
                  f'{np.mean(solves_fd):.1f} fd', ''))
     rows.append(('fam 24 arcs: FAM solves per estimate, mean, warm', f'{np.mean(sw):.1f}',

@@ -40,9 +40,9 @@ ONE warm-started `solve_fam` (the residual, exact) plus the sensitivity, instead
 force and two forward-difference perturbations (three solves). The sensitivity holds the
 arcs of the solved shape fixed, while `solve_fam`'s graded arcs are re-placed for every
 force; the neglected part is small (measured: at most 0.015 % of the force columns with
-24 arcs at 0.1-0.22 N, up to 0.65 % with 12 arcs at 0.22 N) and only slows the Gauss-Newton contraction, the residual
-and so the minimiser are those of the graded FAM, as before (same MAE on the benchmark
-frames). The previous forward-difference variants stay available (`solver="single"`:
+24 arcs at 0.1-0.22 N, up to 0.65 % with 12 arcs at 0.22 N) and only slows the
+Gauss-Newton contraction: the residual, and so the minimiser, are those of the graded FAM
+as before (same MAE on the benchmark frames). The previous forward-difference variants stay available (`solver="single"`:
 three warm-started `solve_fam` calls per iteration; `"batch"`: one `solve_fam_batch` call
 of three forces) as the reference in tests and benchmark.
 
