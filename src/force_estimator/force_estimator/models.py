@@ -151,13 +151,7 @@ class ForceModel:
             np.minimum(e, 0.0, out=e)   # |z - s|^2 >= 0 (round-off guard)
             np.exp(e, out=e)
             return e @ self._coef + self._b
-        h = z
-        last = len(self._layers) - 1
-        for i, (W, b) in enumerate(self._layers):
-            h = h @ W + b
-            if i < last:
-                np.maximum(h, 0.0, out=h)
-        return h
+        return self._mlp(z)
 
     def _forward1(self, z: np.ndarray) -> np.ndarray:
         """z: (12,) -> (2,) standardised; the single-sample fast path."""
@@ -168,6 +162,10 @@ class ForceModel:
             np.minimum(e, 0.0, out=e)
             np.exp(e, out=e)
             return e @ self._coef + self._b
+        return self._mlp(z)
+
+    def _mlp(self, z: np.ndarray) -> np.ndarray:
+        """ReLU layers on standardised input z (..., 12) -> (..., 2), linear output layer."""
         h = z
         last = len(self._layers) - 1
         for i, (W, b) in enumerate(self._layers):

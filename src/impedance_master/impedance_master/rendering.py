@@ -39,7 +39,21 @@ class _Clamp:
         return f
 
 
-class ImaRenderer:
+class _LimitedOutput:
+    """The safe output limit both renderers share: `limit` (N) and `n_clamped`."""
+
+    _clamp: _Clamp
+
+    @property
+    def limit(self) -> float:
+        return self._clamp.limit
+
+    @property
+    def n_clamped(self) -> int:
+        return self._clamp.n_clamped
+
+
+class ImaRenderer(_LimitedOutput):
     """Impedance-matching renderer: f_d from the latest model and the local trajectory.
 
     Args:
@@ -88,14 +102,6 @@ class ImaRenderer:
         self.max_damping = positive('max_damping', max_damping)
         self.energy = 0.0
         self.n_passivity = 0
-
-    @property
-    def limit(self) -> float:
-        return self._clamp.limit
-
-    @property
-    def n_clamped(self) -> int:
-        return self._clamp.n_clamped
 
     def set_impedance(self, imp: Impedance) -> bool:
         """Offer a new model; returns True if it will be used (valid), False if ignored."""
@@ -173,7 +179,7 @@ class ImaRenderer:
         return f
 
 
-class DfrRenderer:
+class DfrRenderer(_LimitedOutput):
     """Direct force reflection: the desired force is the last force received from the slave.
 
     Args: limit: N, safe output limit.
@@ -183,14 +189,6 @@ class DfrRenderer:
         self._clamp = _Clamp(limit)
         self._f = 0.0
         self.n_updates = 0
-
-    @property
-    def limit(self) -> float:
-        return self._clamp.limit
-
-    @property
-    def n_clamped(self) -> int:
-        return self._clamp.n_clamped
 
     def set_force(self, f: float) -> None:
         """New slave force in N (finite)."""
