@@ -81,12 +81,10 @@ class SimHapticNode(Node):
         self.create_subscription(WrenchStamped, SLAVE_FORCE, self._on_slave_force, QOS_FAST)
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self._diag_timer = self.create_timer(1.0, self._to_diag)
-        c = self.link_cfg
         self.get_logger().info(
             f'haptic device at {self.rate:g} Hz, Experiment {self.experiment} hand (seed '
             f'{self.seed}, {"compliant" if compliant else "rigid"}); link slave -> master: '
-            f'delay {c.delay:g} s, jitter {c.jitter:g} s, loss {c.loss:g}, outages '
-            f'{list(c.outages)}')
+            f'{self.link_cfg.describe()}')
 
     def _new_links(self) -> None:
         self.link_imp = Link(self.link_cfg, seed=2 * self.seed + 11)

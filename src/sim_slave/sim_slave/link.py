@@ -68,6 +68,11 @@ class LinkConfig:
             raise ValueError(f'outages must hold start,length pairs (even length), got {flat!r}')
         return LinkConfig(delay, jitter, loss, tuple(zip(flat[0::2], flat[1::2])))
 
+    def describe(self) -> str:
+        """One line for logs: 'delay 0.2 s, jitter 0 s, loss 0, outages [(4.0, 1.0), ...]'."""
+        return (f'delay {self.delay:g} s, jitter {self.jitter:g} s, loss {self.loss:g}, '
+                f'outages {list(self.outages)}')
+
 
 @dataclass
 class LinkStats:

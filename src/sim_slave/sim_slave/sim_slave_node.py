@@ -116,12 +116,10 @@ class SimSlaveNode(Node):
         self.sub = self.create_subscription(JointState, MASTER_COMMAND, self._on_command, QOS_FAST)
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self._stats_timer = self.create_timer(1.0, self._stats_to_diag)
-        cfg = self.link.config
         self.get_logger().info(
-            f'simulating the slave at {self.rate:g} Hz: {MASTER_COMMAND} -> link (delay '
-            f'{cfg.delay:g} s, jitter {cfg.jitter:g} s, loss {cfg.loss:g}, outages '
-            f'{list(cfg.outages)}) -> robot -> vessel -> sensor -> {SLAVE_JOINT_STATE}, '
-            f'{SLAVE_FORCE}')
+            f'simulating the slave at {self.rate:g} Hz: {MASTER_COMMAND} -> link '
+            f'({self.link.config.describe()}) -> robot -> vessel -> sensor -> '
+            f'{SLAVE_JOINT_STATE}, {SLAVE_FORCE}')
 
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
