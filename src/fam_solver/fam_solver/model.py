@@ -11,6 +11,8 @@ from typing import Callable, Tuple
 
 import numpy as np
 
+from catheter_common.checks import finite
+
 from .arcs import g_only
 
 
@@ -35,16 +37,6 @@ def _check_fractions(fractions, shape):
     return f
 
 
-def _finite_float(value, name: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f'{name} must be a real number, got {value!r}') from None
-    if not math.isfinite(v):
-        raise ValueError(f'{name} must be finite, got {value!r}')
-    return v
-
-
 def _vec2(value, name: str) -> Tuple[float, float]:
     a = np.asarray(value, dtype=float) if not isinstance(value, str) else None
     if a is None or a.shape != (2,):
@@ -64,8 +56,8 @@ class Catheter:
     ei: float
 
     def __post_init__(self):
-        length = _finite_float(self.length, 'length')
-        ei = _finite_float(self.ei, 'ei')
+        length = finite('length', self.length)
+        ei = finite('ei', self.ei)
         if length <= 0:
             raise ValueError(f'length must be positive (m), got {length}')
         if ei <= 0:
@@ -91,7 +83,7 @@ class Loads:
 
     def __post_init__(self):
         object.__setattr__(self, 'tip_force', _vec2(self.tip_force, 'tip_force'))
-        object.__setattr__(self, 'tip_moment', _finite_float(self.tip_moment, 'tip_moment'))
+        object.__setattr__(self, 'tip_moment', finite('tip_moment', self.tip_moment))
         if not isinstance(self.follower, (bool, np.bool_)):
             raise ValueError(f'follower must be a bool, got {self.follower!r}')
         object.__setattr__(self, 'follower', bool(self.follower))
@@ -106,11 +98,11 @@ class Loads:
         for r in rows:
             if len(r) != 3:
                 raise ValueError(f'point_forces entries must be (s, fx, fy), got {r!r}')
-            s = _finite_float(r[0], 'point_forces s')
+            s = finite('point_forces s', r[0])
             if not 0.0 < s <= 1.0:
                 raise ValueError(f'point_forces s must be in (0, 1], got {s}')
-            out.append((s, _finite_float(r[1], 'point_forces fx'),
-                        _finite_float(r[2], 'point_forces fy')))
+            out.append((s, finite('point_forces fx', r[1]),
+                        finite('point_forces fy', r[2])))
         object.__setattr__(self, 'point_forces', tuple(out))
 
     def load_parameter(self, cat: Catheter) -> float:
