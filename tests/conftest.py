@@ -18,6 +18,13 @@ from catheter_common.ros_testing import isolate_ros_env  # noqa: E402
 isolate_ros_env()
 
 import pytest  # noqa: E402
+from hypothesis import settings  # noqa: E402
+
+# CI (CI=true) replays the same hypothesis examples every run: a property test that fails
+# there fails the same way here; locally examples stay random to keep finding new cases.
+settings.register_profile('ci', derandomize=True, print_blob=True)
+if os.environ.get('CI', '').lower() in ('1', 'true', 'yes'):
+    settings.load_profile('ci')
 
 
 @pytest.fixture
