@@ -131,3 +131,81 @@ def bezier_lambda(phi):
     closed = (4.0 / 3.0) * np.tan(p / 4.0) / p
     ser = 1.0 / 3.0 + phi * phi / 144.0
     return np.where(small, ser, closed)
+
+
+# ---------------------------------------------------------------------------------------
+# Clothoid arcs: the first-order effect of a LINEAR change of curvature along an arc.
+# ---------------------------------------------------------------------------------------
+# An arc of length l, turning by phi in total, whose curvature changes linearly,
+# kappa(s) = phi/l + kappa1 (s - l/2), has the heading theta(u) = theta + phi u + rho (u^2 - u)/2
+# (u = s/l, rho = kappa1 l^2); to first order in rho its points move off the circular arc by
+#     l e^{i theta} i rho K(phi, u),    K(phi, u) = integral_0^u (v^2 - v)/2 e^{i phi v} dv,
+# so the end moves by l e^{i theta} i rho k(phi), k = K(phi, 1) (k(0) = -1/12: the classic
+# -kappa' l^3 / 12 chord offset), and the mean point by l e^{i theta} i rho km(phi),
+# km = integral_0^1 K(phi, u) du = integral_0^1 (1 - v)(v^2 - v)/2 e^{i phi v} dv (km(0) = -1/24).
+# With E_n(a) = integral_0^1 v^n e^{i a v} dv:  k = (E2 - E1)/2,  km = (-E3 + 2 E2 - E1)/2,
+# E_0 = g, E_n = (e^{ia} - n E_{n-1}) / (i a) (upward recursion: stable for |a| >= 1, error
+# growth n!/|a|^n <= 6), and the series E_n = sum_j (i a)^j / (j! (n + j + 1)) below |a| < 1.
+
+
+def _rate_coef():
+    C = np.zeros((_K, 2), dtype=complex)
+    for j in range(_K):
+        c = _ipow[j] / _fact[j]
+        C[j, 0] = c * (1.0 / (j + 3) - 1.0 / (j + 2)) / 2.0
+        C[j, 1] = c * (-1.0 / (j + 4) + 2.0 / (j + 3) - 1.0 / (j + 2)) / 2.0
+    return C
+
+
+_RCOEF = _rate_coef()
+#: (K, 6) complex: series coefficients of g, q, g', q', k, k - km (powers 0..K-1 of phi)
+_CCOEF6 = np.concatenate([_CCOEF, _RCOEF[:, :1], _RCOEF[:, :1] - _RCOEF[:, 1:]], axis=1)
+
+
+def _rate_closed(phi):
+    a = 1j * phi
+    e = np.exp(a)
+    e0 = (e - 1.0) / a
+    e1 = (e - e0) / a
+    e2 = (e - 2.0 * e1) / a
+    e3 = (e - 3.0 * e2) / a
+    return 0.5 * (e2 - e1), 0.5 * (-e3 + 2.0 * e2 - e1)
+
+
+def rate_funcs(phi):
+    """k(phi), km(phi) (complex, same shape as the real array ``phi``): end and mean-point
+    offsets of a clothoid arc per unit rho (see the comment above)."""
+    phi = np.asarray(phi, dtype=float)
+    a = np.abs(phi)
+    small = a < SERIES_LIMIT
+    if phi.size == 0 or np.all(small):
+        R = (_powers(phi) if phi.size > 64 else phi[..., None] ** _POW) @ _RCOEF
+        return R[..., 0], R[..., 1]
+    kc, kmc = _rate_closed(np.where(small, 1.0, phi))
+    if not np.any(small):
+        return kc, kmc
+    R = _powers(np.where(small, phi, 0.0)) @ _RCOEF
+    return np.where(small, R[..., 0], kc), np.where(small, R[..., 1], kmc)
+
+
+def rate_offset(phi, tau):
+    """K(phi, tau) = tau (tau^2 E2(phi tau) - tau E1(phi tau)) / 2 (complex): the point at
+    fraction ``tau`` of a clothoid arc, off the circular arc per unit rho and l e^{i theta} i."""
+    phi = np.asarray(phi, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    a = phi * tau
+    small = np.abs(a) < SERIES_LIMIT
+    # E1, E2 at a: series below 1, recursion above
+    j = np.arange(_K)
+    c1 = _ipow[:_K] / _fact[:_K] / (j + 2)
+    c2 = _ipow[:_K] / _fact[:_K] / (j + 3)
+    V = _powers(np.where(small, a, 0.0))
+    s1, s2 = V @ c1, V @ c2
+    ac = 1j * np.where(small, 1.0, a)
+    e = np.exp(ac)
+    e0 = (e - 1.0) / ac
+    e1 = (e - e0) / ac
+    e2 = (e - 2.0 * e1) / ac
+    E1 = np.where(small, s1, e1)
+    E2 = np.where(small, s2, e2)
+    return 0.5 * tau * (tau * tau * E2 - tau * E1)

@@ -101,16 +101,16 @@ from typing import Sequence
 
 import numpy as np
 
-from .arcs import arc_funcs
+from .arcs import arc_funcs, g_only, rate_funcs, rate_offset
 from .model import SPACINGS, BatchShape, Catheter, Loads, Shape, arc_shape, uniform_fractions
 
-ARC_MODELS = ('exact', 'bezier')
+ARC_MODELS = ('exact', 'bezier', 'clothoid')
 #: The default arc model. Both models are second order and equally accurate (within ~7 %);
 #: 'exact' is ~10-17x faster (N = 12: ~0.1-0.2 ms vs ~1.6-3.4 ms), so it is the default.
-DEFAULT_ARC_MODEL = 'exact'
+DEFAULT_ARC_MODEL = 'clothoid'
 #: The default arc spacing: 'graded' (per-case arc lengths, see graded_fractions) or
 #: 'uniform' (equal arcs).
-DEFAULT_SPACING = 'graded'
+DEFAULT_SPACING = 'uniform'
 DENSE_MAX_N = 64
 MAX_N = 100_000
 
@@ -135,19 +135,53 @@ class _Load:
         self.a, self.tau, self.F, self.follower = a, tau, F, follower
 
 
-def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True):
-    """Residual r (B, N) of the exact arc model and the Jacobian factors.
+#: clothoid arcs: |rho| = |kappa1| l^2 is saturated smoothly at RHO_MAX (rad), see _rates
+RHO_MAX = 1.0
+
+
+def _rates(phi, lE, G, th_end, w, loads: Sequence[_Load]):
+    """Clothoid curvature rates rho_i = kappa1_i l_i^2 (B, N) of the arcs at angles phi:
+    rho = RHO_MAX tanh(w_i (M_end,i - M_start,i) / RHO_MAX), the moment change along the arc
+    taken on its circular chord lE G (see ``arcs``, clothoid arcs). The clothoid offsets are
+    first order in rho, valid for |rho| << 1 (N >= 4 up to F L^2/EI = 50); the saturation
+    (relative change rho^2/3 below 1e-2 for |rho| < 0.17) keeps the one- and two-arc models
+    solvable under huge loads, where the unsaturated first-order offsets have no equilibrium."""
+    dM = np.zeros(phi.shape)
+    chord = lE * G
+    for ld in loads:
+        a, tau = ld.a, ld.tau
+        F = ld.F * np.exp(1j * th_end[:, -1]) if ld.follower else ld.F
+        Fs = np.conj(F)[:, None]
+        k = a + 1 if tau >= 1.0 else a
+        dM[:, :k] += (chord[:, :k] * Fs).imag       # -(chord x F): the load is beyond the arc
+        if tau < 1.0:                                # M_start - M_end = (p_k - P_start) x F
+            dM[:, a] += (lE[:, a] * tau * g_only(phi[:, a] * tau) * Fs[:, 0]).imag
+    return RHO_MAX * np.tanh(w * dM / RHO_MAX)
+
+
+def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True, clothoid=False):
+    """Residual r (B, N) of the exact (or clothoid) arc model and the Jacobian factors.
 
     Returns r, (A, Bd, C, e), th_end where dMbar_i/dphi_j = A_i (j < i), Bd_i (j = i),
     C_j + e_i (j > i); Im(conj(X) F) is written -Im(X conj(F)) (fewer numpy calls).
+    clothoid: arcs whose curvature changes linearly (rates from ``_rates`` at phi); the
+    factors are then those of circular arcs at the clothoid positions (the rates' own
+    derivatives, O(l^2) relative, are left out: Newton converges linearly, fast).
     """
     B, N = phi.shape
     th_end = np.cumsum(phi, axis=1)
     lE = l * np.exp(1j * (th_end - phi))
     G, Q, GP, QP = arc_funcs(phi)
-    d = lE * G
+    if clothoid:
+        rho = _rates(phi, lE, G, th_end, w, loads)
+        rk, rkm = rate_funcs(phi)
+        c = 1j * rho * rk
+        d = lE * (G + c)
+        lEq = lE * (Q + c - 1j * rho * rkm)
+    else:
+        d = lE * G
+        lEq = lE * Q
     P_end = np.cumsum(d, axis=1)
-    lEq = lE * Q
     Mbar = np.repeat(m[:, None], N, axis=1) if m.ndim == 1 else m.copy()
     if jac:
         A = np.zeros((B, N))
@@ -180,6 +214,8 @@ def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True):
             continue
         gt, qt, gpt, qpt = arc_funcs(phi[:, a] * tau)
         pk = P_end[:, a] - d[:, a] + lE[:, a] * tau * gt
+        if clothoid:
+            pk = pk + lE[:, a] * 1j * rho[:, a] * rate_offset(phi[:, a], tau)
         rel = pk[:, None] - P_end[:, :a]
         Z = np.empty((B, a + 1), dtype=complex)
         Z[:, :a] = rel + lEq[:, :a]
@@ -264,8 +300,10 @@ class _Problem:
     (a point force needs arcs common to all cases: l (N,) or B = 1); pf_s: their arc-length
     fractions of the whole catheter."""
 
-    def __init__(self, n, l, w, tip_force, follower, tip_moment, point_forces, L, EI, pf_s):
+    def __init__(self, n, l, w, tip_force, follower, tip_moment, point_forces, L, EI, pf_s,
+                 clothoid=False):
         self.n, self.l, self.w = n, l, w
+        self.clothoid = clothoid          # arc model 'clothoid' (else circular arcs)
         self.L, self.EI = L, EI
         self.pf_s = pf_s
         self.tip_force = tip_force      # complex (B,)
@@ -282,7 +320,8 @@ class _Problem:
         return out, self.tip_moment * scale
 
 
-def _make_problem(n, L, EI, tip_force, follower, tip_moment, point_forces, fractions=None):
+def _make_problem(n, L, EI, tip_force, follower, tip_moment, point_forces, fractions=None,
+                  clothoid=False):
     """Core problem of n arcs of lengths L * fractions ((N,) or (B, N); None: equal arcs);
     point_forces: list of (s fraction, complex (B,)). A point force inside an arc is carried
     at its fraction tau of that arc (closed form); at an arc end tau = 1."""
@@ -302,13 +341,13 @@ def _make_problem(n, L, EI, tip_force, follower, tip_moment, point_forces, fract
             tau = 1.0
         pfs.append((a, tau, F))
         pf_s.append(s)
-    return _Problem(n, l, w, tip_force, follower, tip_moment, pfs, L, EI, pf_s)
+    return _Problem(n, l, w, tip_force, follower, tip_moment, pfs, L, EI, pf_s, clothoid)
 
 
 def _build_problem(cat: Catheter, n: int, tip_force, follower, tip_moment, point_forces,
-                   fractions=None):
+                   fractions=None, clothoid=False):
     return _make_problem(n, cat.length, cat.ei, tip_force, follower, tip_moment, point_forces,
-                         fractions)
+                         fractions, clothoid)
 
 
 def _tol(phi):
@@ -330,7 +369,7 @@ def _repeat(prob: _Problem, k):
     rl = (lambda x: np.repeat(x, k, axis=0)) if np.ndim(prob.l) == 2 else (lambda x: x)  # noqa: E731
     return _Problem(prob.n, rl(prob.l), rl(prob.w), rep(prob.tip_force), prob.follower,
                     rep(prob.tip_moment), [(a, t, rep(F)) for a, t, F in prob.point_forces],
-                    prob.L, prob.EI, prob.pf_s)
+                    prob.L, prob.EI, prob.pf_s, prob.clothoid)
 
 
 class _BezierResidual:
@@ -382,7 +421,7 @@ def _newton(prob: _Problem, phi, scale, max_iter, step_limit=0.6, bezier=None):
     bz = bezier
     for it in range(max_iter + 1):
         loads, m = sub.loads(sc)
-        r, fac, _ = _evaluate(ph, sub.l, sub.w, loads, m, jac=True)
+        r, fac, _ = _evaluate(ph, sub.l, sub.w, loads, m, jac=True, clothoid=sub.clothoid)
         if bz is not None:
             r = bz.residual(ph, loads, m)
         res = np.max(np.abs(r), axis=1)
@@ -474,7 +513,7 @@ def _accept(prob: _Problem, phi, conv, th_lin, fac=None):
         if fac is None:
             sub = _subproblem(prob, idx)
             loads, m = sub.loads(1.0)
-            _, f, _ = _evaluate(phi[idx], sub.l, sub.w, loads, m)
+            _, f, _ = _evaluate(phi[idx], sub.l, sub.w, loads, m, clothoid=sub.clothoid)
         else:
             f = tuple(x[idx] for x in fac)
         good = _principal_ok(prob, f)
@@ -535,13 +574,14 @@ def _subproblem(prob: _Problem, idx):
     return _Problem(prob.n, prob.l[idx] if per_case else prob.l, prob.w[idx] if per_case else prob.w,
                     prob.tip_force[idx], prob.follower,
                     prob.tip_moment[idx], [(a, t, F[idx]) for a, t, F in prob.point_forces],
-                    prob.L, prob.EI, prob.pf_s)
+                    prob.L, prob.EI, prob.pf_s, prob.clothoid)
 
 
 def _coarse_problem(prob: _Problem):
     """The same loads on COARSE_N equal arcs (start and stability model for N > 64)."""
     return _make_problem(COARSE_N, prob.L, prob.EI, prob.tip_force, prob.follower, prob.tip_moment,
-                         [(s, F) for s, (_, _, F) in zip(prob.pf_s, prob.point_forces)])
+                         [(s, F) for s, (_, _, F) in zip(prob.pf_s, prob.point_forces)],
+                         clothoid=prob.clothoid)
 
 
 def _midpoints(prob: _Problem):
@@ -638,7 +678,8 @@ def _continuation(prob: _Problem, B, arc_model, lin=None):
             snapped[b] = s[b] > 0.0
         else:   # report the residual at the full load, not at the last load step
             loads, m = sub.loads(1.0)
-            r_full, _, _ = _evaluate(phi[b:b + 1], sub.l, sub.w, loads, m, jac=False)
+            r_full, _, _ = _evaluate(phi[b:b + 1], sub.l, sub.w, loads, m, jac=False,
+                                     clothoid=sub.clothoid)
             res[b] = float(np.max(np.abs(r_full)))
     return phi, conv, total, res, snapped
 
@@ -672,7 +713,7 @@ def _stability(prob: _Problem, phi):
     idx = np.nonzero(compress)[0]
     sub = _subproblem(prob, idx)
     sl, sm = sub.loads(1.0)
-    _, fac, _ = _evaluate(phi[idx], sub.l, sub.w, sl, sm, jac=True)
+    _, fac, _ = _evaluate(phi[idx], sub.l, sub.w, sl, sm, jac=True, clothoid=sub.clothoid)
     stable[idx] = _principal_ok(sub, fac)
     return stable
 
@@ -770,12 +811,28 @@ def _regrade(prob: _Problem, phi, arc_model):
     pfl = [(s, F) for s, (_, _, F) in zip(prob.pf_s, prob.point_forces)]
     frac = graded_fractions(phi, prob.tip_force, prob.follower, pfl)
     gprob = _make_problem(prob.n, prob.L, prob.EI, prob.tip_force, prob.follower,
-                          prob.tip_moment, pfl, frac)
+                          prob.tip_moment, pfl, frac, prob.clothoid)
     start = _remap(phi, frac)
     bez = _BezierResidual(gprob) if arc_model == 'bezier' else None
     p, c, it, r, _ = _newton(gprob, start, 1.0, 12 if bez is None else 30, bezier=bez)
     ok = c & np.all(np.isfinite(p), axis=1) & (np.abs(p.sum(axis=1) - phi.sum(axis=1)) < 0.5)
     return p, frac, ok, it, r
+
+
+def _problem_rates(prob: _Problem, phi, frac=None):
+    """Clothoid rates (B, N) of the solution phi (B, N) of ``prob`` (on arcs ``frac`` (B, N)
+    of L when given: a graded solution), or None for circular arcs."""
+    if not prob.clothoid:
+        return None
+    if frac is not None:
+        prob = _make_problem(prob.n, prob.L, prob.EI, prob.tip_force, prob.follower,
+                             prob.tip_moment,
+                             [(s, F) for s, (_, _, F) in zip(prob.pf_s, prob.point_forces)],
+                             frac, True)
+    loads, _ = prob.loads(1.0)
+    th_end = np.cumsum(phi, axis=1)
+    lE = prob.l * np.exp(1j * (th_end - phi))
+    return _rates(phi, lE, g_only(phi), th_end, prob.w, loads)
 
 
 def _check_common(cat, n_arcs, arc_model, spacing='uniform'):
@@ -827,20 +884,21 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
             # a graded Shape: the same tangent-angle curve on equal arcs (the first pass)
             initial = _remap(initial[None], np.full((1, n), 1.0 / n),
                              (np.asarray(init_frac) / init_len)[None])[0]
-    if arc_model == 'exact' and not pfs and n <= DENSE_MAX_N:
+    clothoid = arc_model == 'clothoid'
+    if arc_model != 'bezier' and not pfs and n <= DENSE_MAX_N:
         out = _fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower, initial,
-                          spacing)
+                          spacing, clothoid)
         if out is None and initial is not None:
             out = _fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower,
-                              spacing=spacing)
+                              spacing=spacing, clothoid=clothoid)
         if out is not None:
-            phi, conv, it, res, tipc, stable, frac = out
+            phi, conv, it, res, tipc, stable, frac, rho = out
             return arc_shape(cat.length, phi, tip=tipc, tip_angle=float(phi.sum()),
                              converged=True, iterations=it, stable=stable, warning='',
                              residual=res, arc_model=arc_model, spacing=spacing, fractions=frac,
-                             _trusted=True)
+                             rates=rho, _trusted=True)
     prob = _build_problem(cat, n, np.array([tip]), loads.follower,
-                          np.array([loads.tip_moment]), pfs)
+                          np.array([loads.tip_moment]), pfs, clothoid=clothoid)
     phi, conv, iters, res, snapped = _solve(prob, 1, arc_model)
     stable = _stability(prob, phi)
     frac = None
@@ -858,9 +916,11 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
     if not stable[0]:
         warning = (warning + '; ' if warning else '') + \
             'unstable equilibrium (compressed past buckling; loading from zero kept this shape)'
+    rho = _problem_rates(prob, phi, None if frac is None else frac[None])
     return arc_shape(cat.length, phi[0], converged=bool(conv[0]), iterations=int(iters[0]),
                      stable=bool(stable[0]), warning=warning, residual=float(res[0]),
-                     arc_model=arc_model, spacing=spacing, fractions=frac)
+                     arc_model=arc_model, spacing=spacing, fractions=frac,
+                     rates=None if rho is None else rho[0])
 
 
 def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 12,
@@ -898,10 +958,13 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
     res = np.zeros(B)
     stable = np.ones(B, dtype=bool)
     frac = np.full((B, n), 1.0 / n)
+    clothoid = arc_model == 'clothoid'
+    rates = np.zeros((B, n)) if clothoid else None
     F = tf[:, 0] + 1j * tf[:, 1]
     for lo in range(0, B, chunk):
         hi = min(B, lo + chunk)
-        prob = _build_problem(cat, n, F[lo:hi], bool(follower), tm[lo:hi], [])
+        prob = _build_problem(cat, n, F[lo:hi], bool(follower), tm[lo:hi], [],
+                              clothoid=clothoid)
         p, c, it, r, _ = _solve(prob, hi - lo, arc_model)
         stable[lo:hi] = _stability(prob, p)
         if spacing == 'graded' and np.any(c) and n > 1 and not follower:
@@ -912,8 +975,10 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
             p[take], r[take] = pg[okg], rg[okg]
             frac[lo + take] = fg[okg]
         phi[lo:hi], conv[lo:hi], iters[lo:hi], res[lo:hi] = p, c, it, r
+        if clothoid:
+            rates[lo:hi] = _problem_rates(prob, p, frac[lo:hi] if spacing == 'graded' else None)
     return BatchShape(cat.length, phi, conv, iters, stable, res, arc_model, spacing=spacing,
-                      fractions=frac)
+                      fractions=frac, rates=rates)
 
 
 # ---------------------------------------------------------------------------------------
@@ -921,7 +986,7 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
 # Same equations as _evaluate/_dense_jacobian, written with 1-D arrays and as few numpy
 # calls as possible (numpy call overhead dominates at N = 12).
 # ---------------------------------------------------------------------------------------
-from .arcs import _CCOEF, _K, SERIES_LIMIT  # noqa: E402
+from .arcs import _CCOEF, _CCOEF6, _K, SERIES_LIMIT  # noqa: E402
 
 _FAST_CACHE = {}
 
@@ -936,19 +1001,24 @@ def _fast_consts(n):
     return c
 
 
-def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rtol=1e-12):
+def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rtol=1e-12,
+                     clothoid=False):
     """Damped Newton for one tip-loaded case. F complex (base or tip frame), m float.
     Stops at max|r| <= 1e-13 + rtol max|phi| (converged is judged with rtol = 1e-12).
+    clothoid: clothoid arcs (as in _evaluate; the Jacobian leaves out the rates' derivatives).
 
-    Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, and
-    the Jacobian of the last Newton step (None if no step was taken)."""
+    Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
+    Jacobian of the last Newton step (None if no step was taken) and the clothoid rates
+    (N,) at phi (None for circular arcs)."""
     lower, eye, diag = _fast_consts(n)
     cF0 = F.conjugate()
     acc = np.add.accumulate
-    best = (phi, math.inf, 0j)
+    best = (phi, math.inf, 0j, None)
     it = 0
     J = None
+    rho = None
     wc = w[:, None]
+    coef = _CCOEF6 if clothoid else _CCOEF
     V = np.empty((n, _K))       # powers phi^0..phi^(K-1) by a running product (** is 3x slower)
     V[:, 0] = 1.0
     V1 = V[:, 1:]
@@ -959,30 +1029,51 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         if pmax < SERIES_LIMIT:
             V1[...] = phi[:, None]
             np.multiply.accumulate(V1, axis=1, out=V1)
-            R = V @ _CCOEF                       # (N, 4): g, q, g', q'
+            R = V @ coef                         # (N, 4 or 6): g, q, g', q' (, k, km)
+        elif clothoid:
+            rk, rkm = rate_funcs(phi)
+            R = np.stack(arc_funcs(phi) + (rk, rk - rkm), axis=1)
         else:
             R = np.stack(arc_funcs(phi), axis=1)
-        R *= lE[:, None]                         # l e^{i theta_start} (g, q, g', q')
-        P = acc(R[:, 0])
-        rel = P[-1] - P
+        R *= lE[:, None]                         # l e^{i theta_start} (g, q, g', q'(, k, k - km))
         if follower:
             t = float(th_end[-1])
             cF = cF0 * complex(math.cos(t), -math.sin(t))
         else:
             cF = cF0
-        ZF = (rel + R[:, 1]) * cF
+        if clothoid:
+            Y = R * cF
+            th_r = np.tanh(w * Y[:, 0].imag / RHO_MAX)   # _rates: w (chord x -F), saturated
+            rho = RHO_MAX * th_r
+            c = 1j * rho
+            P = acc(R[:, 0] + c * R[:, 4])
+            lever = R[:, 1] + c * R[:, 5]
+        else:
+            P = acc(R[:, 0])
+            lever = R[:, 1]
+        rel = P[-1] - P
+        ZF = (rel + lever) * cF
         r = phi - w * (m - ZF.imag)
         res = _MAXR(np.abs(r))
         if not res < math.inf:
             res = math.inf
         if res < best[1]:
-            best = (phi, res, complex(P[-1]))
+            best = (phi, res, complex(P[-1]), rho)
         if res <= 1e-13 + rtol * pmax or it == max_iter:
             break
-        X = ((1j * rel)[:, None] + R[:, 2:]) * cF   # columns: g' and q' terms
+        X = ((1j * rel)[:, None] + R[:, 2:4]) * cF   # columns: g' and q' terms
         Bd = X[:, 1].imag
         C = X[:, 0].imag
-        if follower:
+        if clothoid:
+            # with the rates' own derivatives (see _clothoid_terms): quadratic convergence
+            lo_, dg_, up_, row_ = _clothoid_terms(Y, w, th_r, follower)
+            Bd = Bd + dg_
+            if follower:
+                D = np.where(lower, 0.0, (C + up_) - (ZF.real - row_)[:, None])
+                Bd = Bd - ZF.real
+            else:
+                D = np.where(lower, (ZF.real + lo_)[:, None], C + up_)
+        elif follower:
             D = np.where(lower, 0.0, C - ZF.real[:, None])
             Bd = Bd - ZF.real
         else:
@@ -997,19 +1088,50 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         if mx > step_limit:
             dx *= step_limit / mx
         phi = phi - dx
-    phi, res, tip = best
+    phi, res, tip, rho = best
     if not res < math.inf:
-        phi, tip = np.zeros(n), complex(float(np.sum(l)))
+        phi, tip, rho = np.zeros(n), complex(float(np.sum(l))), None
     pmax = _MAXR(np.abs(phi))
-    return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J
+    return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J, rho
 
 
-def _fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform'):
-    """Whole single-case solve for tip loads (exact arcs, N <= DENSE_MAX_N), or None when the
-    direct attempt is not accepted (the caller then uses the general path).
+def _clothoid_terms(Y, w, th_r, follower):
+    """The part of the fast-path Jacobian that comes from the clothoid rates' dependence on the
+    arc headings (rho_i = RHO_MAX tanh(w_i Im(chord_i conj F) / RHO_MAX)); with it Newton
+    converges quadratically (only the small rho k'(phi) terms are left out).
+
+    Y: (N, 6) l e^{i theta_start} (g, q, g', q', k, k - km) times cF = conj(F) (follower: F
+    turned with the tip); th_r: the tanh of the rates. Returns (lower (N,) by row, diagonal
+    (N,), upper (N,) by column, upper (N,) by row) terms of -dMbar/dphi (the sign of ``D``
+    in _fast_tip_newton before the w scaling).
+
+    With X_i = (P_N - P_i) + lever_i, Mbar_i = m - Im(X_i cF), the offsets i rho_j l e^{i theta_j} k_j
+    in P and i rho_i l e^{i theta_i} (k_i - km_i) in lever_i: d rho_j / d phi_l is
+    sigma_j = w'_j Re(chord_j cF) for l < j (base-fixed force), tau_j = w'_j Im(l e^{i theta_j} g'_j cF)
+    for l = j, 0 for l > j (w' = w (1 - tanh^2)); a follower force turns with the tip:
+    0, tau_j - sigma_j, -sigma_j. Im(i x) = Re(x) makes every term real.
+    """
+    ws = w * (1.0 - th_r * th_r)
+    sig = ws * Y[:, 0].real
+    tau = ws * Y[:, 2].imag
+    a = Y[:, 4].real                  # Im(i l e^{i theta} k cF)
+    b = Y[:, 5].real                  # Im(i l e^{i theta} (k - km) cF)
+    u = a * sig
+    cs = np.add.accumulate(u)
+    if not follower:
+        S = cs[-1] - cs               # sum over j > i
+        return S + b * sig, S + b * tau, S + a * tau, None
+    return None, b * (tau - sig), a * (tau - sig) - (cs - u), cs - b * sig
+
+
+def _fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform', clothoid=False):
+    """Whole single-case solve for tip loads (exact or clothoid arcs, N <= DENSE_MAX_N), or
+    None when the direct attempt is not accepted (the caller then uses the general path).
 
     Returns phi, converged, iterations, residual, tip (complex), stable, fractions (None:
-    equal arcs)."""
+    equal arcs), clothoid rates (None for circular arcs)."""
+    mi = 20 if clothoid else 12
+    cl = clothoid
     key = (n, L, EI)
     c = _EQUAL_CACHE.get(key)
     if c is None:
@@ -1035,8 +1157,8 @@ def _fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform'):
     # graded: this equal-arc solution only places the arcs; stop it at 1e-9 (an iterate error
     # ~1e-9 moves the tip of the graded solution by ~1e-12 L) -- saves one Newton step
     graded = spacing == 'graded' and n > 1 and not follower
-    phi, conv, it, res, tip, J = _fast_tip_newton(n, l, w, F, m, follower, phi0, 12,
-                                                  rtol=1e-9 if graded else 1e-12)
+    phi, conv, it, res, tip, J, rho = _fast_tip_newton(n, l, w, F, m, follower, phi0, mi,
+                                                       rtol=1e-9 if graded else 1e-12, clothoid=cl)
     if graded:
         conv = res <= 1e-13 + 1e-9 * max(_MAXR(phi), -_MINR(phi))
     if not conv or not (np.all(np.isfinite(phi)) and math.isfinite(tip.real) and math.isfinite(tip.imag)):
@@ -1053,7 +1175,8 @@ def _fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform'):
     frac = None
     if graded and J is None and not res <= 1e-13 + 1e-12 * _MAXR(np.abs(phi)):
         # the loose first pass stopped without a Newton step (tiny loads): finish it
-        phi, conv, it2, res, tip, J = _fast_tip_newton(n, l, w, F, m, follower, phi, 12)
+        phi, conv, it2, res, tip, J, rho = _fast_tip_newton(n, l, w, F, m, follower, phi, mi,
+                                                            clothoid=cl)
         it += it2
         if not conv:
             return None
@@ -1062,14 +1185,16 @@ def _fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform'):
         # the branch check below then uses the graded Jacobian
         f, start = _fast_grade(phi, F, follower)
         lg = L * f
-        p2, c2, it2, r2, tip2, J2 = _fast_tip_newton(n, lg, lg / EI, F, m, follower, start, 12)
+        p2, c2, it2, r2, tip2, J2, rho2 = _fast_tip_newton(n, lg, lg / EI, F, m, follower, start,
+                                                           mi, clothoid=cl)
         it += it2
         if c2 and abs(float(p2.sum()) - th) < 0.5 and \
                 math.isfinite(tip2.real) and math.isfinite(tip2.imag):
-            phi, res, tip, frac = p2, r2, tip2, f
+            phi, res, tip, frac, rho = p2, r2, tip2, f, rho2
             J = J2 if J2 is not None else J
         else:   # keep the equal arcs: finish their solution to the full tolerance
-            phi, conv, it2, res, tip, J1 = _fast_tip_newton(n, l, w, F, m, follower, phi, 12)
+            phi, conv, it2, res, tip, J1, rho = _fast_tip_newton(n, l, w, F, m, follower, phi, mi,
+                                                                 clothoid=cl)
             it += it2
             J = J1 if J1 is not None else J
             if not conv:
@@ -1081,7 +1206,7 @@ def _fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform'):
             return None      # possibly another branch: let continuation decide
     elif J is None and compress:
         return None          # straight under compression: the general path judges stability
-    return phi, True, it, res, tip, stable, frac
+    return phi, True, it, res, tip, stable, frac, rho
 
 
 _U_CACHE = {}

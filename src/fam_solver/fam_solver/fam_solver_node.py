@@ -88,7 +88,7 @@ class FamSolverNode(Node):
         self._pending = None
         t0 = wall_time()
         shape = solve_fam(self.cat, loads, n_arcs=self.n_arcs, arc_model=self.arc_model,
-                          initial=self._last_shape if self.arc_model == 'exact' else None,
+                          initial=self._last_shape if self.arc_model != 'bezier' else None,
                           spacing=self.spacing)
         dt = wall_time() - t0
         self.diag.count('solves')

@@ -13,7 +13,7 @@ import numpy as np
 
 from catheter_common.checks import finite
 
-from .arcs import g_only
+from .arcs import g_only, rate_funcs, rate_offset
 
 
 SPACINGS = ('uniform', 'graded')
@@ -126,7 +126,9 @@ class Shape:
         the straight equilibrium; it is returned and flagged, see ``warning``).
     warning : str -- '' or a short reason (non-convergence, instability).
     residual : float -- max |residual| of the solved equations (rad for FAM, N m for the rod).
-    arc_model : str -- 'exact', 'bezier' or 'elastica'.
+    arc_model : str -- 'clothoid', 'exact', 'bezier' or 'elastica'.
+    arc_rates : ndarray (n_arcs,) or None -- clothoid arcs only: rho_i = kappa1_i l_i^2, the
+        curvature change along arc i times its length squared (see ``arcs``).
     spacing : str -- 'uniform' or 'graded' arc lengths.  arc_lengths : ndarray (n_arcs,), m.
     """
 
@@ -148,6 +150,7 @@ class Shape:
         self._angles_fn = angles_fn
         self.spacing = 'uniform'
         self._arc_lengths = None
+        self.arc_rates = None
 
     @property
     def arc_lengths(self) -> np.ndarray:
@@ -197,9 +200,10 @@ def _bounds(frac):
 
 
 def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, fractions=None,
-              spacing='uniform', **kw) -> Shape:
+              spacing='uniform', rates=None, **kw) -> Shape:
     """Shape of N circular arcs with bending angles ``phi`` (N,), base at the origin; arc
-    lengths ``length * fractions`` ((N,), summing to 1; None: equal arcs).
+    lengths ``length * fractions`` ((N,), summing to 1; None: equal arcs). ``rates`` (N,):
+    clothoid arcs with rho_i = kappa1_i l_i^2 (first order in rho, see ``arcs``).
 
     ``tip`` (complex) and ``tip_angle`` may be passed when already known; the arc geometry
     for ``points_at`` is built lazily on first use."""
@@ -221,6 +225,8 @@ def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, fraction
             th_start = th_end - phi
             E = np.exp(1j * th_start)
             d = l * E * g_only(phi)
+            if rates is not None:
+                d = d + l * E * 1j * rates * rate_funcs(phi)[0]
             P_end = np.cumsum(d)
             bounds = _bounds(frac) if n else np.array([0.0, 1.0])
             if not np.any(phi):
@@ -237,14 +243,20 @@ def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, fraction
     def points(s):
         c = geometry()
         i, tau = locate(s)
-        z = c['P_start'][i] + l[i] * c['E'][i] * tau * g_only(phi[i] * tau)
+        u = tau * g_only(phi[i] * tau)
+        if rates is not None:
+            u = u + 1j * rates[i] * rate_offset(phi[i], tau)
+        z = c['P_start'][i] + l[i] * c['E'][i] * u
         z = np.where(s >= 1.0, c['P_end'][-1], z)
         return np.stack([z.real, z.imag], axis=-1)
 
     def angles(s):
         c = geometry()
         i, tau = locate(s)
-        return c['th_start'][i] + phi[i] * tau
+        th = c['th_start'][i] + phi[i] * tau
+        if rates is not None:
+            th = th + rates[i] * 0.5 * (tau * tau - tau)
+        return th
 
     if tip is None or not np.any(phi):
         tip = geometry()['P_end'][-1]
@@ -254,6 +266,9 @@ def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, fraction
                points_fn=points, angles_fn=angles, **kw)
     sh.spacing = spacing
     sh._arc_lengths = l
+    if rates is not None:
+        rates = np.asarray(rates, dtype=float)
+        sh.arc_rates = rates
     return sh
 
 
@@ -266,8 +281,10 @@ class BatchShape:
     """
 
     def __init__(self, length: float, arc_angles, converged, iterations, stable, residual,
-                 arc_model: str, spacing='uniform', fractions=None):
+                 arc_model: str, spacing='uniform', fractions=None, rates=None):
         self.length = float(length)
+        #: clothoid rates (B, N) (rho = kappa1 l^2 per arc) or None for circular arcs
+        self.arc_rates = None if rates is None else np.asarray(rates, dtype=float)
         self.arc_angles = np.asarray(arc_angles, dtype=float)
         self.converged = np.asarray(converged, dtype=bool)
         self.iterations = np.asarray(iterations, dtype=int)
@@ -288,11 +305,17 @@ class BatchShape:
         self.arc_lengths = self._l
         th_end = np.cumsum(self.arc_angles, axis=1)
         self.tip_angles = th_end[:, -1].copy() if n else np.zeros(B)
-        d = self._l * np.exp(1j * (th_end - self.arc_angles)) * g_only(self.arc_angles)
+        d = self._chords(self.arc_angles, np.exp(1j * (th_end - self.arc_angles)))
         tip = d.sum(axis=1)
         straight = ~np.any(self.arc_angles != 0.0, axis=1)
         tip = np.where(straight, self.length + 0j, tip)
         self.tips = np.stack([tip.real, tip.imag], axis=-1)
+
+    def _chords(self, phi, E):
+        d = self._l * E * g_only(phi)
+        if self.arc_rates is not None:
+            d = d + self._l * E * 1j * self.arc_rates * rate_funcs(phi)[0]
+        return d
 
     def __len__(self):
         return self.arc_angles.shape[0]
@@ -302,7 +325,8 @@ class BatchShape:
         return arc_shape(self.length, self.arc_angles[b], converged=bool(self.converged[b]),
                          iterations=int(self.iterations[b]), stable=bool(self.stable[b]),
                          residual=float(self.residual[b]), arc_model=self.arc_model,
-                         spacing=self.spacing, fractions=self._frac[b])
+                         spacing=self.spacing, fractions=self._frac[b],
+                         rates=None if self.arc_rates is None else self.arc_rates[b])
 
     def points_at(self, s) -> np.ndarray:
         """(B, len(s), 2) positions in m at arc-length fractions s in [0, 1]."""
@@ -314,7 +338,7 @@ class BatchShape:
         th_end = np.cumsum(phi, axis=1)
         th_start = th_end - phi
         E = np.exp(1j * th_start)
-        d = self._l * E * g_only(phi)
+        d = self._chords(phi, E)
         P_end = np.cumsum(d, axis=1)
         P_start = P_end - d
         bnd = self._bounds
@@ -326,7 +350,10 @@ class BatchShape:
         lo, hi = bnd[rows, i], bnd[rows, i + 1]
         tau = (s[None, :] - lo) / (hi - lo)
         ph = phi[rows, i]
-        z = P_start[rows, i] + self._l[rows, i] * E[rows, i] * tau * g_only(ph * tau)
+        u = tau * g_only(ph * tau)
+        if self.arc_rates is not None:
+            u = u + 1j * self.arc_rates[rows, i] * rate_offset(ph, tau)
+        z = P_start[rows, i] + self._l[rows, i] * E[rows, i] * u
         z = np.where(s[None, :] >= 1.0, P_end[:, -1:], z)
         straight = ~np.any(phi != 0.0, axis=1)
         z = np.where(straight[:, None], self.length * s[None, :] + 0j, z)

@@ -87,8 +87,10 @@ class TipCamera:
         from fam_solver import Loads, solve_fam
 
         force = self.tip_force(x, xd)
+        # circular arcs on the graded mesh, as when the reference bags were recorded
         shape = solve_fam(self.catheter, Loads(tip_force=(float(force[0]), float(force[1]))),
-                          n_arcs=self.n_arcs, initial=self._shape)
+                          n_arcs=self.n_arcs, initial=self._shape, arc_model='exact',
+                          spacing='graded')
         if shape.converged:
             self._shape = shape
         frame = self.camera.render(shape.centerline(200))
