@@ -56,6 +56,20 @@ def test_pretrained_default_ima_meets_the_targets():
         assert r.metrics[part]['max'] <= 0.05
 
 
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_cold_default_ima_meets_the_mae_target(seed):
+    """Experiment II from a cold start (no pretraining): MAE <= 0.02 N in normal and outage
+    intervals. Before the static force was bounded at 0 and the mass at 50 g the outage MAE
+    was 0.031 (seed 1) and 0.026 N (seed 2). The max error is not asserted at the target
+    (0.05 N): the first reversal at the deepest point, where the wall contact was only seen
+    in insertion, costs about the wall force (0.08 N) until the reversal's data arrive
+    (README); it is bounded here against regressions."""
+    r = run_experiment(ExperimentConfig(experiment='II', mode='ima', seed=seed))
+    for part in ('normal', 'outage'):
+        assert r.metrics[part]['mae'] <= 0.02
+        assert r.metrics[part]['max'] <= 0.1
+
+
 def test_compliant_hand_and_lossy_link_stay_finite_and_bounded():
     r = run_experiment(ExperimentConfig(experiment='II', mode='ima', compliant_hand=True,
                                         loss=0.3, jitter=0.01, duration=6.0, seed=2))

@@ -16,8 +16,8 @@
   breakaway friction and viscous drag as functions of inserted length on a grid, a Dahl
   friction state for direction and presliding, the mass term. Smoothness priors make
   unvisited grid nodes extrapolate from visited ones (friction linearly, static force flat);
-  parameters are physically bounded (friction, breakaway and drag >= 0, bounded mass) by an
-  active-set solve. Samples at rest are not learned from (the model is held).
+  parameters are physically bounded (friction, breakaway and drag >= 0, a static force that
+  never pulls the catheter in, a mass of grams) by an active-set solve. Samples at rest are not learned from (the model is held).
 
 Both have ``update(x, xd, xdd, f) -> Impedance | None`` (None before enough data).
 Pure Python + numpy; time is implicit in the sample rate; deterministic.
@@ -322,13 +322,26 @@ class HistoryIdentifier:
             only advances while the catheter moves, so a rest does not erase the model).
         solve_every: samples between model solves (20 -> a new model every 20 ms).
         smoothness: weight (in samples) of the smoothness prior on the static table S:
-            first differences (static_first_difference=True: unvisited lengths take the
-            nearest visited value, a cautious extrapolation) or second differences.
+            first differences (static_first_difference=True) or second differences. Weak
+            (3) by default: a static force is a local contact (the tip against a wall or a
+            bend), not a property of the whole length, so evidence for it at one depth (a
+            reversal there) must not spread to depths seen in one direction only, where
+            static force and friction cannot be told apart. With 30, S learned at the first
+            reversal (56 mm) leaked down to 40 mm and the retraction there was rendered
+            0.05 N too weak (Experiment II cold, seeds 0 and 2).
         friction_smoothness: weight of the second-difference prior on the friction,
             breakaway and drag tables (F, B, C): unvisited lengths extrapolate linearly.
         friction_kink: weight of a third-difference prior on F, B, C (0: none).
         rest_velocity: m/s; samples slower than this are not learned from (the model holds).
-        max_mass: kg, upper bound of the mass term; max_force: N, bound of |S|.
+        max_mass: kg, upper bound of the mass term (0.05: what moves beyond the slave's
+            force sensor is the catheter, a few grams; a generous bound). With 1 kg the barely
+            excited mass column absorbed friction transients at reversals and rendered up to
+            0.035 N of m x'' at the master (Experiment II cold, seed 0, in the outage).
+        max_force: N, bound of |S|.
+        static_min: N, lower bound of S (0: a vessel pushes back on a catheter, it does not
+            pull it in; what a one-direction fit would put as negative static force is
+            friction or drag). Without it S went negative where insertion alone was seen and
+            the renderer overestimated the retraction force there.
         static_ridge: ridge (samples) pulling S toward 0: force seen in one direction only
             is attributed to friction, the dominant term of catheter insertion.
         breakaway_ridge: ridge pulling B toward 0 (a refinement seen only near reversals).
@@ -341,11 +354,11 @@ class HistoryIdentifier:
     def __init__(self, window: float = 1.0, rate: float = 1000.0, x_min: float = 0.0,
                  x_max: float = 0.08, n_nodes: int = 17, sigma: float = 3e-4,
                  v_s: float = 0.002, beta: float = 0.5, memory: float = 60.0, solve_every: int = 20,
-                 smoothness: float = 30.0, rest_velocity: float = 2e-4,
-                 max_mass: float = 1.0, max_force: float = 5.0, static_ridge: float = 1.0,
+                 smoothness: float = 3.0, rest_velocity: float = 2e-4,
+                 max_mass: float = 0.05, max_force: float = 5.0, static_ridge: float = 1.0,
                  friction_smoothness: float = 1e3, static_first_difference: bool = True,
                  breakaway_ridge: float = 1.0, viscous_ridge: float = 100.0,
-                 friction_kink: float = 0.0):
+                 friction_kink: float = 0.0, static_min: float = 0.0):
         self.window = positive('window', window)
         self.rate = positive('rate', rate)
         self.x_min = finite('x_min', x_min)
@@ -372,6 +385,9 @@ class HistoryIdentifier:
         self.breakaway_ridge = positive('breakaway_ridge', breakaway_ridge)
         self.viscous_ridge = positive('viscous_ridge', viscous_ridge)
         self.friction_kink = nonneg('friction_kink', friction_kink)
+        self.static_min = finite('static_min', static_min)
+        if not -self.max_force <= self.static_min < self.max_force:
+            raise ValueError(f'static_min must be in [-max_force, max_force), got {static_min!r}')
         self.dx = (self.x_max - self.x_min) / (n_nodes - 1)
         self._nodes = self.x_min + self.dx * np.arange(n_nodes)
         G = n_nodes
@@ -410,7 +426,7 @@ class HistoryIdentifier:
         self._prior = Pm
         lo = np.full(self.P, -np.inf)
         hi = np.full(self.P, np.inf)
-        lo[:G], hi[:G] = -self.max_force, self.max_force          # S
+        lo[:G], hi[:G] = self.static_min, self.max_force          # S
         lo[G:3 * G] = 0.0                                          # F, B >= 0
         hi[G:3 * G] = self.max_force
         lo[3 * G:4 * G] = 0.0                                      # C >= 0
