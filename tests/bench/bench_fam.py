@@ -3,15 +3,16 @@
     scripts/bench fam            # or: python tests/bench/bench_fam.py [--quick]
 
 Prints three tables:
- 1. run time vs error: N in {1..5000}, both arc models and both arc spacings ('uniform':
-    equal arcs; 'graded': per-case arc lengths from the curvature change, the default), tip
-    error (% L) against
+ 1. run time vs error: N in {1..5000}, the three arc models ('clothoid', the default:
+    linearly changing curvature per arc; 'exact': circular arcs; 'bezier': the thesis) and
+    both arc spacings ('uniform': equal arcs, the default; 'graded': per-case arc lengths
+    from the curvature change), tip error (% L) against
     solve_elastica (rtol 1e-12) and median solve time; the reference solver at looser
     tolerances; scipy.integrate.solve_bvp; cases: the thesis flexure (40 mm, EI 7.5e-4 N m^2,
     tip forces and moments) and the Blazer II-XP (65 mm, EI 6e-5 N m^2, 0-0.3 N at 0..pi);
  2. stress: a seeded random sweep of 10 000 load cases (near zero, huge, compressive,
     follower, point forces): non-converged / NaN counts, worst error on a subsample;
- 3. batch throughput against a loop of single solves (both spacings).
+ 3. batch throughput against a loop of single solves (both models, both spacings).
 Times are wall-clock medians (perf_counter) AND process CPU time: the machine is shared,
 so wall times are noisy; the load average is printed.
 """
@@ -31,7 +32,7 @@ sys.path.insert(0, str(ROOT / 'src' / 'fam_solver'))
 from scipy.integrate import solve_bvp  # noqa: E402
 
 from fam_solver import Catheter, Loads, solve_elastica, solve_fam, solve_fam_batch  # noqa: E402
-from fam_solver.fam import DEFAULT_SPACING  # noqa: E402
+from fam_solver.fam import DEFAULT_ARC_MODEL, DEFAULT_SPACING  # noqa: E402
 
 QUICK = '--quick' in sys.argv
 THESIS = Catheter(length=0.040, ei=7.5e-4)
@@ -41,6 +42,8 @@ TARGET_ERR = 0.1      # % L at N = 12, F L^2/EI <= 21
 TARGET_MS = 0.2       # ms, N = 12 single solve median
 THESIS_MS = 3.0       # thesis C++ FAM, N = 12
 TARGET_BATCH = 20000  # solves/s
+MODELS = ('clothoid', 'exact', 'bezier')
+FLOOR = 1e-11         # % L: round-off floor (1e-13 L) -- an error below it cannot fall further
 
 
 def thesis_cases():
@@ -126,7 +129,7 @@ def table1():
     print('|' + '---|' * 12)
     summary = {}
     for name, cat, cases in sets:
-        for model in ('exact', 'bezier'):
+        for model in MODELS:
             for spacing in ('uniform', 'graded'):
                 errs_by_n, ns = [], []
                 for n in NS:
@@ -151,9 +154,11 @@ def table1():
                     print(f'| {name} | {model} | {spacing} | {n} | {max(errs):.2e} | {np.mean(errs):.2e} | '
                           f'{order:.2f} | {mw:.3f} | {mc:.3f} | {mw / TARGET_MS:.2f}x | {mw / THESIS_MS:.3f}x | '
                           f'{conv}/{len(cases)} |')
-                mono = all(a > b for a, b in zip(errs_by_n[:-1], errs_by_n[1:]))
+                mono = all(a > b or max(a, b) < FLOOR for a, b in zip(errs_by_n[:-1], errs_by_n[1:]))
+                floor = [n for n, e in zip(ns, errs_by_n) if e < FLOOR]
+                note = f' (at the round-off floor, < {FLOOR:g} % L, from N = {floor[0]})' if floor else ''
                 print(f'| {name} | {model} | {spacing} | error falls monotonically with N up to '
-                      f'{ns[-1]}: {"yes" if mono else "NO"} |')
+                      f'{ns[-1]}: {"yes" if mono else "NO"}{note} |')
     print()
     print('### reference solver (shooting, DOP853) at looser tolerances, and scipy solve_bvp')
     print('| case set | solver | tolerance | max err %L | median wall ms | converged |')
@@ -188,11 +193,11 @@ def table1():
             print(f'| {name} | scipy solve_bvp (FAM N=12 guess, time excl. FAM) | tol {tol:.0e} | '
                   f'{max(errs):.2e} | {np.median(walls) * 1e3:.2f} | {conv}/{len(cases)} |')
     print()
-    print(f'### N = 12 against the targets (default spacing: {DEFAULT_SPACING})')
+    print(f'### N = 12 against the targets (defaults: arc_model {DEFAULT_ARC_MODEL}, spacing {DEFAULT_SPACING})')
     print('| what | this project | target / reference | ratio |')
     print('|---|---|---|---|')
     for name, cat, cases in sets:
-        for model in ('exact', 'bezier'):
+        for model in MODELS:
             for spacing in ('uniform', 'graded'):
                 e, w, c = summary[(name, model, spacing, 12)]
                 k = f'{name} {model} {spacing}'
@@ -203,21 +208,27 @@ def table1():
                       f'{t_ref[name] * 1e3:.1f} ms | {w / (t_ref[name] * 1e3):.4f} |')
         for spacing in ('uniform', 'graded'):
             for n in (16, 20):
-                e = max(np.max(np.abs(solve_fam(cat, ld, n_arcs=n, spacing=spacing).tip - r.tip)) / cat.length * 100
+                e = max(np.max(np.abs(solve_fam(cat, ld, n_arcs=n, spacing=spacing,
+                                                arc_model='exact').tip - r.tip)) / cat.length * 100
                         for ld, r in zip(cases, refs[name]))
                 print(f'| {name} exact {spacing}: max tip error at N = {n} | {e:.3f} % L | {TARGET_ERR} % L | '
                       f'{e / TARGET_ERR:.2f} |')
     print()
-    print('### N = 12 per case (exact arcs): uniform -> graded, % L')
-    print('| case set | tip force N | tip moment N m | F L^2/EI | uniform | graded | graded / uniform |')
-    print('|---|---|---|---|---|---|---|')
+    print('### N = 12 per case, tip error % L: circular arcs uniform -> graded, clothoid arcs uniform')
+    print('| case set | tip force N | tip moment N m | F L^2/EI | exact uniform | exact graded | '
+          'graded / uniform | clothoid uniform | clothoid / exact graded |')
+    print('|---|---|---|---|---|---|---|---|---|')
     for name, cat, cases in sets:
         for ld, ref in zip(cases, refs[name]):
-            eu, eg = (np.max(np.abs(solve_fam(cat, ld, n_arcs=12, spacing=sp).tip - ref.tip)) / cat.length * 100
-                      for sp in ('uniform', 'graded'))
+            eu, eg, ec = (np.max(np.abs(solve_fam(cat, ld, n_arcs=12, spacing=sp, arc_model=md).tip
+                                        - ref.tip)) / cat.length * 100
+                          for md, sp in (('exact', 'uniform'), ('exact', 'graded'),
+                                         ('clothoid', 'uniform')))
             fx, fy = ld.tip_force
+            nan = float('nan')
             print(f'| {name} | ({fx:.3f}, {fy:.3f}) | {ld.tip_moment:g} | {ld.load_parameter(cat):.1f} | '
-                  f'{eu:.4f} | {eg:.4f} | {eg / eu if eu > 0 else float("nan"):.2f} |')
+                  f'{eu:.4f} | {eg:.4f} | {eg / eu if eu > 0 else nan:.2f} | {ec:.2e} | '
+                  f'{ec / eg if eg > 0 else nan:.3f} |')
     print()
 
 
@@ -230,14 +241,16 @@ def table1b():
     w, c, ref = timed(lambda: solve_elastica(cat, ld), 1)
     print(f'EI = {cat.ei:.4g} N m^2; reference tip ({ref.tip[0] * 1e3:.2f}, {ref.tip[1] * 1e3:.2f}) mm '
           f'in {w * 1e3:.0f} ms')
-    print('| spacing | N | tip error mm | tip error %L | median wall ms | median cpu ms | thesis (C++, vs experiment) |')
-    print('|---|---|---|---|---|---|---|')
-    for spacing in ('uniform', 'graded'):
-        for n in (12, 24, 48, 100, 500):
-            w, c, sh = timed(lambda: solve_fam(cat, ld, n_arcs=n, spacing=spacing), 5)
-            e = float(np.max(np.abs(sh.tip - ref.tip)))
-            print(f'| {spacing} | {n} | {e * 1e3:.3f} | {e / cat.length * 100:.4f} | {w * 1e3:.2f} | {c * 1e3:.2f} | '
-                  f'7 ms, 1.41 +- 1.47 mm |')
+    print('| model | spacing | N | tip error mm | tip error %L | median wall ms | median cpu ms | thesis (C++, vs experiment) |')
+    print('|---|---|---|---|---|---|---|---|')
+    for model in ('clothoid', 'exact'):
+        for spacing in ('uniform', 'graded'):
+            for n in (12, 24, 48, 100, 500):
+                w, c, sh = timed(lambda: solve_fam(cat, ld, n_arcs=n, spacing=spacing,
+                                                   arc_model=model), 5)
+                e = float(np.max(np.abs(sh.tip - ref.tip)))
+                print(f'| {model} | {spacing} | {n} | {e * 1e3:.4f} | {e / cat.length * 100:.5f} | '
+                      f'{w * 1e3:.2f} | {c * 1e3:.2f} | 7 ms, 1.41 +- 1.47 mm |')
     print()
 
 
@@ -283,12 +296,12 @@ def table2():
     for i in sub:
         ref = solve_elastica(cat, cases[i][1])
         refs[i] = ref if ref.converged else None
-    for spacing in ('uniform', 'graded'):
-        stress_table(cases, sub, refs, spacing)
+    for model, spacing in (('clothoid', 'uniform'), ('exact', 'uniform'), ('exact', 'graded')):
+        stress_table(cases, sub, refs, spacing, model)
 
 
-def stress_table(cases, sub, refs, spacing):
-    print(f'## 2. Stress: seeded random sweep (N = 12, exact model, {spacing} arcs, unit catheter '
+def stress_table(cases, sub, refs, spacing, model):
+    print(f'## 2. Stress: seeded random sweep (N = 12, {model} model, {spacing} arcs, unit catheter '
           f'L = 1, EI = 1)')
     count = len(cases)
     cat = Catheter(1.0, 1.0)
@@ -296,7 +309,7 @@ def stress_table(cases, sub, refs, spacing):
     t0 = time.perf_counter()
     shapes = []
     for k, ld in cases:
-        sh = solve_fam(cat, ld, n_arcs=12, spacing=spacing)
+        sh = solve_fam(cat, ld, n_arcs=12, spacing=spacing, arc_model=model)
         shapes.append(sh)
         s = stats.setdefault(k, dict(n=0, nonconv=0, nan=0, unstable=0, snap=0, maxit=0))
         s['n'] += 1
@@ -334,28 +347,31 @@ def stress_table(cases, sub, refs, spacing):
 
 
 def table3():
-    print('## 3. Batch throughput (Blazer, N = 12, exact model; tip forces 0-0.3 N at 0..pi)')
+    print('## 3. Batch throughput (Blazer, N = 12; tip forces 0-0.3 N at 0..pi)')
     rng = np.random.default_rng(7)
     B = 4000 if QUICK else 20000
     mag = rng.uniform(0, 0.3, B)
     ang = rng.uniform(0, np.pi, B)
     F = np.stack([mag * np.cos(ang), mag * np.sin(ang)], axis=1)
-    print('| spacing | what | this project | reference in this run | target | ratio to target |')
-    print('|---|---|---|---|---|---|')
-    for spacing in ('uniform', 'graded'):
-        w, c, bt = timed(lambda: solve_fam_batch(BLAZER, F, n_arcs=12, spacing=spacing), 1)
-        nloop = 1000 if QUICK else 3000
-        w0, c0 = time.perf_counter(), time.process_time()
-        tips = np.array([solve_fam(BLAZER, Loads(tip_force=F[i]), n_arcs=12, spacing=spacing).tip
-                         for i in range(nloop)])
-        wl, cl = time.perf_counter() - w0, time.process_time() - c0
-        diff = np.max(np.abs(tips - bt.tips[:nloop]))
-        print(f'| {spacing} | batch solves/s (wall) | {B / w:,.0f} | single-solve loop {nloop / wl:,.0f}/s | '
-              f'{TARGET_BATCH:,} | {B / w / TARGET_BATCH:.2f} |')
-        print(f'| {spacing} | batch solves/s (cpu) | {B / c:,.0f} | single-solve loop {nloop / cl:,.0f}/s | '
-              f'{TARGET_BATCH:,} | {B / c / TARGET_BATCH:.2f} |')
-        print(f'| {spacing} | batch converged | {int(bt.converged.sum())}/{B} | max |batch - single| tip '
-              f'{diff:.1e} m | all | |')
+    print('| model | spacing | what | this project | reference in this run | target | ratio to target |')
+    print('|---|---|---|---|---|---|---|')
+    for model in ('clothoid', 'exact'):
+        for spacing in ('uniform', 'graded'):
+            w, c, bt = timed(lambda: solve_fam_batch(BLAZER, F, n_arcs=12, spacing=spacing,
+                                                     arc_model=model), 1)
+            nloop = 1000 if QUICK else 3000
+            w0, c0 = time.perf_counter(), time.process_time()
+            tips = np.array([solve_fam(BLAZER, Loads(tip_force=F[i]), n_arcs=12, spacing=spacing,
+                                       arc_model=model).tip for i in range(nloop)])
+            wl, cl = time.perf_counter() - w0, time.process_time() - c0
+            diff = np.max(np.abs(tips - bt.tips[:nloop]))
+            k = f'{model} | {spacing}'
+            print(f'| {k} | batch solves/s (wall) | {B / w:,.0f} | single-solve loop {nloop / wl:,.0f}/s | '
+                  f'{TARGET_BATCH:,} | {B / w / TARGET_BATCH:.2f} |')
+            print(f'| {k} | batch solves/s (cpu) | {B / c:,.0f} | single-solve loop {nloop / cl:,.0f}/s | '
+                  f'{TARGET_BATCH:,} | {B / c / TARGET_BATCH:.2f} |')
+            print(f'| {k} | batch converged | {int(bt.converged.sum())}/{B} | max |batch - single| tip '
+                  f'{diff:.1e} m | all | |')
     print()
 
 

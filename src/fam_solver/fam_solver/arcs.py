@@ -209,3 +209,22 @@ def rate_offset(phi, tau):
     E1 = np.where(small, s1, e1)
     E2 = np.where(small, s2, e2)
     return 0.5 * tau * (tau * tau * E2 - tau * E1)
+
+
+def arc_funcs6(phi):
+    """g, q, g', q', k, k - km (complex, same shape as ``phi``) from ONE Vandermonde product
+    (clothoid arcs: the circular-arc functions and the rate offsets together)."""
+    phi = np.asarray(phi, dtype=float)
+    a = np.abs(phi)
+    small = a < SERIES_LIMIT
+    if phi.size == 0 or np.all(small):
+        R = (_powers(phi) if phi.size > 64 else phi[..., None] ** _POW) @ _CCOEF6
+        return tuple(R[..., j] for j in range(6))
+    p = np.where(small, 1.0, phi)
+    g, q, gp, qp = _closed(p)
+    k, km = _rate_closed(p)
+    closed = (g, q, gp, qp, k, k - km)
+    if not np.any(small):
+        return closed
+    R = _powers(np.where(small, phi, 0.0)) @ _CCOEF6
+    return tuple(np.where(small, R[..., j], c) for j, c in enumerate(closed))

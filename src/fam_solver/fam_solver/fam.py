@@ -101,7 +101,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .arcs import arc_funcs, g_only, rate_funcs, rate_offset
+from .arcs import arc_funcs, arc_funcs6, g_only, rate_offset
 from .model import SPACINGS, BatchShape, Catheter, Loads, Shape, arc_shape, uniform_fractions
 
 ARC_MODELS = ('exact', 'bezier', 'clothoid')
@@ -164,21 +164,22 @@ def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True, clothoid=False):
 
     Returns r, (A, Bd, C, e), th_end where dMbar_i/dphi_j = A_i (j < i), Bd_i (j = i),
     C_j + e_i (j > i); Im(conj(X) F) is written -Im(X conj(F)) (fewer numpy calls).
-    clothoid: arcs whose curvature changes linearly (rates from ``_rates`` at phi); the
-    factors are then those of circular arcs at the clothoid positions (the rates' own
-    derivatives, O(l^2) relative, are left out: Newton converges linearly, fast).
+    clothoid: arcs whose curvature changes linearly (rates from ``_rates`` at phi). For a
+    tip force alone the factors include the rates' own derivatives (``_clothoid_terms``;
+    Newton converges quadratically); with point forces they are those of circular arcs at
+    the clothoid positions (the rates' derivatives, O(l^2) relative, left out: Newton
+    converges linearly, fast).
     """
     B, N = phi.shape
     th_end = np.cumsum(phi, axis=1)
     lE = l * np.exp(1j * (th_end - phi))
-    G, Q, GP, QP = arc_funcs(phi)
     if clothoid:
+        G, Q, GP, QP, rk, rkk = arc_funcs6(phi)     # rkk = k - km
         rho = _rates(phi, lE, G, th_end, w, loads)
-        rk, rkm = rate_funcs(phi)
-        c = 1j * rho * rk
-        d = lE * (G + c)
-        lEq = lE * (Q + c - 1j * rho * rkm)
+        d = lE * (G + 1j * rho * rk)
+        lEq = lE * (Q + 1j * rho * rkk)
     else:
+        G, Q, GP, QP = arc_funcs(phi)
         d = lE * G
         lEq = lE * Q
     P_end = np.cumsum(d, axis=1)
@@ -229,6 +230,18 @@ def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True, clothoid=False):
             C[:, :a] -= ((lE[:, :a] * GP[:, :a] + 1j * rel) * Fs).imag
             C[:, a] -= (lE[:, a] * (tau * tau) * gpt * Fs[:, 0]).imag
     r = phi - w * Mbar
+    if jac and clothoid and len(loads) == 1 and loads[0].tau >= 1.0 and loads[0].a == N - 1:
+        ld = loads[0]
+        cF = np.conj(ld.F * np.exp(1j * th_end[:, -1]) if ld.follower else ld.F)[:, None]
+        lc = lE * cF
+        lo, dg, up, row = _clothoid_terms(lc * G, lc * GP, lc * rk, lc * rkk, w, rho / RHO_MAX,
+                                          ld.follower)
+        Bd -= dg         # _clothoid_terms gives -dMbar/dphi
+        C -= up
+        if ld.follower:
+            e -= row
+        else:
+            A -= lo
     if jac:
         return r, (A, Bd, C, e), th_end
     return r, None, th_end
@@ -1031,8 +1044,7 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
             np.multiply.accumulate(V1, axis=1, out=V1)
             R = V @ coef                         # (N, 4 or 6): g, q, g', q' (, k, km)
         elif clothoid:
-            rk, rkm = rate_funcs(phi)
-            R = np.stack(arc_funcs(phi) + (rk, rk - rkm), axis=1)
+            R = np.stack(arc_funcs6(phi), axis=1)
         else:
             R = np.stack(arc_funcs(phi), axis=1)
         R *= lE[:, None]                         # l e^{i theta_start} (g, q, g', q'(, k, k - km))
@@ -1066,7 +1078,8 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         C = X[:, 0].imag
         if clothoid:
             # with the rates' own derivatives (see _clothoid_terms): quadratic convergence
-            lo_, dg_, up_, row_ = _clothoid_terms(Y, w, th_r, follower)
+            lo_, dg_, up_, row_ = _clothoid_terms(Y[:, 0], Y[:, 2], Y[:, 4], Y[:, 5], w, th_r,
+                                                  follower)
             Bd = Bd + dg_
             if follower:
                 D = np.where(lower, 0.0, (C + up_) - (ZF.real - row_)[:, None])
@@ -1095,15 +1108,15 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
     return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J, rho
 
 
-def _clothoid_terms(Y, w, th_r, follower):
-    """The part of the fast-path Jacobian that comes from the clothoid rates' dependence on the
-    arc headings (rho_i = RHO_MAX tanh(w_i Im(chord_i conj F) / RHO_MAX)); with it Newton
-    converges quadratically (only the small rho k'(phi) terms are left out).
+def _clothoid_terms(Yg, Ygp, Yk, Ykm, w, th_r, follower):
+    """The part of the Jacobian that comes from the clothoid rates' dependence on the arc
+    headings (rho_i = RHO_MAX tanh(w_i Im(chord_i conj F) / RHO_MAX), a tip force alone); with
+    it Newton converges quadratically (only the small rho k'(phi) terms are left out).
 
-    Y: (N, 6) l e^{i theta_start} (g, q, g', q', k, k - km) times cF = conj(F) (follower: F
-    turned with the tip); th_r: the tanh of the rates. Returns (lower (N,) by row, diagonal
-    (N,), upper (N,) by column, upper (N,) by row) terms of -dMbar/dphi (the sign of ``D``
-    in _fast_tip_newton before the w scaling).
+    Yg, Ygp, Yk, Ykm: l e^{i theta_start} times g, g', k, k - km, times cF = conj(F) (follower:
+    F turned with the tip), (N,) or (B, N); th_r: tanh of the rates / RHO_MAX. Returns (lower
+    by row, diagonal, upper by column, upper by row) terms of -dMbar/dphi (the sign of ``D``
+    in _fast_tip_newton before the w scaling); the unused ones are None.
 
     With X_i = (P_N - P_i) + lever_i, Mbar_i = m - Im(X_i cF), the offsets i rho_j l e^{i theta_j} k_j
     in P and i rho_i l e^{i theta_i} (k_i - km_i) in lever_i: d rho_j / d phi_l is
@@ -1112,14 +1125,14 @@ def _clothoid_terms(Y, w, th_r, follower):
     0, tau_j - sigma_j, -sigma_j. Im(i x) = Re(x) makes every term real.
     """
     ws = w * (1.0 - th_r * th_r)
-    sig = ws * Y[:, 0].real
-    tau = ws * Y[:, 2].imag
-    a = Y[:, 4].real                  # Im(i l e^{i theta} k cF)
-    b = Y[:, 5].real                  # Im(i l e^{i theta} (k - km) cF)
+    sig = ws * Yg.real
+    tau = ws * Ygp.imag
+    a = Yk.real                       # Im(i l e^{i theta} k cF)
+    b = Ykm.real                      # Im(i l e^{i theta} (k - km) cF)
     u = a * sig
-    cs = np.add.accumulate(u)
+    cs = np.cumsum(u, axis=-1)
     if not follower:
-        S = cs[-1] - cs               # sum over j > i
+        S = cs[..., -1:] - cs         # sum over j > i
         return S + b * sig, S + b * tau, S + a * tau, None
     return None, b * (tau - sig), a * (tau - sig) - (cs - u), cs - b * sig
 
