@@ -7,7 +7,8 @@ Public API (DESIGN section 5)::
     cat = Catheter(length=0.04, ei=7.5e-4)                      # m, N m^2
     shape = solve_fam(cat, Loads(tip_force=(0.0, 0.5)), n_arcs=12)
     shape.tip, shape.tip_angle, shape.centerline(50), shape.arc_angles, shape.arc_lengths
-    solve_fam(cat, loads, n_arcs=12, spacing='uniform')        # equal arcs ('graded': default)
+    solve_fam(cat, loads, n_arcs=12, arc_model='exact', spacing='graded')   # circular arcs
+    # defaults: arc_model='clothoid' (fourth order), spacing='uniform'
 
 The algorithm modules (``arcs``, ``model``, ``fam``, ``bezier``, ``elastica``) are free of
 rclpy; ``fam_solver_node`` is the thin ROS 2 node.

@@ -17,19 +17,39 @@ produces. Each arc's angle minimises the moment-balance functional Eq. 19 over t
   minimiser of  integral over the arc of (M(s) - EI phi_i / l_i)^2 ds  is
   ``phi_i = (l_i / EI) * mean over the arc of M(s)``; the mean of p(s) over an arc is closed
   form (``arcs.h``), also for a point load inside an arc (``tau^2 q(phi tau)``).
+* ``arc_model="clothoid"`` (the default): each arc's curvature changes LINEARLY along it,
+  kappa(s) = phi_i/l_i + kappa1_i (s - l_i/2), with kappa1_i the moment change the balance
+  prescribes, kappa1_i l_i^2 = rho_i = (l_i/EI)(M_end,i - M_start,i) (taken on the arc's
+  circular chord; smoothly saturated at |rho| = 1 rad so that 1-2 arcs under huge loads stay
+  solvable). phi_i is the same mean-moment equation; the arc's end and mean point move off
+  the circular arc by l e^{i theta} i rho k(phi) and l e^{i theta} i rho km(phi) (first order
+  in rho, closed forms in ``arcs``; k(0) = -1/12 is the classic -kappa' l^3/12 chord
+  offset). That removes the leading error of circular arcs: the FAM becomes FOURTH order
+  (the tip error falls 16x per doubling of N; to the round-off floor, ~1e-15 L, by N ~ 1000).
+  N = 12: 0.0008 / 0.0016 % L on the thesis / Blazer sets (circular arcs: 0.12 / 0.09 % L
+  graded, 0.17 / 0.20 % L uniform) at ~1.4x the time of equal circular arcs (0.165 vs 0.115
+  ms); Newton keeps its quadratic rate (the rates' derivatives are in the Jacobian for a tip
+  force, ``_clothoid_terms``; with point forces they are left out, linear but fast
+  convergence). A point force INSIDE an arc kinks the moment there: that arc keeps an
+  O(l^3) error (still ~10x below circular arcs). ``Shape.arc_rates`` holds rho.
 * ``arc_model="bezier"`` (the thesis): each arc is the cubic Bezier of Eqs. 7-9 with
   lambda = (4/3) tan(phi/4)/phi (``arcs.bezier_lambda``), the curvature is Eq. 12, and
   phi_i solves d Pi_i / d phi_i = 0 (Eq. 23) with the arc's END wrench held fixed in the
   arc's own frame (the thesis' sequential tip -> base algorithm), Pi_i evaluated with
   8-point Gauss-Legendre quadrature in the Bezier parameter. See ``bezier``.
 
-Arc spacing (decision): graded arcs by default
----------------------------------------------
-Each arc's angle is exact given the positions (mean moment); the error is in the positions:
+Arc model and spacing (decision): clothoid arcs, equal lengths, by default
+-------------------------------------------------------------------------
+Circular arcs (the thesis's FAM, 'exact') missed the N = 12 target of 0.1 % L on a
+post-buckled compression whatever the spacing (below); the clothoid arcs remove the error
+term itself and meet it 100x over, on equal arcs (grading them adds time, little accuracy:
+0.0011 vs 0.0016 % L). The graded mesh stays available for both models.
+
+Each circular arc's angle is exact given the positions (mean moment); the error is in the positions:
 a circular arc replaces a curve whose curvature changes along it, kappa' = dM/ds / EI =
 -(t x F_distal) / EI, and its chord is off by -i e^{i theta} kappa' l^3 / 12. Both the chord
 errors and the lever-arm errors they cause are O(l^2) overall (second order in N).
-``spacing="graded"`` (the default) first solves on N equal arcs, then places N arcs that
+``spacing="graded"`` first solves on N equal arcs, then places N arcs that
 equidistribute rho = sqrt(kappa'^2 + (0.2 max|kappa'|)^2) of that solution
 (``graded_fractions``: shorter arcs at the base for a lateral tip force, mid-length for a
 post-buckled compression; equal arcs for a pure moment or no load; arc-length ratio <= 5.1)
@@ -105,11 +125,13 @@ from .arcs import arc_funcs, arc_funcs6, g_only, rate_offset
 from .model import SPACINGS, BatchShape, Catheter, Loads, Shape, arc_shape, uniform_fractions
 
 ARC_MODELS = ('exact', 'bezier', 'clothoid')
-#: The default arc model. Both models are second order and equally accurate (within ~7 %);
-#: 'exact' is ~10-17x faster (N = 12: ~0.1-0.2 ms vs ~1.6-3.4 ms), so it is the default.
+#: The default arc model: 'clothoid' (fourth order; N = 12 ~100x more accurate than the
+#: circular arcs at ~1.4x their time). 'exact' and 'bezier' are second order and equally
+#: accurate (within ~7 %); 'exact' is ~10-17x faster than 'bezier' (N = 12: ~0.1-0.2 ms vs
+#: ~1.6-3.4 ms).
 DEFAULT_ARC_MODEL = 'clothoid'
-#: The default arc spacing: 'graded' (per-case arc lengths, see graded_fractions) or
-#: 'uniform' (equal arcs).
+#: The default arc spacing: 'uniform' (equal arcs) or 'graded' (per-case arc lengths, see
+#: graded_fractions; ~2x more accurate for circular arcs at ~1.6x the time).
 DEFAULT_SPACING = 'uniform'
 DENSE_MAX_N = 64
 MAX_N = 100_000
@@ -866,14 +888,16 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
     """Solve the FAM for one load case; returns a Shape (see ``model.Shape``).
 
     cat: Catheter (m, N m^2). loads: Loads (N, N m; base frame, or tip frame if follower).
-    n_arcs: number of arcs N (1..100000). arc_model: 'exact' (default, true circular
-    arcs) or 'bezier' (the thesis' Bezier arcs, Eqs. 7-12). spacing: 'graded' (default:
-    per-case arc lengths from the curvature change of the equal-arc solution, ~2x more
-    accurate) or 'uniform' (N equal arcs); ``shape.arc_lengths`` (N,) m gives the arcs.
+    n_arcs: number of arcs N (1..100000). arc_model: 'clothoid' (default: arcs whose
+    curvature changes linearly, fourth order), 'exact' (true circular arcs, the FAM of the
+    thesis with exact arcs) or 'bezier' (the thesis' Bezier arcs, Eqs. 7-12). spacing:
+    'uniform' (default, N equal arcs) or 'graded' (per-case arc lengths from the curvature
+    change of the equal-arc solution, ~2x more accurate for circular arcs);
+    ``shape.arc_lengths`` (N,) m gives the arcs.
     Never returns NaN: a case that does not converge has converged=False and the best
     finite iterate.
     initial: optional warm start (a previous Shape, or arc angles (N,) of EQUAL arcs); used
-    (exact model, tip loads, N <= 64) when Newton from it converges to an equilibrium whose
+    (exact or clothoid model, tip loads, N <= 64) when Newton from it converges to an equilibrium whose
     Jacobian eigenvalues all have positive real parts, else ignored (cold start).
     """
     _check_common(cat, n_arcs, arc_model, spacing)
@@ -942,8 +966,8 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
     """Solve B tip-load cases at once (vectorised Newton over the batch).
 
     tip_forces: (B, 2) N (base frame, or tip frame if ``follower``); tip_moments: (B,) N m
-    or None (zeros). spacing: 'graded' (default) or 'uniform', as in ``solve_fam`` (each case
-    gets its own arcs; the results equal solve_fam's to ~1e-13 m). Returns a BatchShape:
+    or None (zeros). arc_model and spacing as in ``solve_fam`` (graded: each case gets its
+    own arcs; the results equal solve_fam's to ~1e-13 m). Returns a BatchShape:
     tips (B, 2), tip_angles (B,), arc_angles (B, N), arc_lengths (B, N), converged (B,),
     stable (B,), iterations (B,), centerlines(k) -> (B, k, 2).
     """

@@ -35,11 +35,13 @@ class FamSolverNode(Node):
         ei = declare(self, 'ei', 6.0e-5, 'flexural rigidity EI [N m^2] (Blazer II-XP: 6e-5)', 1e-9, 1e3)
         self.n_arcs = declare(self, 'n_arcs', 12, 'number of FAM arcs', 1, 5000)
         self.arc_model = declare(self, 'arc_model', DEFAULT_ARC_MODEL,
-                                 'arc model: exact (circular arcs) or bezier (thesis)',
+                                 'arc model: clothoid (linearly changing curvature per arc, '
+                                 'fourth order), exact (circular arcs) or bezier (thesis)',
                                  choices=ARC_MODELS)
         self.spacing = declare(self, 'spacing', DEFAULT_SPACING,
-                               'arc lengths: graded (shorter arcs where the curvature changes '
-                               'fastest, ~2x more accurate) or uniform (equal arcs, ~2x faster)',
+                               'arc lengths: uniform (equal arcs) or graded (shorter arcs where '
+                               'the curvature changes fastest; ~2x more accurate for circular '
+                               'arcs, ~1.7x slower)',
                                choices=SPACINGS)
         self.follower = declare(self, 'follower', False,
                                 'true: the tip force turns with the tip (tendon pull, tip frame)')
