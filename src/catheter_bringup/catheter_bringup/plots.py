@@ -153,9 +153,10 @@ def run_plots(path, out_dir='out', name: Optional[str] = None) -> List[str]:
 
 
 def fam_accuracy_data(n_arcs=(1, 2, 4, 8, 12, 24, 48, 96, 200), alphas=(1.0, 5.0, 10.0),
-                      repeats: int = 3) -> Optional[Dict[str, list]]:
+                      repeats: int = 3, arc_model: str = 'clothoid') -> Optional[Dict[str, list]]:
     """FAM tip error (fraction of L, worst over ``alphas`` = F L^2 / EI, perpendicular dead tip
-    load) against the median solve time, for each arc count; None if fam_solver is missing."""
+    load) against the median solve time, for each arc count (equal arcs of ``arc_model``);
+    None if fam_solver is missing."""
     try:
         from fam_solver import Catheter, Loads, solve_elastica, solve_fam
     except ImportError:
@@ -172,7 +173,7 @@ def fam_accuracy_data(n_arcs=(1, 2, 4, 8, 12, 24, 48, 96, 200), alphas=(1.0, 5.0
             best = float('inf')
             for _ in range(repeats):
                 t = time.perf_counter()
-                shape = solve_fam(cat, loads, n_arcs=n)
+                shape = solve_fam(cat, loads, n_arcs=n, arc_model=arc_model, spacing='uniform')
                 best = min(best, time.perf_counter() - t)
             times.append(best)
             errs.append(float(np.linalg.norm(np.asarray(shape.tip) - tip_ref)) / cat.length)
@@ -183,15 +184,20 @@ def fam_accuracy_data(n_arcs=(1, 2, 4, 8, 12, 24, 48, 96, 200), alphas=(1.0, 5.0
 
 
 def fam_accuracy_plot(out_dir='out', data=None) -> Optional[str]:
-    data = data or fam_accuracy_data()
-    if not data:
+    """The FAM accuracy plot; ``data``: {arc model: fam_accuracy_data(...)} (None: measured
+    now for the clothoid and circular arcs)."""
+    if data is None:
+        data = {m: fam_accuracy_data(arc_model=m) for m in ('clothoid', 'exact')}
+    if not data or not all(data.values()):
         return None
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.loglog(np.asarray(data['time_s']) * 1e3, np.asarray(data['error_frac_l']) * 100, 'o-')
-    for n, t, e in zip(data['n_arcs'], data['time_s'], data['error_frac_l']):
-        ax.annotate(f'N={n}', (t * 1e3, e * 100), fontsize=7, textcoords='offset points',
-                    xytext=(4, 2))
+    for model, d in data.items():
+        ax.loglog(np.asarray(d['time_s']) * 1e3, np.asarray(d['error_frac_l']) * 100, 'o-',
+                  label=f'{model} arcs')
+        for n, t, e in zip(d['n_arcs'], d['time_s'], d['error_frac_l']):
+            ax.annotate(f'N={n}', (t * 1e3, e * 100), fontsize=7, textcoords='offset points',
+                        xytext=(4, 2))
     ax.axhline(0.6, color='tab:red', ls='--', lw=0.8, label='thesis N=12 vs Abaqus (0.6 % L)')
     ax.axhline(0.1, color='tab:green', ls=':', lw=0.8, label='project target (0.1 % L)')
     ax.set_xlabel('solve time, ms (this machine, one core, shared)')
