@@ -1100,7 +1100,7 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         X = ((1j * rel)[:, None] + R[:, 2:4]) * cF   # columns: g' and q' terms
         Bd = X[:, 1].imag
         C = X[:, 0].imag
-        if clothoid:
+        if clothoid and res < _QUASI_ABOVE:
             # with the rates' own derivatives (see _clothoid_terms): quadratic convergence
             lo_, dg_, up_, row_ = _clothoid_terms(Y[:, 0], Y[:, 2], Y[:, 4], Y[:, 5], w, th_r,
                                                   follower)
@@ -1110,7 +1110,7 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
                 Bd = Bd - ZF.real
             else:
                 D = np.where(lower, (ZF.real + lo_)[:, None], C + up_)
-        elif follower:
+        elif follower:   # (clothoid far from the solution: circular-arc factors, cheaper)
             D = np.where(lower, 0.0, C - ZF.real[:, None])
             Bd = Bd - ZF.real
         else:
@@ -1159,6 +1159,11 @@ def _clothoid_terms(Yg, Ygp, Yk, Ykm, w, th_r, follower):
         S = cs[..., -1:] - cs         # sum over j > i
         return S + b * sig, S + b * tau, S + a * tau, None
     return None, b * (tau - sig), a * (tau - sig) - (cs - u), cs - b * sig
+
+
+#: fast path, clothoid arcs: the rates' Jacobian terms are added once max|r| < this (rad);
+#: further out the circular-arc factors do as well and cost less
+_QUASI_ABOVE = 1e-2
 
 
 def _fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform', clothoid=False):
