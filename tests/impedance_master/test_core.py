@@ -261,6 +261,9 @@ def test_default_identifier_rejects_a_bad_static_bound():
         with pytest.raises(ValueError, match='static_min'):
             HistoryIdentifier(static_min=bad)
     assert HistoryIdentifier(static_min=-1.0).static_min == -1.0
+    for bad in (float('nan'), -1.0):
+        with pytest.raises(ValueError, match='origin_weight'):
+            HistoryIdentifier(origin_weight=bad)
 
 
 def test_default_identifier_holds_at_rest():
@@ -463,6 +466,7 @@ def test_default_identifier_reports_the_linear_part_in_m_c_k_offset():
     # 3 noise sigmas: the static prior is deliberately local (weak smoothness), so next to
     # the stroke's end (50 mm) S follows the data more than a global spring prior would
     assert max(np.abs(imp.F[visited])) < 0.01 and max(np.abs(imp.S[visited])) < 0.015
-    # force() is the same model as before the split
+    # force() is the same model as before the split (the same 3-sigma bound: at 50 mm the
+    # local static table is 0.010-0.011 N off this global spring)
     for xx, v in ((0.01, 0.02), (0.03, -0.01), (0.05, 0.0)):
-        assert imp.force(xx, v, 0.0) == pytest.approx(30.0 * xx + 0.02, abs=0.01)
+        assert imp.force(xx, v, 0.0) == pytest.approx(30.0 * xx + 0.02, abs=0.015)
