@@ -25,7 +25,8 @@ produces. Each arc's angle minimises the moment-balance functional Eq. 19 over t
   the circular arc by l e^{i theta} i rho k(phi) and l e^{i theta} i rho km(phi) (first order
   in rho, closed forms in ``arcs``; k(0) = -1/12 is the classic -kappa' l^3/12 chord
   offset). That removes the leading error of circular arcs: the FAM becomes FOURTH order
-  (the tip error falls 16x per doubling of N; to the round-off floor, ~1e-15 L, by N ~ 1000).
+  (the tip error falls 16x per doubling of N, to ~1e-12 L by N ~ 1000: the accuracy of the
+  reference rod solver, below which the benchmark cannot follow it).
   N = 12: 0.0008 / 0.0016 % L on the thesis / Blazer sets (circular arcs: 0.12 / 0.09 % L
   graded, 0.17 / 0.20 % L uniform) at ~1.4x the time of equal circular arcs (0.165 vs 0.115
   ms); Newton keeps its quadratic rate (the rates' derivatives are in the Jacobian for a tip
