@@ -1054,8 +1054,10 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
     best = (phi, math.inf, 0j, None)
     it = 0
     J = None
-    rho = None
+    th_r = None
     wc = w[:, None]
+    w_r = w / RHO_MAX
+    iR = 1j * RHO_MAX
     coef = _CCOEF6 if clothoid else _CCOEF
     V = np.empty((n, _K))       # powers phi^0..phi^(K-1) by a running product (** is 3x slower)
     V[:, 0] = 1.0
@@ -1079,10 +1081,9 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         else:
             cF = cF0
         if clothoid:
-            Y = R * cF
-            th_r = np.tanh(w * Y[:, 0].imag / RHO_MAX)   # _rates: w (chord x -F), saturated
-            rho = RHO_MAX * th_r
-            c = 1j * rho
+            z0 = R[:, 0] * cF
+            th_r = np.tanh(w_r * z0.imag)     # _rates: w (chord x -F), saturated
+            c = th_r * iR
             P = acc(R[:, 0] + c * R[:, 4])
             lever = R[:, 1] + c * R[:, 5]
         else:
@@ -1095,7 +1096,7 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         if not res < math.inf:
             res = math.inf
         if res < best[1]:
-            best = (phi, res, complex(P[-1]), rho)
+            best = (phi, res, complex(P[-1]), th_r)
         if res <= 1e-13 + rtol * pmax or it == max_iter:
             break
         X = ((1j * rel)[:, None] + R[:, 2:4]) * cF   # columns: g' and q' terms
@@ -1103,8 +1104,8 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         C = X[:, 0].imag
         if clothoid and res < _QUASI_ABOVE:
             # with the rates' own derivatives (see _clothoid_terms): quadratic convergence
-            lo_, dg_, up_, row_ = _clothoid_terms(Y[:, 0], Y[:, 2], Y[:, 4], Y[:, 5], w, th_r,
-                                                  follower)
+            lo_, dg_, up_, row_ = _clothoid_terms(z0, R[:, 2] * cF, R[:, 4] * cF, R[:, 5] * cF,
+                                                  w, th_r, follower)
             Bd = Bd + dg_
             if follower:
                 D = np.where(lower, 0.0, (C + up_) - (ZF.real - row_)[:, None])
@@ -1126,7 +1127,8 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         if mx > step_limit:
             dx *= step_limit / mx
         phi = phi - dx
-    phi, res, tip, rho = best
+    phi, res, tip, th_r = best
+    rho = None if th_r is None else RHO_MAX * th_r
     if not res < math.inf:
         phi, tip, rho = np.zeros(n), complex(float(np.sum(l))), None
     pmax = _MAXR(np.abs(phi))
