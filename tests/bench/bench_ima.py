@@ -111,6 +111,35 @@ def switch_and_rest(res, resw):
               f'{sum(r.metrics["renderer"]["passivity_steps"] for r in rs)} steps')
 
 
+def where_max(results, delay=0.2, margin=1e-3):
+    """Diagnostics: where the largest error of each seed and interval happens, and why it can
+    happen there (the master's state against what the slave's data covered 2 delays earlier:
+    the deepest inserted length so far, and whether the master has reversed at this depth
+    before, i.e. whether the slave data can separate static force from friction there)."""
+    print('\n## Where the largest errors are (IMA default, Experiment II cold; slave data seen '
+          'by the master lag 2 delays)')
+    print(f'{"seed":>4} {"interval":<8} {"t s":>6} {"error N":>8} {"f_hand N":>9} {"ref N":>7} '
+          f'{"x_m mm":>7} {"v_m mm/s":>9} {"deepest data mm":>16} {"since 1st retract s":>20}')
+    for r in results:
+        s = r.series
+        t, xm, vm, xs = s['t'], s['x_master'], s['xd_master'], s['x_slave']
+        err = s['f_hand'] - s['reference']
+        lag = int(round(2 * delay / (t[1] - t[0])))
+        retract = np.flatnonzero(vm < -1e-3)
+        t_retract = t[retract[0]] if retract.size else float('nan')
+        for part, sel in (('normal', s['evaluated'] & ~s['outage']),
+                          ('outage', s['evaluated'] & s['outage'])):
+            idx = np.flatnonzero(sel)
+            if not idx.size:
+                continue
+            k = idx[np.argmax(np.abs(err[idx]))]
+            deepest = xs[:max(k - lag, 1)].max()
+            print(f'{r.config.seed:4d} {part:<8} {t[k]:6.3f} {err[k]:+8.4f} {s["f_hand"][k]:9.4f} '
+                  f'{s["reference"][k]:7.4f} {xm[k] * 1e3:7.2f} {vm[k] * 1e3:9.1f} '
+                  f'{deepest * 1e3:16.2f} {t[k] - t_retract:20.3f}'
+                  + ('  (never visited)' if xm[k] > deepest + margin else ''))
+
+
 def visited(res_by_label, delay=0.2, margin=1e-3):
     """Error where the master goes where the slave's last second did not go, and where the
     slave has never been (as seen from the master: slave data are >= 2 delays old)."""
@@ -254,6 +283,7 @@ def main(argv=None):
     resc = runs(seeds, experiment='II', compliant_hand=True)
     table_modes('Experiment II, compliant hand (300 N/m, 15 N s/m)', resc)
     switch_and_rest(res2, res2w)
+    where_max(res2['ima'])
     visited([('IMA default (cold)', res2['ima']), ('IMA thesis (cold)', res2['ima_thesis']),
              ('DFR', res2['dfr']), ('IMA default (after Exp. I)', res2w['ima'])])
     if a.quick:
