@@ -188,6 +188,17 @@ def rate_funcs(phi):
     return np.where(small, R[..., 0], kc), np.where(small, R[..., 1], kmc)
 
 
+_E12 = np.stack([_ipow[:_K] / _fact[:_K] / (np.arange(_K) + 2),
+                 _ipow[:_K] / _fact[:_K] / (np.arange(_K) + 3)], axis=1)   # series of E1, E2
+
+
+def _e12_closed(a):
+    ac = 1j * a
+    e = np.exp(ac)
+    e1 = (e - (e - 1.0) / ac) / ac
+    return e1, (e - 2.0 * e1) / ac
+
+
 def rate_offset(phi, tau):
     """K(phi, tau) = tau (tau^2 E2(phi tau) - tau E1(phi tau)) / 2 (complex): the point at
     fraction ``tau`` of a clothoid arc, off the circular arc per unit rho and l e^{i theta} i."""
@@ -195,19 +206,15 @@ def rate_offset(phi, tau):
     tau = np.asarray(tau, dtype=float)
     a = phi * tau
     small = np.abs(a) < SERIES_LIMIT
-    # E1, E2 at a: series below 1, recursion above
-    j = np.arange(_K)
-    c1 = _ipow[:_K] / _fact[:_K] / (j + 2)
-    c2 = _ipow[:_K] / _fact[:_K] / (j + 3)
-    V = _powers(np.where(small, a, 0.0))
-    s1, s2 = V @ c1, V @ c2
-    ac = 1j * np.where(small, 1.0, a)
-    e = np.exp(ac)
-    e0 = (e - 1.0) / ac
-    e1 = (e - e0) / ac
-    e2 = (e - 2.0 * e1) / ac
-    E1 = np.where(small, s1, e1)
-    E2 = np.where(small, s2, e2)
+    if a.size == 0 or np.all(small):
+        R = (_powers(a) if a.size > 64 else a[..., None] ** _POW) @ _E12
+        E1, E2 = R[..., 0], R[..., 1]
+    elif not np.any(small):
+        E1, E2 = _e12_closed(a)
+    else:
+        R = _powers(np.where(small, a, 0.0)) @ _E12
+        c1, c2 = _e12_closed(np.where(small, 1.0, a))
+        E1, E2 = np.where(small, R[..., 0], c1), np.where(small, R[..., 1], c2)
     return 0.5 * tau * (tau * tau * E2 - tau * E1)
 
 

@@ -30,8 +30,8 @@ produces. Each arc's angle minimises the moment-balance functional Eq. 19 over t
   N = 12: 0.0008 / 0.0016 % L on the thesis / Blazer sets (circular arcs: 0.12 / 0.09 % L
   graded, 0.17 / 0.20 % L uniform) at ~1.4x the time of equal circular arcs (0.165 vs 0.115
   ms); Newton keeps its quadratic rate (the rates' derivatives are in the Jacobian for a tip
-  force, ``_clothoid_terms``; with point forces they are left out, linear but fast
-  convergence). A point force INSIDE an arc kinks the moment there: that arc keeps an
+  force; with point forces the offsets' effect on loads inside an arc is left out,
+  ``_clothoid_terms``). A point force INSIDE an arc kinks the moment there: that arc keeps an
   O(l^3) error (still ~10x below circular arcs). ``Shape.arc_rates`` holds rho.
 * ``arc_model="bezier"`` (the thesis): each arc is the cubic Bezier of Eqs. 7-9 with
   lambda = (4/3) tan(phi/4)/phi (``arcs.bezier_lambda``), the curvature is Eq. 12, and
@@ -187,11 +187,11 @@ def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True, clothoid=False):
 
     Returns r, (A, Bd, C, e), th_end where dMbar_i/dphi_j = A_i (j < i), Bd_i (j = i),
     C_j + e_i (j > i); Im(conj(X) F) is written -Im(X conj(F)) (fewer numpy calls).
-    clothoid: arcs whose curvature changes linearly (rates from ``_rates`` at phi). For a
-    tip force alone the factors include the rates' own derivatives (``_clothoid_terms``;
-    Newton converges quadratically); with point forces they are those of circular arcs at
-    the clothoid positions (the rates' derivatives, O(l^2) relative, left out: Newton
-    converges linearly, fast).
+    clothoid: arcs whose curvature changes linearly (rates from ``_rates`` at phi). The
+    factors include the rates' own derivatives (``_clothoid_terms``: Newton converges
+    quadratically) except for a follower tip force together with point forces (then those
+    of circular arcs at the clothoid positions: the rates' derivatives, O(l^2) relative,
+    left out; Newton converges linearly, fast).
     """
     B, N = phi.shape
     th_end = np.cumsum(phi, axis=1)
@@ -253,15 +253,31 @@ def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True, clothoid=False):
             C[:, :a] -= ((lE[:, :a] * GP[:, :a] + 1j * rel) * Fs).imag
             C[:, a] -= (lE[:, a] * (tau * tau) * gpt * Fs[:, 0]).imag
     r = phi - w * Mbar
-    if jac and clothoid and len(loads) == 1 and loads[0].tau >= 1.0 and loads[0].a == N - 1:
-        ld = loads[0]
-        cF = np.conj(ld.F * np.exp(1j * th_end[:, -1]) if ld.follower else ld.F)[:, None]
-        lc = lE * cF
-        lo, dg, up, row = _clothoid_terms(lc * G, lc * GP, lc * rk, lc * rkk, w, rho / RHO_MAX,
-                                          ld.follower)
+    follower = any(ld.follower for ld in loads)
+    if jac and clothoid and loads and (not follower or len(loads) == 1):
+        # the rates' own derivatives (_clothoid_terms) with the force beyond each arc, Fd
+        # (exact for a tip force alone; with point forces the offsets' effect on the loads
+        # inside an arc is left out: still close to quadratic)
+        Fd = np.zeros((B, N), dtype=complex)
+        sg_in = np.zeros((B, N))
+        tg_in = np.zeros((B, N))
+        for ld in loads:
+            F = ld.F * np.exp(1j * th_end[:, -1]) if ld.follower else ld.F
+            k = ld.a + 1 if ld.tau >= 1.0 else ld.a
+            Fd[:, :k] += F[:, None]
+            if ld.tau < 1.0:
+                a, tau = ld.a, ld.tau
+                gt, _, gpt, _ = arc_funcs(phi[:, a] * tau)
+                z = lE[:, a] * np.conj(F)
+                sg_in[:, a] += (z * tau * gt).real
+                tg_in[:, a] += (z * (tau * tau) * gpt).imag
+        lc = lE * np.conj(Fd)
+        lo, dg, up, row = _clothoid_terms((lc * G).real + sg_in, (lc * GP).imag + tg_in,
+                                          (lc * rk).real, (lc * rkk).real, w, rho / RHO_MAX,
+                                          follower)
         Bd -= dg         # _clothoid_terms gives -dMbar/dphi
         C -= up
-        if ld.follower:
+        if follower:
             e -= row
         else:
             A -= lo
@@ -1104,7 +1120,8 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         C = X[:, 0].imag
         if clothoid and res < _QUASI_ABOVE:
             # with the rates' own derivatives (see _clothoid_terms): quadratic convergence
-            lo_, dg_, up_, row_ = _clothoid_terms(z0, R[:, 2] * cF, R[:, 4] * cF, R[:, 5] * cF,
+            lo_, dg_, up_, row_ = _clothoid_terms(z0.real, (R[:, 2] * cF).imag,
+                                                  (R[:, 4] * cF).real, (R[:, 5] * cF).real,
                                                   w, th_r, follower)
             Bd = Bd + dg_
             if follower:
@@ -1135,27 +1152,29 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
     return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J, rho
 
 
-def _clothoid_terms(Yg, Ygp, Yk, Ykm, w, th_r, follower):
+def _clothoid_terms(sg, tg, a, b, w, th_r, follower):
     """The part of the Jacobian that comes from the clothoid rates' dependence on the arc
-    headings (rho_i = RHO_MAX tanh(w_i Im(chord_i conj F) / RHO_MAX), a tip force alone); with
-    it Newton converges quadratically (only the small rho k'(phi) terms are left out).
+    headings; with it Newton converges quadratically (only the small rho k'(phi) terms are
+    left out). Arrays (N,) or (B, N).
 
-    Yg, Ygp, Yk, Ykm: l e^{i theta_start} times g, g', k, k - km, times cF = conj(F) (follower:
-    F turned with the tip), (N,) or (B, N); th_r: tanh of the rates / RHO_MAX. Returns (lower
-    by row, diagonal, upper by column, upper by row) terms of -dMbar/dphi (the sign of ``D``
-    in _fast_tip_newton before the w scaling); the unused ones are None.
+    rho_j = RHO_MAX tanh(w_j dM_j / RHO_MAX), dM_j = Im(chord_j conj Fd_j) (+ the part of
+    the loads inside arc j), Fd_j the force beyond arc j (conj F turned with the tip for a
+    follower force). Inputs: sg = d dM_j / d theta_j (arc j turned rigidly, loads fixed:
+    Re(chord_j conj Fd_j) + ...), tg = d dM_j / d phi_j (Im(l e^{i theta_j} g'_j conj Fd_j) + ...),
+    a = Re(l e^{i theta_j} k_j conj Fd_j), b = Re(l e^{i theta_j} (k_j - km_j) conj Fd_j);
+    th_r = tanh(rho / RHO_MAX). Returns (lower by row, diagonal, upper by column, upper by
+    row) terms of -dMbar/dphi (the sign of ``D`` in _fast_tip_newton before the w scaling);
+    the unused ones are None.
 
     With X_i = (P_N - P_i) + lever_i, Mbar_i = m - Im(X_i cF), the offsets i rho_j l e^{i theta_j} k_j
     in P and i rho_i l e^{i theta_i} (k_i - km_i) in lever_i: d rho_j / d phi_l is
-    sigma_j = w'_j Re(chord_j cF) for l < j (base-fixed force), tau_j = w'_j Im(l e^{i theta_j} g'_j cF)
-    for l = j, 0 for l > j (w' = w (1 - tanh^2)); a follower force turns with the tip:
-    0, tau_j - sigma_j, -sigma_j. Im(i x) = Re(x) makes every term real.
+    sigma_j = w'_j sg_j for l < j (base-fixed forces), tau_j = w'_j tg_j for l = j, 0 for
+    l > j (w' = w (1 - tanh^2)); a follower force turns with the tip: 0, tau_j - sigma_j,
+    -sigma_j. Im(i x) = Re(x) makes every term real.
     """
     ws = w * (1.0 - th_r * th_r)
-    sig = ws * Yg.real
-    tau = ws * Ygp.imag
-    a = Yk.real                       # Im(i l e^{i theta} k cF)
-    b = Ykm.real                      # Im(i l e^{i theta} (k - km) cF)
+    sig = ws * sg
+    tau = ws * tg
     u = a * sig
     cs = np.cumsum(u, axis=-1)
     if not follower:
