@@ -175,8 +175,9 @@ def test_scaling_and_accuracy(alpha, beta, k):
     (2 - 3j, [], False), (2 - 3j, [], True), (2 - 3j, [(0.33, 1 + 2j)], False),
     (0j, [(0.5, 1 + 2j), (0.9, -1 + 0.5j)], False)])
 def test_general_jacobian_matches_finite_differences(tip, pfs, follower):
-    """The general path's Jacobian factors include the rates' derivatives: they match
-    central differences of the clothoid residual to ~0.25 % (the rho k'(phi) terms left out)."""
+    """The general path's Jacobian factors include the rates' derivatives: they equal
+    central differences of the clothoid residual for a tip force; with point forces inside
+    arcs the offsets' effect on those forces is left out (0.04 % measured)."""
     n = 7
     prob = core._make_problem(n, 1.0, 1.0, np.array([tip]), follower, np.array([0.3]),
                               [(s, np.array([F])) for s, F in pfs], clothoid=True)
@@ -192,4 +193,5 @@ def test_general_jacobian_matches_finite_differences(tip, pfs, follower):
         q[0, j] -= h
         Jn[:, j] = (core._evaluate(p, prob.l, prob.w, loads, m, jac=False, clothoid=True)[0][0]
                     - core._evaluate(q, prob.l, prob.w, loads, m, jac=False, clothoid=True)[0][0]) / (2 * h)
-    assert np.abs(J - Jn).max() < 5e-3 * np.abs(Jn - np.eye(n)).max()
+    tol = 1e-3 if pfs else 1e-7
+    assert np.abs(J - Jn).max() < tol * np.abs(Jn - np.eye(n)).max()

@@ -158,18 +158,27 @@ def _rate_coef():
 
 
 _RCOEF = _rate_coef()
-#: (K, 6) complex: series coefficients of g, q, g', q', k, k - km (powers 0..K-1 of phi)
-_CCOEF6 = np.concatenate([_CCOEF, _RCOEF[:, :1], _RCOEF[:, :1] - _RCOEF[:, 1:]], axis=1)
+_KKM = np.concatenate([_RCOEF[:, :1], _RCOEF[:, :1] - _RCOEF[:, 1:]], axis=1)   # k, k - km
+_KKMP = np.zeros_like(_KKM)                      # their phi-derivatives (series differentiated;
+_KKMP[:-1] = _KKM[1:] * np.arange(1, _K)[:, None]   # the dropped term is below 1e-17 for |phi| < 1)
+#: (K, 8) complex: series coefficients of g, q, g', q', k, k - km, k', (k - km)'
+_CCOEF8 = np.concatenate([_CCOEF, _KKM, _KKMP], axis=1)
 
 
-def _rate_closed(phi):
+def _rate_closed(phi, derivatives=False):
+    """k, km (and k' = i (E3 - E2)/2, (k - km)' = i (E4 - E3)/2 when ``derivatives``) for
+    |phi| >= 1 (E4 by the same recursion: error growth 4!/|phi|^4 <= 24)."""
     a = 1j * phi
     e = np.exp(a)
     e0 = (e - 1.0) / a
     e1 = (e - e0) / a
     e2 = (e - 2.0 * e1) / a
     e3 = (e - 3.0 * e2) / a
-    return 0.5 * (e2 - e1), 0.5 * (-e3 + 2.0 * e2 - e1)
+    k, km = 0.5 * (e2 - e1), 0.5 * (-e3 + 2.0 * e2 - e1)
+    if not derivatives:
+        return k, km
+    e4 = (e - 4.0 * e3) / a
+    return k, km, 0.5j * (e3 - e2), 0.5j * (e4 - e3)
 
 
 def rate_funcs(phi):
@@ -218,20 +227,21 @@ def rate_offset(phi, tau):
     return 0.5 * tau * (tau * tau * E2 - tau * E1)
 
 
-def arc_funcs6(phi):
-    """g, q, g', q', k, k - km (complex, same shape as ``phi``) from ONE Vandermonde product
-    (clothoid arcs: the circular-arc functions and the rate offsets together)."""
+def clothoid_funcs(phi):
+    """g, q, g', q', k, k - km, k', (k - km)' (complex, same shape as ``phi``) from ONE
+    Vandermonde product (clothoid arcs: the circular-arc functions, the rate offsets and
+    their derivatives together)."""
     phi = np.asarray(phi, dtype=float)
     a = np.abs(phi)
     small = a < SERIES_LIMIT
     if phi.size == 0 or np.all(small):
-        R = (_powers(phi) if phi.size > 64 else phi[..., None] ** _POW) @ _CCOEF6
-        return tuple(R[..., j] for j in range(6))
+        R = (_powers(phi) if phi.size > 64 else phi[..., None] ** _POW) @ _CCOEF8
+        return tuple(R[..., j] for j in range(8))
     p = np.where(small, 1.0, phi)
     g, q, gp, qp = _closed(p)
-    k, km = _rate_closed(p)
-    closed = (g, q, gp, qp, k, k - km)
+    k, km, kp, kkmp = _rate_closed(p, derivatives=True)
+    closed = (g, q, gp, qp, k, k - km, kp, kkmp)
     if not np.any(small):
         return closed
-    R = _powers(np.where(small, phi, 0.0)) @ _CCOEF6
+    R = _powers(np.where(small, phi, 0.0)) @ _CCOEF8
     return tuple(np.where(small, R[..., j], c) for j, c in enumerate(closed))

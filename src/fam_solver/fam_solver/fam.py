@@ -122,7 +122,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .arcs import arc_funcs, arc_funcs6, g_only, rate_offset
+from .arcs import arc_funcs, clothoid_funcs, g_only, rate_offset
 from .model import SPACINGS, BatchShape, Catheter, Loads, Shape, arc_shape, uniform_fractions
 
 ARC_MODELS = ('exact', 'bezier', 'clothoid')
@@ -197,7 +197,7 @@ def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True, clothoid=False):
     th_end = np.cumsum(phi, axis=1)
     lE = l * np.exp(1j * (th_end - phi))
     if clothoid:
-        G, Q, GP, QP, rk, rkk = arc_funcs6(phi)     # rkk = k - km
+        G, Q, GP, QP, rk, rkk, rkp, rkkp = clothoid_funcs(phi)     # rkk = k - km; ' = d/dphi
         rho = _rates(phi, lE, G, th_end, w, loads)
         d = lE * (G + 1j * rho * rk)
         lEq = lE * (Q + 1j * rho * rkk)
@@ -274,7 +274,7 @@ def _evaluate(phi, l, w, loads: Sequence[_Load], m, jac=True, clothoid=False):
         lc = lE * np.conj(Fd)
         lo, dg, up, row = _clothoid_terms((lc * G).real + sg_in, (lc * GP).imag + tg_in,
                                           (lc * rk).real, (lc * rkk).real, w, rho / RHO_MAX,
-                                          follower)
+                                          follower, rho * (lc * rkp).real, rho * (lc * rkkp).real)
         Bd -= dg         # _clothoid_terms gives -dMbar/dphi
         C -= up
         if follower:
@@ -1040,7 +1040,7 @@ def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 1
 # Same equations as _evaluate/_dense_jacobian, written with 1-D arrays and as few numpy
 # calls as possible (numpy call overhead dominates at N = 12).
 # ---------------------------------------------------------------------------------------
-from .arcs import _CCOEF, _CCOEF6, _K, SERIES_LIMIT  # noqa: E402
+from .arcs import _CCOEF, _CCOEF8, _K, SERIES_LIMIT  # noqa: E402
 
 _FAST_CACHE = {}
 
@@ -1074,7 +1074,7 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
     wc = w[:, None]
     w_r = w / RHO_MAX
     iR = 1j * RHO_MAX
-    coef = _CCOEF6 if clothoid else _CCOEF
+    coef = _CCOEF8 if clothoid else _CCOEF
     V = np.empty((n, _K))       # powers phi^0..phi^(K-1) by a running product (** is 3x slower)
     V[:, 0] = 1.0
     V1 = V[:, 1:]
@@ -1085,12 +1085,12 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         if pmax < SERIES_LIMIT:
             V1[...] = phi[:, None]
             np.multiply.accumulate(V1, axis=1, out=V1)
-            R = V @ coef                         # (N, 4 or 6): g, q, g', q' (, k, km)
+            R = V @ coef                         # (N, 4 or 8): g, q, g', q' (, k, k-km, k', (k-km)')
         elif clothoid:
-            R = np.stack(arc_funcs6(phi), axis=1)
+            R = np.stack(clothoid_funcs(phi), axis=1)
         else:
             R = np.stack(arc_funcs(phi), axis=1)
-        R *= lE[:, None]                         # l e^{i theta_start} (g, q, g', q'(, k, k - km))
+        R *= lE[:, None]                         # l e^{i theta_start} times those
         if follower:
             t = float(th_end[-1])
             cF = cF0 * complex(math.cos(t), -math.sin(t))
@@ -1120,9 +1120,11 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
         C = X[:, 0].imag
         if clothoid and res < _QUASI_ABOVE:
             # with the rates' own derivatives (see _clothoid_terms): quadratic convergence
+            rho_ = RHO_MAX * th_r
             lo_, dg_, up_, row_ = _clothoid_terms(z0.real, (R[:, 2] * cF).imag,
                                                   (R[:, 4] * cF).real, (R[:, 5] * cF).real,
-                                                  w, th_r, follower)
+                                                  w, th_r, follower, rho_ * (R[:, 6] * cF).real,
+                                                  rho_ * (R[:, 7] * cF).real)
             Bd = Bd + dg_
             if follower:
                 D = np.where(lower, 0.0, (C + up_) - (ZF.real - row_)[:, None])
@@ -1152,17 +1154,18 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
     return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J, rho
 
 
-def _clothoid_terms(sg, tg, a, b, w, th_r, follower):
+def _clothoid_terms(sg, tg, a, b, w, th_r, follower, ap, bp):
     """The part of the Jacobian that comes from the clothoid rates' dependence on the arc
-    headings; with it Newton converges quadratically (only the small rho k'(phi) terms are
-    left out). Arrays (N,) or (B, N).
+    headings and angles; with it Newton converges quadratically. Arrays (N,) or (B, N).
 
     rho_j = RHO_MAX tanh(w_j dM_j / RHO_MAX), dM_j = Im(chord_j conj Fd_j) (+ the part of
     the loads inside arc j), Fd_j the force beyond arc j (conj F turned with the tip for a
     follower force). Inputs: sg = d dM_j / d theta_j (arc j turned rigidly, loads fixed:
     Re(chord_j conj Fd_j) + ...), tg = d dM_j / d phi_j (Im(l e^{i theta_j} g'_j conj Fd_j) + ...),
     a = Re(l e^{i theta_j} k_j conj Fd_j), b = Re(l e^{i theta_j} (k_j - km_j) conj Fd_j);
-    th_r = tanh(rho / RHO_MAX). Returns (lower by row, diagonal, upper by column, upper by
+    th_r = tanh(rho / RHO_MAX); ap, bp: rho_j Re(l e^{i theta_j} k'_j conj Fd_j) and the same with
+    (k - km)': the offsets' change with the arc's own angle (end offset: columns l > i; lever
+    offset: the diagonal). Returns (lower by row, diagonal, upper by column, upper by
     row) terms of -dMbar/dphi (the sign of ``D`` in _fast_tip_newton before the w scaling);
     the unused ones are None.
 
@@ -1179,8 +1182,8 @@ def _clothoid_terms(sg, tg, a, b, w, th_r, follower):
     cs = np.cumsum(u, axis=-1)
     if not follower:
         S = cs[..., -1:] - cs         # sum over j > i
-        return S + b * sig, S + b * tau, S + a * tau, None
-    return None, b * (tau - sig), a * (tau - sig) - (cs - u), cs - b * sig
+        return S + b * sig, S + b * tau + bp, S + a * tau + ap, None
+    return None, b * (tau - sig) + bp, a * (tau - sig) - (cs - u) + ap, cs - b * sig
 
 
 #: fast path, clothoid arcs: the rates' Jacobian terms are added once max|r| < this (rad);
