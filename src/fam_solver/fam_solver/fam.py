@@ -27,7 +27,7 @@ produces. Each arc's angle minimises the moment-balance functional Eq. 19 over t
   offset). That removes the leading error of circular arcs: the FAM becomes FOURTH order
   (the tip error falls 16x per doubling of N, to ~1e-12 L by N ~ 1000: the accuracy of the
   reference rod solver, below which the benchmark cannot follow it).
-  N = 12: 0.0008 / 0.0016 % L on the thesis / Blazer sets (circular arcs: 0.12 / 0.09 % L
+  N = 12: 0.0006 / 0.0015 % L on the thesis / Blazer sets (circular arcs: 0.12 / 0.09 % L
   graded, 0.17 / 0.20 % L uniform) at ~1.4x the time of equal circular arcs (bench medians
   0.20 / 0.14 ms vs 0.12 / 0.11 ms); Newton keeps its quadratic rate (the rates' derivatives are in the Jacobian for a tip
   force; with point forces the offsets' effect on loads inside an arc is left out,
@@ -43,8 +43,10 @@ Arc model and spacing (decision): clothoid arcs, equal lengths, by default
 -------------------------------------------------------------------------
 Circular arcs (the thesis's FAM, 'exact') missed the N = 12 target of 0.1 % L on a
 post-buckled compression whatever the spacing (below); the clothoid arcs remove the error
-term itself and meet it 100x over, on equal arcs (grading them adds time, little accuracy:
-0.0011 vs 0.0016 % L). The graded mesh stays available for both models.
+term itself and meet it 100x over, on equal arcs (grading them adds ~1.7x time and does not
+pay: Blazer set 0.0008 vs 0.0015 % L, thesis set 0.0010 vs 0.0006 % L; the kappa' monitor
+targets the circular arcs' error term, which the clothoid arcs no longer have). The graded
+mesh stays available for both models.
 
 Each circular arc's angle is exact given the positions (mean moment); the error is in the positions:
 a circular arc replaces a curve whose curvature changes along it, kappa' = dM/ds / EI =
