@@ -1061,7 +1061,8 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
                      clothoid=False):
     """Damped Newton for one tip-loaded case. F complex (base or tip frame), m float.
     Stops at max|r| <= 1e-13 + rtol max|phi| (converged is judged with rtol = 1e-12).
-    clothoid: clothoid arcs (as in _evaluate; the Jacobian leaves out the rates' derivatives).
+    clothoid: clothoid arcs (as in _evaluate; the Jacobian has the rates' derivatives once
+    max|r| < _QUASI_ABOVE).
 
     Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
     Jacobian of the last Newton step (None if no step was taken) and the clothoid rates
@@ -1117,16 +1118,17 @@ def _fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rto
             best = (phi, res, complex(P[-1]), th_r)
         if res <= 1e-13 + rtol * pmax or it == max_iter:
             break
-        X = ((1j * rel)[:, None] + R[:, 2:4]) * cF   # columns: g' and q' terms
-        Bd = X[:, 1].imag
-        C = X[:, 0].imag
+        Y = R[:, 2:] * cF                      # g', q' (, k, k-km, k', (k-km)') terms
+        irc = (1j * rel * cF).imag
+        Bd = irc + Y[:, 1].imag
+        C = irc + Y[:, 0].imag
         if clothoid and res < _QUASI_ABOVE:
             # with the rates' own derivatives (see _clothoid_terms): quadratic convergence
             rho_ = RHO_MAX * th_r
-            lo_, dg_, up_, row_ = _clothoid_terms(z0.real, (R[:, 2] * cF).imag,
-                                                  (R[:, 4] * cF).real, (R[:, 5] * cF).real,
-                                                  w, th_r, follower, rho_ * (R[:, 6] * cF).real,
-                                                  rho_ * (R[:, 7] * cF).real)
+            Yr = Y.real
+            lo_, dg_, up_, row_ = _clothoid_terms(z0.real, Y[:, 0].imag, Yr[:, 2], Yr[:, 3],
+                                                  w, th_r, follower, rho_ * Yr[:, 4],
+                                                  rho_ * Yr[:, 5])
             Bd = Bd + dg_
             if follower:
                 D = np.where(lower, 0.0, (C + up_) - (ZF.real - row_)[:, None])
