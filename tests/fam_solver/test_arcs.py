@@ -24,11 +24,14 @@ def test_g_and_q_match_their_definitions(phi):
 
 
 def test_series_and_closed_forms_agree_at_the_switch():
-    for x in (0.999999, 1.000001, -0.999999, 0.5, 0.9):
-        s = arcs._series(np.array([x]))
-        c = arcs._closed(np.array([x]))
-        for a, b in zip(s, c):
-            assert abs(a[0] - b[0]) < 1e-13
+    """g, q, g', q' and the clothoid k, k - km, k', (k - km)': Taylor series = closed forms."""
+    for coef, closed, tol in ((arcs._CCOEF, arcs._closed, 1e-13),
+                              (arcs._CCOEF8, arcs._clothoid_closed, 1e-12)):
+        for x in (0.999999, 1.000001, -0.999999, 0.5, 0.9):
+            s = (np.array([x])[:, None] ** arcs._POW) @ coef
+            c = closed(np.array([x]))
+            for j, b in enumerate(c):
+                assert abs(s[0, j] - b[0]) < tol, (j, x)
 
 
 def test_derivatives_by_finite_differences():

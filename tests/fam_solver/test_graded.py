@@ -216,3 +216,12 @@ def test_graded_fractions_tiny_curvature_change_does_not_underflow():
     a = core.graded_fractions(phi, F)
     assert np.allclose(core.graded_fractions(phi, 0.5 * F), a, atol=1e-15)
     assert np.allclose(core._fast_grade(phi[0], 0.5, False)[0], a[0], atol=1e-15)
+
+
+def test_graded_fractions_denormal_force_keeps_its_direction():
+    """Regression (found by hypothesis): 5e-324j N lost its direction in t x F, so the mesh
+    changed with the force scale; the forces are normalised first."""
+    phi = np.array([[1.5, 0.0]])
+    ref = core.graded_fractions(phi, np.array([1j]))
+    for F in (1e-323j, 5e-324j, 1e300j):
+        np.testing.assert_allclose(core.graded_fractions(phi, np.array([F])), ref, atol=1e-15)

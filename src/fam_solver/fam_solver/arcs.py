@@ -71,9 +71,19 @@ def _powers(phi):
     return V
 
 
-def _series(phi):
-    R = (_powers(phi) if phi.size > 64 else phi[..., None] ** _POW) @ _CCOEF
-    return R[..., 0], R[..., 1], R[..., 2], R[..., 3]
+def _switch(x, coef, closed):
+    """Columns of ``coef`` (Taylor coefficients, (K, m)) summed at x where |x| < SERIES_LIMIT,
+    ``closed(x)`` (m arrays) elsewhere: a tuple of m complex arrays shaped like x. One
+    Vandermonde product and one closed-form call at most (few numpy calls at small N)."""
+    small = np.abs(x) < SERIES_LIMIT
+    if x.size == 0 or np.all(small):
+        R = (_powers(x) if x.size > 64 else x[..., None] ** _POW) @ coef
+        return tuple(R[..., j] for j in range(coef.shape[1]))
+    c = closed(np.where(small, 1.0, x))
+    if not np.any(small):
+        return tuple(c)
+    R = _powers(np.where(small, x, 0.0)) @ coef
+    return tuple(np.where(small, R[..., j], cj) for j, cj in enumerate(c))
 
 
 def _closed(phi):
@@ -87,16 +97,7 @@ def _closed(phi):
 
 def arc_funcs(phi):
     """g, q, g', q' (complex arrays, same shape as the real array ``phi``) for arc angles phi [rad]."""
-    phi = np.asarray(phi, dtype=float)
-    a = np.abs(phi)
-    if phi.size == 0 or a.max() < SERIES_LIMIT:
-        return _series(phi)
-    if a.min() >= SERIES_LIMIT:
-        return _closed(phi)
-    small = a < SERIES_LIMIT
-    s = _series(np.where(small, phi, 0.0))
-    c = _closed(np.where(small, 1.0, phi))
-    return tuple(np.where(small, x, y) for x, y in zip(s, c))
+    return _switch(np.asarray(phi, dtype=float), _CCOEF, _closed)
 
 
 def g_only(phi):
@@ -184,17 +185,7 @@ def _rate_closed(phi, derivatives=False):
 def rate_funcs(phi):
     """k(phi), km(phi) (complex, same shape as the real array ``phi``): end and mean-point
     offsets of a clothoid arc per unit rho (see the comment above)."""
-    phi = np.asarray(phi, dtype=float)
-    a = np.abs(phi)
-    small = a < SERIES_LIMIT
-    if phi.size == 0 or np.all(small):
-        R = (_powers(phi) if phi.size > 64 else phi[..., None] ** _POW) @ _RCOEF
-        return R[..., 0], R[..., 1]
-    kc, kmc = _rate_closed(np.where(small, 1.0, phi))
-    if not np.any(small):
-        return kc, kmc
-    R = _powers(np.where(small, phi, 0.0)) @ _RCOEF
-    return np.where(small, R[..., 0], kc), np.where(small, R[..., 1], kmc)
+    return _switch(np.asarray(phi, dtype=float), _RCOEF, _rate_closed)
 
 
 _E12 = np.stack([_ipow[:_K] / _fact[:_K] / (np.arange(_K) + 2),
@@ -211,19 +202,8 @@ def _e12_closed(a):
 def rate_offset(phi, tau):
     """K(phi, tau) = tau (tau^2 E2(phi tau) - tau E1(phi tau)) / 2 (complex): the point at
     fraction ``tau`` of a clothoid arc, off the circular arc per unit rho and l e^{i theta} i."""
-    phi = np.asarray(phi, dtype=float)
     tau = np.asarray(tau, dtype=float)
-    a = phi * tau
-    small = np.abs(a) < SERIES_LIMIT
-    if a.size == 0 or np.all(small):
-        R = (_powers(a) if a.size > 64 else a[..., None] ** _POW) @ _E12
-        E1, E2 = R[..., 0], R[..., 1]
-    elif not np.any(small):
-        E1, E2 = _e12_closed(a)
-    else:
-        R = _powers(np.where(small, a, 0.0)) @ _E12
-        c1, c2 = _e12_closed(np.where(small, 1.0, a))
-        E1, E2 = np.where(small, R[..., 0], c1), np.where(small, R[..., 1], c2)
+    E1, E2 = _switch(np.asarray(phi, dtype=float) * tau, _E12, _e12_closed)
     return 0.5 * tau * (tau * tau * E2 - tau * E1)
 
 
@@ -231,17 +211,9 @@ def clothoid_funcs(phi):
     """g, q, g', q', k, k - km, k', (k - km)' (complex, same shape as ``phi``) from ONE
     Vandermonde product (clothoid arcs: the circular-arc functions, the rate offsets and
     their derivatives together)."""
-    phi = np.asarray(phi, dtype=float)
-    a = np.abs(phi)
-    small = a < SERIES_LIMIT
-    if phi.size == 0 or np.all(small):
-        R = (_powers(phi) if phi.size > 64 else phi[..., None] ** _POW) @ _CCOEF8
-        return tuple(R[..., j] for j in range(8))
-    p = np.where(small, 1.0, phi)
-    g, q, gp, qp = _closed(p)
+    return _switch(np.asarray(phi, dtype=float), _CCOEF8, _clothoid_closed)
+
+
+def _clothoid_closed(p):
     k, km, kp, kkmp = _rate_closed(p, derivatives=True)
-    closed = (g, q, gp, qp, k, k - km, kp, kkmp)
-    if not np.any(small):
-        return closed
-    R = _powers(np.where(small, phi, 0.0)) @ _CCOEF8
-    return tuple(np.where(small, R[..., j], c) for j, c in enumerate(closed))
+    return _closed(p) + (k, k - km, kp, kkmp)

@@ -811,6 +811,11 @@ def graded_fractions(phi, tip_force, follower=False, point_forces=()):
         mid = (np.arange(N) + 0.5) / N
         for s, F in point_forces:
             Fd = Fd + np.where(mid[None, :] < s, np.asarray(F, dtype=complex)[:, None], 0.0)
+    # scale-free: normalise the forces first (a denormal force, e.g. 5e-324 N, would
+    # otherwise lose its direction in t x F)
+    fmax = np.max(np.abs(Fd), axis=1, keepdims=True)
+    fmax = np.where(fmax > 0, fmax, 1.0)
+    Fd = Fd.real / fmax + 1j * (Fd.imag / fmax)     # (complex / real divides via 1/x: overflows)
     kp = np.abs((np.conj(t) * Fd).imag)
     mx = np.max(kp, axis=1)
     flat = ~(mx > 0) | ~np.isfinite(mx)
