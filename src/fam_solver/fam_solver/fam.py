@@ -28,8 +28,8 @@ produces. Each arc's angle minimises the moment-balance functional Eq. 19 over t
   (the tip error falls 16x per doubling of N, to ~1e-12 L by N ~ 1000: the accuracy of the
   reference rod solver, below which the benchmark cannot follow it).
   N = 12: 0.0006 / 0.0015 % L on the thesis / Blazer sets (circular arcs: 0.12 / 0.09 % L
-  graded, 0.17 / 0.20 % L uniform) at ~1.4x the time of equal circular arcs (bench medians
-  0.20 / 0.14 ms vs 0.12 / 0.11 ms); Newton keeps its quadratic rate (the rates' derivatives are in the Jacobian for a tip
+  graded, 0.17 / 0.20 % L uniform) at ~1.3x the time of equal circular arcs (bench medians
+  0.16 / 0.14 ms vs 0.13 / 0.11 ms); Newton keeps its quadratic rate (the rates' derivatives are in the Jacobian for a tip
   force; with point forces the offsets' effect on loads inside an arc is left out,
   ``_clothoid_terms``). A point force INSIDE an arc kinks the moment there: that arc keeps an
   O(l^3) error (still ~10x below circular arcs). ``Shape.arc_rates`` holds rho.
