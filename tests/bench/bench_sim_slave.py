@@ -231,7 +231,8 @@ def realtime(seconds):
     from rclpy.experimental import EventsExecutor
     from sensor_msgs.msg import JointState
 
-    from catheter_common.topics import QOS_FAST, SLAVE_JOINT_STATE
+    from catheter_common.topics import SLAVE_JOINT_STATE
+    from catheter_common.qos import QOS_FAST
     env = dict(os.environ)
     paths = [str(p) for p in sorted((ROOT / 'src').iterdir()) if (p / 'package.xml').exists()]
     procs = {

@@ -173,6 +173,7 @@ def image_latency(duration):
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import Image
     from catheter_common import topics as T
+    from catheter_common import qos as Q
     cam = SyntheticCamera(seed=1)
     cat = Catheter(length=0.065, ei=6.0e-5)
     frames = []
@@ -194,13 +195,13 @@ def image_latency(duration):
         rclpy.try_shutdown(context=ctx)
         return
     src = rclpy.create_node('bench_camera', context=ctx)
-    pub = src.create_publisher(Image, T.CAMERA_IMAGE, T.QOS_SENSOR)
+    pub = src.create_publisher(Image, T.CAMERA_IMAGE, Q.QOS_SENSOR)
     lat = []
 
     def on_wrench(msg):
         now = src.get_clock().now().nanoseconds
         lat.append((now - (msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec)) * 1e-6)
-    src.create_subscription(WrenchStamped, T.TIP_WRENCH, on_wrench, T.QOS_SENSOR)
+    src.create_subscription(WrenchStamped, T.TIP_WRENCH, on_wrench, Q.QOS_SENSOR)
     k = [0]
 
     def tick():
@@ -276,7 +277,7 @@ def recorder_loss(rate, seconds):
     from rclpy.experimental import EventsExecutor
     from catheter_bringup.recorder import McapRecorder
     from catheter_bringup.ros_recording import RecordingSink
-    from catheter_common.topics import QOS_DEFAULT
+    from catheter_common.qos import QOS_DEFAULT
     ctx = Context()
     rclpy.init(context=ctx)
     node = rclpy.create_node('bench_rec', context=ctx)

@@ -5,7 +5,7 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import Image, JointState
 
-from catheter_common.topics import QOS_DEFAULT, QOS_FAST, QOS_SENSOR
+from catheter_common.qos import QOS_DEFAULT, QOS_FAST, QOS_SENSOR
 
 
 class TalkerNode(Node):

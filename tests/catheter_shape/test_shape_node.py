@@ -9,6 +9,8 @@ from sensor_msgs.msg import Image
 from diagnostic_msgs.msg import DiagnosticArray
 
 from catheter_common import topics as T
+
+from catheter_common import qos as Q
 from catheter_shape import SyntheticCamera, fit_bezier
 from catheter_shape.shape_node import (ShapeNode, array_to_image, control_points_to_pose_array,
                                        image_to_array, pose_array_to_control_points,
@@ -70,11 +72,11 @@ def test_node_publishes_control_points_close_to_the_truth(ros, shape_helpers):
         Parameter('threshold', value=132)]))
     probe = ros.node('shape_probe')
     got, paths, dbg, diags = [], [], [], []
-    probe.create_subscription(PoseArray, T.CONTROL_POINTS, got.append, T.QOS_SENSOR)
-    probe.create_subscription(Path, T.SHAPE, paths.append, T.QOS_DEFAULT)
-    probe.create_subscription(Image, T.SHAPE_DEBUG_IMAGE, dbg.append, T.QOS_SENSOR)
-    probe.create_subscription(DiagnosticArray, T.DIAGNOSTICS, diags.append, T.QOS_DEFAULT)
-    pub = probe.create_publisher(Image, T.CAMERA_IMAGE, T.QOS_SENSOR)
+    probe.create_subscription(PoseArray, T.CONTROL_POINTS, got.append, Q.QOS_SENSOR)
+    probe.create_subscription(Path, T.SHAPE, paths.append, Q.QOS_DEFAULT)
+    probe.create_subscription(Image, T.SHAPE_DEBUG_IMAGE, dbg.append, Q.QOS_SENSOR)
+    probe.create_subscription(DiagnosticArray, T.DIAGNOSTICS, diags.append, Q.QOS_DEFAULT)
+    pub = probe.create_publisher(Image, T.CAMERA_IMAGE, Q.QOS_SENSOR)
     assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
     assert ros.spin_until(lambda: node.pub_debug.get_subscription_count() > 0, 10.0)
 
@@ -129,7 +131,7 @@ def test_node_drops_frames_instead_of_queueing(ros, shape_helpers):
     node._process()
     assert node.diag.get('idle') == 1 and node.diag.get('processed') == 0
     probe = ros.node('cp_listener')
-    probe.create_subscription(PoseArray, T.CONTROL_POINTS, lambda m: None, T.QOS_SENSOR)
+    probe.create_subscription(PoseArray, T.CONTROL_POINTS, lambda m: None, Q.QOS_SENSOR)
     assert ros.spin_until(lambda: node.pub_cp.get_subscription_count() > 0, 10.0)
     # callbacks without the timer in between: only the newest frame is kept
     for _ in range(5):
@@ -155,7 +157,7 @@ def test_base_constraint_parameter(ros, shape_helpers):
         Parameter('base_px', value=list(cam.base_px)),
         Parameter('base_constraint', value='point')]))
     probe = ros.node('cp_listener2')
-    probe.create_subscription(PoseArray, T.CONTROL_POINTS, lambda m: None, T.QOS_SENSOR)
+    probe.create_subscription(PoseArray, T.CONTROL_POINTS, lambda m: None, Q.QOS_SENSOR)
     assert ros.spin_until(lambda: node.pub_cp.get_subscription_count() > 0, 10.0)
     node._on_image(_image(cam.render(shape_helpers.arc(0.4)).image))
     node._process()

@@ -8,7 +8,8 @@ from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Path
 from visualization_msgs.msg import Marker
 
-from catheter_common.topics import QOS_DEFAULT, SHAPE, SHAPE_MARKER, TIP_LOAD
+from catheter_common.topics import SHAPE, SHAPE_MARKER, TIP_LOAD
+from catheter_common.qos import QOS_DEFAULT
 from fam_solver import Catheter, Loads, solve_fam
 from fam_solver.fam_solver_node import FamSolverNode
 

@@ -6,8 +6,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, Pose, PoseArray, WrenchStamped
 from rclpy.parameter import Parameter
 
-from catheter_common.topics import (CONTROL_POINTS, DIAGNOSTICS, FRAME_CATHETER_BASE,
-                                    QOS_DEFAULT, QOS_SENSOR, TIP_WRENCH)
+from catheter_common.topics import CONTROL_POINTS, DIAGNOSTICS, FRAME_CATHETER_BASE, TIP_WRENCH
+from catheter_common.qos import QOS_DEFAULT, QOS_SENSOR
 from force_estimator.force_estimator_node import NODE_CLASS
 from force_estimator.models import load_estimator
 

@@ -6,7 +6,8 @@ import pytest
 from geometry_msgs.msg import WrenchStamped
 from rclpy.parameter import Parameter
 
-from catheter_common.topics import QOS_FAST, SLAVE_FORCE
+from catheter_common.topics import SLAVE_FORCE
+from catheter_common.qos import QOS_FAST
 from impedance_master.ima_master_node import ImaMasterNode
 from impedance_master.impedance_identifier_node import ImpedanceIdentifierNode
 from impedance_master.sim_haptic_node import MASTER_HAND_FORCE, SimHapticNode

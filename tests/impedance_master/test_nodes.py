@@ -7,8 +7,9 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
 from catheter_common.topics import (IMPEDANCE_FIELDS, MASTER_COMMAND, MASTER_LINK_FORCE,
-                                    MASTER_LINK_IMPEDANCE, MASTER_RENDERED_FORCE, QOS_FAST,
-                                    SLAVE_FORCE, SLAVE_IMPEDANCE, SLAVE_JOINT_STATE)
+                                    MASTER_LINK_IMPEDANCE, MASTER_RENDERED_FORCE, SLAVE_FORCE,
+                                    SLAVE_IMPEDANCE, SLAVE_JOINT_STATE)
+from catheter_common.qos import QOS_FAST
 from impedance_master.ima_master_node import ImaMasterNode, fields_from_msg
 from impedance_master.impedance import Impedance
 from impedance_master.impedance_identifier_node import ImpedanceIdentifierNode
@@ -193,7 +194,8 @@ def test_sim_haptic_node_runs_in_lockstep_with_a_clock(ros):
     command stamps are the simulated time."""
     from builtin_interfaces.msg import Time
     from rosgraph_msgs.msg import Clock
-    from catheter_common.topics import CLOCK, QOS_DEFAULT
+    from catheter_common.topics import CLOCK
+    from catheter_common.qos import QOS_DEFAULT
     node = ros.add(SimHapticNode(context=ros.context, parameter_overrides=params(
         use_sim_time=True, **{'link.outages': [0.0, 0.0]})))
     probe = ros.node('probe_clock')

@@ -11,8 +11,8 @@ from sensor_msgs.msg import Image, JointState
 pytest.importorskip('fam_solver')
 pytest.importorskip('catheter_shape')
 
-from catheter_common.topics import (CAMERA_IMAGE, CLOCK, FRAME_CAMERA, QOS_DEFAULT,  # noqa: E402
-                                    QOS_FAST, QOS_SENSOR, SLAVE_JOINT_STATE)
+from catheter_common.topics import CAMERA_IMAGE, CLOCK, FRAME_CAMERA, SLAVE_JOINT_STATE
+from catheter_common.qos import QOS_DEFAULT, QOS_FAST, QOS_SENSOR
 from sim_slave import VesselParams  # noqa: E402
 from sim_slave.camera_node import CAMERA_TIP_FORCE_TRUTH, CameraNode  # noqa: E402
 

@@ -7,8 +7,9 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from catheter_common.topics import (CLOCK, FRAME_CATHETER_BASE, MASTER_COMMAND, QOS_DEFAULT,
-                                    QOS_FAST, SLAVE_FORCE, SLAVE_JOINT_STATE)
+from catheter_common.topics import (CLOCK, FRAME_CATHETER_BASE, MASTER_COMMAND, SLAVE_FORCE,
+                                    SLAVE_JOINT_STATE)
+from catheter_common.qos import QOS_DEFAULT, QOS_FAST
 from sim_slave.sim_slave_node import SimSlaveNode
 
 pytestmark = pytest.mark.ros

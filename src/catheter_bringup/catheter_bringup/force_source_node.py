@@ -19,7 +19,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common.ros_node import Diagnostics, declare, run_node
-from catheter_common.topics import QOS_FAST, QOS_SENSOR, SLAVE_JOINT_STATE, TIP_WRENCH
+from catheter_common.topics import SLAVE_JOINT_STATE, TIP_WRENCH
+from catheter_common.qos import QOS_FAST, QOS_SENSOR
 
 SLAVE_JOINT_STATE_IMAGE = '/slave/joint_state_image'
 COMPONENTS = ('magnitude', 'x', 'y')

@@ -36,6 +36,7 @@ from catheter_bringup.recorder import McapRecorder
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
 from catheter_bringup.scenario import NodeInstance, load_scenario, resolve_nodes
 from catheter_common import topics as T
+from catheter_common import qos as Q
 from catheter_common.ros_node import declare, make_executor
 
 RUNNER_NODE = 'run_scenario'
@@ -359,7 +360,7 @@ class ScenarioRunner:
         self.runner_node = rclpy.create_node(RUNNER_NODE, context=self.context)
         declare(self.runner_node, 'scenario', sc['name'], 'scenario being run (read only)',
                 read_only=True)
-        self.clock_pub = self.runner_node.create_publisher(Clock, T.CLOCK, T.QOS_DEFAULT)
+        self.clock_pub = self.runner_node.create_publisher(Clock, T.CLOCK, Q.QOS_DEFAULT)
         from catheter_bringup.scenario import instances
         cands = list(instances(sc, self.registry).values())
         classes = available_instances(cands)

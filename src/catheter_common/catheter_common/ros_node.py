@@ -17,7 +17,8 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange,
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from catheter_common.topics import DIAGNOSTICS, QOS_DEFAULT
+from catheter_common.topics import DIAGNOSTICS
+from catheter_common.qos import QOS_DEFAULT
 
 
 def declare(node: Node, name: str, default, description: str, lo=None, hi=None,

@@ -1,9 +1,9 @@
-"""Topic names, frame ids and QoS profiles of the catheter node graph (DESIGN section 4).
+"""Topic names and frame ids of the catheter node graph (DESIGN section 4).
 
-One place for every name, so nodes, the recorder and tests agree.
+One place for every name, so nodes, the recorder, the analysis and tests agree. Pure
+Python (no rclpy): algorithm modules and offline tools import it too. The QoS profiles
+that go with the topics are in `catheter_common.qos` (which needs rclpy).
 """
-from rclpy.qos import (QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile,
-                       QoSReliabilityPolicy, qos_profile_sensor_data)
 
 # Frames
 FRAME_CATHETER_BASE = 'catheter_base'
@@ -34,15 +34,3 @@ CLOCK = '/clock'                               # rosgraph_msgs/Clock
 
 # Names of the values carried in /slave/impedance (JointState.name, values in JointState.position).
 IMPEDANCE_FIELDS = ('m', 'c', 'k', 'offset', 'valid')
-
-# QoS
-#: camera frames, control points, tip wrench: best effort, keep last 5, volatile
-QOS_SENSOR = qos_profile_sensor_data
-#: 1 kHz streams: best effort, depth 1 (latest wins, never queue stale data)
-QOS_FAST = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1,
-                      reliability=QoSReliabilityPolicy.BEST_EFFORT,
-                      durability=QoSDurabilityPolicy.VOLATILE)
-#: on-demand topics (tip load, shape, diagnostics): reliable, keep last 10
-QOS_DEFAULT = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=10,
-                         reliability=QoSReliabilityPolicy.RELIABLE,
-                         durability=QoSDurabilityPolicy.VOLATILE)

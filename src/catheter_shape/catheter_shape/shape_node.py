@@ -28,6 +28,8 @@ from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image
 
 from catheter_common import topics as T
+
+from catheter_common import qos as Q
 from catheter_common.ros_node import Diagnostics, declare, run_node, wall_time
 from catheter_shape.bezier import bezier_derivative, bezier_eval
 from catheter_shape.camera import SYSTEM_CAMERA, system_psi
@@ -227,13 +229,13 @@ class ShapeNode(Node):
         for k in ('frames', 'processed', 'dropped', 'idle', 'published', 'bad_messages') + \
                 tuple('fail_' + s for s in STATUSES if s != 'ok'):
             self.diag.count(k, 0)
-        qos_in = QoSProfile(history=T.QOS_SENSOR.history, depth=T.QOS_SENSOR.depth,
-                            reliability=T.QOS_SENSOR.reliability,
-                            durability=T.QOS_SENSOR.durability)
+        qos_in = QoSProfile(history=Q.QOS_SENSOR.history, depth=Q.QOS_SENSOR.depth,
+                            reliability=Q.QOS_SENSOR.reliability,
+                            durability=Q.QOS_SENSOR.durability)
         self.sub = self.create_subscription(Image, T.CAMERA_IMAGE, self._on_image, qos_in)
-        self.pub_cp = self.create_publisher(PoseArray, T.CONTROL_POINTS, T.QOS_SENSOR)
-        self.pub_path = self.create_publisher(Path, T.SHAPE, T.QOS_DEFAULT)
-        self.pub_debug = self.create_publisher(Image, T.SHAPE_DEBUG_IMAGE, T.QOS_SENSOR)
+        self.pub_cp = self.create_publisher(PoseArray, T.CONTROL_POINTS, Q.QOS_SENSOR)
+        self.pub_path = self.create_publisher(Path, T.SHAPE, Q.QOS_DEFAULT)
+        self.pub_debug = self.create_publisher(Image, T.SHAPE_DEBUG_IMAGE, Q.QOS_SENSOR)
         self._pending: Optional[Image] = None
         self._timer = self.create_timer(period, self._process)
         self._last_obs = None

@@ -22,8 +22,8 @@ from rclpy.node import Node
 from visualization_msgs.msg import Marker
 
 from catheter_common.ros_node import Diagnostics, declare, run_node, wall_time
-from catheter_common.topics import (FRAME_CATHETER_BASE, QOS_DEFAULT, SHAPE, SHAPE_MARKER,
-                                    TIP_LOAD)
+from catheter_common.topics import FRAME_CATHETER_BASE, SHAPE, SHAPE_MARKER, TIP_LOAD
+from catheter_common.qos import QOS_DEFAULT
 from fam_solver import ARC_MODELS, DEFAULT_ARC_MODEL, Catheter, Loads, solve_fam
 from fam_solver.fam import DEFAULT_SPACING, SPACINGS
 

@@ -17,8 +17,8 @@ from geometry_msgs.msg import PoseArray, WrenchStamped
 from rclpy.node import Node
 
 from catheter_common.ros_node import Diagnostics, declare, run_node, wall_time
-from catheter_common.topics import (CONTROL_POINTS, FRAME_CATHETER_BASE, QOS_SENSOR,
-                                    TIP_WRENCH)
+from catheter_common.topics import CONTROL_POINTS, FRAME_CATHETER_BASE, TIP_WRENCH
+from catheter_common.qos import QOS_SENSOR
 
 METHODS = ('svr', 'mlp', 'fam')
 

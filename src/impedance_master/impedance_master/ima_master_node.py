@@ -31,7 +31,8 @@ from sensor_msgs.msg import JointState
 
 from catheter_common.ros_node import Diagnostics, declare, run_node
 from catheter_common.topics import (FRAME_CATHETER_BASE, MASTER_COMMAND, MASTER_LINK_FORCE,
-                                    MASTER_LINK_IMPEDANCE, MASTER_RENDERED_FORCE, QOS_FAST)
+                                    MASTER_LINK_IMPEDANCE, MASTER_RENDERED_FORCE)
+from catheter_common.qos import QOS_FAST
 from impedance_master.impedance import Impedance
 from impedance_master.rendering import DfrRenderer, ImaRenderer
 

@@ -26,8 +26,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common.ros_node import Diagnostics, declare, run_node
-from catheter_common.topics import (FRAME_CATHETER_BASE, QOS_FAST, SLAVE_IMPEDANCE,
-                                    SLAVE_JOINT_STATE)
+from catheter_common.topics import FRAME_CATHETER_BASE, SLAVE_IMPEDANCE, SLAVE_JOINT_STATE
+from catheter_common.qos import QOS_FAST
 from impedance_master.identification import SlidingWindowIdentifier, make_identifier
 
 

@@ -31,8 +31,9 @@ from sensor_msgs.msg import JointState
 
 from catheter_common.ros_node import Diagnostics, declare, run_node
 from catheter_common.topics import (FRAME_CATHETER_BASE, MASTER_COMMAND, MASTER_LINK_FORCE,
-                                    MASTER_LINK_IMPEDANCE, MASTER_RENDERED_FORCE, QOS_FAST,
-                                    SLAVE_FORCE, SLAVE_IMPEDANCE)
+                                    MASTER_LINK_IMPEDANCE, MASTER_RENDERED_FORCE, SLAVE_FORCE,
+                                    SLAVE_IMPEDANCE)
+from catheter_common.qos import QOS_FAST
 from impedance_master.haptic import HapticDevice
 from impedance_master.operator import experiment_trajectory
 from sim_slave.link import Link

@@ -25,8 +25,9 @@ from rclpy.node import Node
 from sensor_msgs.msg import Image, JointState
 
 from catheter_common.ros_node import Diagnostics, declare, run_node
-from catheter_common.topics import (CAMERA_IMAGE, FRAME_CAMERA, FRAME_CATHETER_BASE, QOS_FAST,
-                                    QOS_SENSOR, SLAVE_JOINT_STATE)
+from catheter_common.topics import (CAMERA_IMAGE, FRAME_CAMERA, FRAME_CATHETER_BASE,
+                                    SLAVE_JOINT_STATE)
+from catheter_common.qos import QOS_FAST, QOS_SENSOR
 from sim_slave.camera import BLAZER_EI, BLAZER_LENGTH, DEFAULT_CAMERA, TipCamera
 from sim_slave.vessel import VesselParams
 

@@ -28,8 +28,9 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common.ros_node import Diagnostics, declare, run_node
-from catheter_common.topics import (FRAME_CATHETER_BASE, MASTER_COMMAND, QOS_FAST,
-                                    SLAVE_FORCE, SLAVE_JOINT_STATE)
+from catheter_common.topics import (FRAME_CATHETER_BASE, MASTER_COMMAND, SLAVE_FORCE,
+                                    SLAVE_JOINT_STATE)
+from catheter_common.qos import QOS_FAST
 from sim_slave.link import Link
 from sim_slave.ros_link import declare_link
 from sim_slave.robot import SlaveRobot
