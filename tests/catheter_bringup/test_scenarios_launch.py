@@ -1,5 +1,6 @@
-"""Every scenario in ros_ws/config loads; ros_ws/launch/scenario.launch.py starts exactly the
-runner's node instances (run against stand-ins for `launch`/`launch_ros`, not on PyPI)."""
+"""Every scenario of catheter_bringup's config/ loads; launch/scenario.launch.py starts exactly
+the runner's node instances (run against stand-ins for `launch`/`launch_ros`, not on PyPI);
+both are found through the ament index (installed to share/catheter_bringup)."""
 import pathlib
 import runpy
 import sys
@@ -11,12 +12,24 @@ from catheter_bringup.make_launch import launch_entries
 from catheter_bringup.scenario import config_dir, load_scenario, resolve_nodes
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-NAMES = sorted(p.stem for p in (ROOT / 'ros_ws' / 'config').glob('*.yaml'))
+PKG = ROOT / 'src' / 'catheter_bringup'
+NAMES = sorted(p.stem for p in (PKG / 'config').glob('*.yaml'))
 
 
-def test_the_expected_scenarios_exist():
-    assert config_dir() == ROOT / 'ros_ws' / 'config'
+def test_the_expected_scenarios_exist_and_are_installed():
+    from ament_index_python.packages import get_package_share_directory
+    share = pathlib.Path(get_package_share_directory('catheter_bringup'))
+    assert config_dir() == share / 'config'
+    assert sorted(p.stem for p in config_dir().glob('*.yaml')) == NAMES
+    assert (share / 'launch' / 'scenario.launch.py').exists()
     assert {'experiment_ii', 'experiment_i', 'experiment_ii_dfr', 'smoke'} <= set(NAMES)
+
+
+def test_config_dir_falls_back_to_the_source_tree_when_not_installed(monkeypatch):
+    from catheter_bringup import scenario
+    monkeypatch.setattr(scenario, 'share_dir', lambda: None)
+    assert scenario.config_dir() == PKG / 'config'
+    assert load_scenario('smoke')['source'] == str(PKG / 'config' / 'smoke.yaml')
 
 
 class _Recorder:
@@ -48,7 +61,7 @@ def test_scenario_loads_and_the_launch_file_starts_its_nodes(name, monkeypatch):
     nodes, _ = resolve_nodes(sc)
     for mod_name, mod in _fake_launch_modules(name).items():
         monkeypatch.setitem(sys.modules, mod_name, mod)
-    ns = runpy.run_path(str(ROOT / 'ros_ws' / 'launch' / 'scenario.launch.py'))
+    ns = runpy.run_path(str(PKG / 'launch' / 'scenario.launch.py'))
     desc = ns['generate_launch_description']()
     declare, opaque = desc.args[0]
     assert declare.args[0] == 'scenario'

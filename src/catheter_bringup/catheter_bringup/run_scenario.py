@@ -1,4 +1,4 @@
-"""`run_scenario`: run a scenario of ros_ws/config/ (launchless, one process) and record it.
+"""`run_scenario`: run a scenario (launchless, one process) and record it.
 
     run_scenario [SCENARIO] [--mode lockstep|realtime] [--duration S] [--bag PATH] [--no-record]
                  [--quiet] [--ros-args ...]
@@ -19,7 +19,7 @@ DEFAULT_SCENARIO = 'experiment_ii'
 def build_parser():
     p = argparse.ArgumentParser(prog='run_scenario', description=__doc__.split('\n\n')[0])
     p.add_argument('scenario', nargs='?', default=DEFAULT_SCENARIO,
-                   help='name in ros_ws/config/ or path to a YAML file')
+                   help="name in catheter_bringup's config/ or path to a YAML file")
     p.add_argument('--mode', choices=('lockstep', 'realtime'), default=None)
     p.add_argument('--duration', type=float, default=None, help='override, s')
     p.add_argument('--bag', default=None,

@@ -1,6 +1,6 @@
 """Scenarios (no nodes, no executor; topic names from catheter_common.topics): the YAML files in
-ros_ws/config/, the node registry and the resolution
-of which nodes a scene needs.
+the package's config/ (installed to share/catheter_bringup/config), the node registry and the
+resolution of which nodes a scene needs.
 
 A scenario file::
 
@@ -31,7 +31,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import os
 import pathlib
 from typing import Dict, List, Mapping, Optional, Tuple
 
@@ -102,12 +101,31 @@ class NodeInstance:
     always: bool = False
 
 
+PACKAGE = 'catheter_bringup'
+
+
+def share_dir() -> Optional[pathlib.Path]:
+    """share/catheter_bringup of the installed package (ament index), or None when the package
+    is not installed (run from the source tree)."""
+    try:
+        from ament_index_python.packages import (PackageNotFoundError,
+                                                 get_package_share_directory)
+    except ImportError:                 # pragma: no cover - ament_index_python is a dependency
+        return None
+    try:
+        return pathlib.Path(get_package_share_directory(PACKAGE))
+    except (PackageNotFoundError, ValueError):
+        return None
+
+
 def config_dir() -> pathlib.Path:
-    """ros_ws/config of this checkout (or $CATHETER_WS_ROOT/ros_ws/config)."""
-    root = os.environ.get('CATHETER_WS_ROOT')
-    if root:
-        return pathlib.Path(root) / 'ros_ws' / 'config'
-    return pathlib.Path(__file__).resolve().parents[3] / 'ros_ws' / 'config'
+    """The scenario folder: share/catheter_bringup/config of the installed package (found
+    through ament_index_python, so a plain `colcon build` works), or config/ of the source
+    tree when the package is not installed."""
+    share = share_dir()
+    if share is not None and (share / 'config').is_dir():
+        return share / 'config'
+    return pathlib.Path(__file__).resolve().parents[1] / 'config'
 
 
 def _num(d: Mapping, key: str, default, lo=None, hi=None, where='scenario'):
@@ -120,7 +138,7 @@ def _num(d: Mapping, key: str, default, lo=None, hi=None, where='scenario'):
 
 
 def load_scenario(name_or_path) -> dict:
-    """Load and validate a scenario: a path to a YAML file or a name in ros_ws/config/.
+    """Load and validate a scenario: a path to a YAML file or a name in `config_dir()`.
 
     Returns a plain dict with defaults filled in (see the module docstring for the fields).
     """
