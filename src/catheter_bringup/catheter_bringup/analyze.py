@@ -33,14 +33,13 @@ import yaml
 
 from catheter_bringup import metrics as M
 from catheter_bringup.recorder import read_run_metadata
+from catheter_common import topics as T
 
-RENDERED = '/master/rendered_force'
-HAND_FORCE = '/master/hand_force'         # catheter_common.topics.MASTER_HAND_FORCE
-SLAVE_FORCE = '/slave/force'
-TIP_WRENCH = '/catheter/tip_wrench'
-IMPEDANCE = '/master/link/impedance'
-MASTER_COMMAND = '/master/command'
-SLAVE_IMPEDANCE = '/slave/impedance'
+RENDERED = T.MASTER_RENDERED_FORCE
+HAND_FORCE = T.MASTER_HAND_FORCE
+SLAVE_FORCE = T.SLAVE_FORCE
+TIP_WRENCH = T.TIP_WRENCH
+MASTER_COMMAND = T.MASTER_COMMAND
 
 
 def _stamp(msg) -> Optional[float]:
@@ -151,7 +150,7 @@ def topic_owners(scenario: dict, ran) -> Dict[str, str]:
 def _t0(rec: Recording) -> float:
     """Start of the experiment clock: the first message of the slave (its timer's first tick),
     else the first message of the run."""
-    for topic in (SLAVE_FORCE, '/slave/joint_state'):
+    for topic in (SLAVE_FORCE, T.SLAVE_JOINT_STATE):
         if rec.log.get(topic):
             return rec.log[topic][0]
     allt = [v[0] for v in rec.log.values() if v]
@@ -224,9 +223,7 @@ def analyze(path, skip: Optional[float] = None) -> dict:
         for label, topic in streams.items():
             tf, ff = rec.t(topic), rec.force(topic)
             # secondary: the slave's force at t + delay, in the same intervals
-            shifted = [(a + delay, b + delay) for a, b in outages] if twin is not None \
-                else outages
-            vs_slave = (M.force_tracking(tf, ff, ts, fs, delay, shifted, t0=t0, skip=skip)
+            vs_slave = (M.force_tracking(tf, ff, ts, fs, delay, outages, t0=t0, skip=skip)
                         if ts.size else None)
             if twin is not None:
                 tc, ref = twin

@@ -16,6 +16,7 @@ import time
 from typing import Iterable, Optional
 
 from catheter_bringup.recorder import read_run_metadata
+from catheter_common import topics as T
 
 
 def _qos_from_metadata(meta: dict):
@@ -64,7 +65,7 @@ def replay(path, rate: float = 1.0, topics: Optional[Iterable[str]] = None,
         node = rclpy.create_node('replay', context=context)
     pubs = {}
     published = {}
-    clock_pub = node.create_publisher(Clock, '/clock', QoSProfile(depth=10)) if clock else None
+    clock_pub = node.create_publisher(Clock, T.CLOCK, QoSProfile(depth=10)) if clock else None
     want = set(topics) if topics else None
     t_wall0 = time.perf_counter()
     try:
