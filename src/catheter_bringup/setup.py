@@ -26,6 +26,7 @@ setup(
             'run_scenario = catheter_bringup.run_scenario:main',
             'recorder_node = catheter_bringup.recorder_node:main',
             'force_source_node = catheter_bringup.force_source_node:main',
+            'recover_bag = catheter_bringup.bagfile:main',
         ],
     },
 )

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import importlib
 import struct
-from typing import Callable, Dict, List, Tuple
+from typing import Callable, Dict, List
 
 #: size (= alignment) in bytes of the rosidl basic types
 PRIMITIVE_SIZE = {

@@ -8,7 +8,7 @@ for the pure experiment and the graph's analysis: outage = [start + delay, start
 from __future__ import annotations
 
 import math
-from typing import Dict, Iterable, List, Optional, Sequence, Tuple
+from typing import Dict, Iterable, Optional, Sequence, Tuple
 
 import numpy as np
 

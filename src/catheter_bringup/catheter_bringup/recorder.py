@@ -12,8 +12,11 @@ Layout of the file (what `ros2 bag`, `rosbags` and `mcap_ros2` expect):
   bytes are recorded alike), with the offered QoS as rosbag2 writes it
   (``offered_qos_profiles`` YAML, version 9 field names) in its metadata;
 - zstd compressed chunks, a summary with statistics and indexes;
-- a metadata record ``catheter_run`` written at close: ``status`` (complete | interrupted | failed),
-  ``reason``, ``last_log_time_ns``, ``messages`` (count), per-topic counts and what the caller adds.
+- a metadata record ``catheter_run_start`` written when the run starts (`McapRecorder.start`:
+  the scenario, mode, seed ... so a killed run's file still says what it was; see
+  `catheter_bringup.bagfile.recover`), and ``catheter_run`` written at close: ``status``
+  (complete | interrupted | failed), ``reason``, ``last_log_time_ns``, ``messages`` (count),
+  per-topic counts and what the caller adds.
 
 Times are integers in nanoseconds (the node clock, i.e. sim time in lockstep runs).
 """
@@ -36,6 +39,7 @@ BUILTIN_TYPES = {
     'uint32', 'int64', 'uint64', 'string', 'wstring',
 }
 RUN_METADATA = 'catheter_run'
+RUN_START_METADATA = 'catheter_run_start'
 
 _DEFAULT_QOS = {'history': 'keep_last', 'depth': 10, 'reliability': 'reliable',
                 'durability': 'volatile'}
@@ -234,6 +238,18 @@ class McapRecorder:
                 self.first_time_ns = log_time_ns
             self.last_time_ns = log_time_ns if self.last_time_ns is None \
                 else max(self.last_time_ns, log_time_ns)
+
+    def start(self, info: Mapping[str, object]) -> None:
+        """Write the ``catheter_run_start`` metadata record now (values as in `close`'s
+        ``extra``) and flush it to the file, so a run killed before `close` still carries it."""
+        meta = {'status': 'running'}
+        for k, v in info.items():
+            meta[str(k)] = v if isinstance(v, str) else json.dumps(v, sort_keys=True)
+        with self._lock:
+            if self.closed:
+                raise ValueError('recorder is closed')
+            self._w.add_metadata(RUN_START_METADATA, meta)
+            self._file.flush()
 
     @property
     def total(self) -> int:

@@ -27,6 +27,7 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
+from catheter_bringup.bagfile import BagError, check_bag, cli_errors
 from catheter_bringup.recorder import read_run_metadata
 
 
@@ -123,10 +124,12 @@ def reprocess(path, nodes: Optional[List[str]] = None, tol: float = 1e-9,
     from catheter_bringup.scenario import REGISTRY, instances, validate_scenario
 
     import yaml
+    check_bag(path)
     meta = read_run_metadata(path)
     scenario = yaml.safe_load(meta['scenario_yaml']) if meta.get('scenario_yaml') else None
     if not scenario:
-        raise ValueError(f'path {str(path)!r} has no recorded scenario (catheter_run metadata)')
+        raise BagError(f'{path}: no recorded scenario (catheter_run metadata): not a run of '
+                       'this project\'s runner')
     sc = validate_scenario(scenario)
     cands = instances(sc)
     channels = recorded_channels(path)
@@ -234,15 +237,18 @@ def main(argv=None):
     ap.add_argument('--nodes', nargs='*', default=None)
     ap.add_argument('--tol', type=float, default=1e-9)
     a = ap.parse_args(argv)
-    res = reprocess(a.bag, a.nodes, a.tol)
-    if res:
-        print(format_results(res))
-    checked = {n: c for n, c in res.items() if c.get('ok') is not None}
-    if not checked:
-        print('nothing checked: no node of the recorded scenario has all its inputs and an '
-              'output in this recording (record them)')
-        return 2
-    return 0 if all(c['ok'] for c in checked.values()) else 1
+
+    def body():
+        res = reprocess(a.bag, a.nodes, a.tol)
+        if res:
+            print(format_results(res))
+        checked = {n: c for n, c in res.items() if c.get('ok') is not None}
+        if not checked:
+            print('nothing checked: no node of the recorded scenario has all its inputs and an '
+                  'output in this recording (record them)')
+            return 2
+        return 0 if all(c['ok'] for c in checked.values()) else 1
+    return cli_errors('reprocess', body)
 
 
 if __name__ == '__main__':

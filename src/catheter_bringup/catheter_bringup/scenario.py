@@ -15,7 +15,10 @@ A scenario file::
     outputs: [/master/rendered_force, /slave/force]   # what the scene consumes
     lockstep_transport: local # local: in-process bus (fast, deterministic) | dds: via DDS
     realtime_transport: local # the same choice for real-time runs
-    dds: false                # local bus: also publish every message on DDS (outside viewers)
+    dds: false                # local bus: also publish every message on DDS (outside viewers;
+                              # run_scenario --dds)
+    strict: false             # a node that fails to start fails the run (else it is left out)
+    realtime_processes: 2     # real time: 2 = the image pipeline in a worker process, 1 = none
     record: {exclude: [/clock]}   # and/or only: [topics] (everything else is not recorded)
     nodes:                    # parameters per node instance (and optional registry fields)
       ima_master_node: {params: {mode: ima}}
@@ -211,9 +214,28 @@ def validate_scenario(data: Mapping) -> dict:
     if s['realtime_transport'] not in ('local', 'dds'):
         raise ValueError("scenario.realtime_transport must be 'local' or 'dds', "
                          f"got {s['realtime_transport']!r}")
+    for key in ('dds', 'strict'):
+        s.setdefault(key, False)
+        if not isinstance(s[key], bool):
+            raise ValueError(f'scenario.{key} must be true or false, got {s[key]!r}')
+    s['realtime_processes'] = _num(s, 'realtime_processes', 2, 1, 2)
+    s.setdefault('description', '')
     s.setdefault('global_params', {})
     s.setdefault('metrics', {})
     return s
+
+
+def scenario_text(scenario: Mapping) -> str:
+    """The scenario as YAML (what recordings store as ``scenario_yaml``; ``source`` left out)."""
+    return yaml.safe_dump({k: v for k, v in scenario.items() if k != 'source'}, sort_keys=True)
+
+
+def run_start_info(scenario: Mapping, nodes) -> Dict[str, object]:
+    """What a recording says about its run when the run starts (`McapRecorder.start`): enough
+    for analyze and recover_bag when the run is killed before it can close the file."""
+    return {'scenario': scenario['name'], 'mode': scenario['mode'], 'seed': scenario['seed'],
+            'duration_s': scenario['duration'], 'nodes': sorted(nodes),
+            'scenario_yaml': scenario_text(scenario)}
 
 
 def common_params(scenario: Mapping) -> Dict[str, object]:
