@@ -31,7 +31,7 @@ from typing import Dict, Optional
 import numpy as np
 
 from catheter_bringup import metrics as M
-from catheter_bringup.bagfile import cli_errors
+from catheter_bringup.bagfile import check_bag, cli_errors
 from catheter_bringup.recording import Recording, load  # noqa: F401 (Recording re-exported)
 from catheter_common import topics as T
 
@@ -360,6 +360,7 @@ def main(argv=None):
     a = p.parse_args(argv)
 
     def body():
+        check_bag(a.bag)
         res = analyze(a.bag, skip=a.skip, delay=a.delay, outages=a.outages,
                       progress=None if a.quiet else _progress)
         for w in res.get('warnings', []):
