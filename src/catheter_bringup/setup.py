@@ -27,6 +27,7 @@ setup(
             'recorder_node = catheter_bringup.recorder_node:main',
             'force_source_node = catheter_bringup.force_source_node:main',
             'recover_bag = catheter_bringup.bagfile:main',
+            'catheter_topic = catheter_bringup.topic_tool:main',
         ],
     },
 )

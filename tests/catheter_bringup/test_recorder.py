@@ -34,7 +34,6 @@ def test_message_definition_has_dependencies_once_in_rosbag2_layout():
 
 
 def test_rosbags_and_mcap_ros2_read_what_was_written(tmp_path):
-    from geometry_msgs.msg import WrenchStamped
     from sensor_msgs.msg import Image
     path = tmp_path / 'run.mcap'
     rec = McapRecorder(path)

@@ -71,12 +71,25 @@ def test_declared_executables_are_built(pkg):
     assert sorted(console_scripts(pkg)) == built
 
 
+#: command-line tools (not nodes): they answer --help and start nothing
+TOOLS = {'recover_bag', 'catheter_topic'}
+
+
 def _executables():
     out = []
     for pkg in PACKAGES:
         for exe in console_scripts(pkg):
-            out.append((pkg, exe))
+            if exe not in TOOLS:
+                out.append((pkg, exe))
     return out
+
+
+@pytest.mark.parametrize('exe', sorted(TOOLS))
+def test_tools_are_installed_and_answer_help(exe):
+    path = ROOT / 'ros_ws' / 'install' / 'catheter_bringup' / 'lib' / 'catheter_bringup' / exe
+    assert exe in console_scripts('catheter_bringup')
+    res = subprocess.run([str(path), '--help'], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0 and res.stdout.startswith(f'usage: {exe}'), res.stderr
 
 
 @pytest.mark.ros

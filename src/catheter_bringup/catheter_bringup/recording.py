@@ -78,7 +78,7 @@ def _leading_header(schema_text: str) -> bool:
     return False
 
 
-def _raw_stamp(data: bytes) -> Optional[float]:
+def raw_stamp(data: bytes) -> Optional[float]:
     """Header stamp (s) of a CDR payload whose first field is a std_msgs/Header."""
     if len(data) < 12:
         return None
@@ -194,7 +194,7 @@ class Recording:
                     self.types.setdefault(topic, schema.name if schema else '')
                 dec, stamped = how
                 self.log.setdefault(topic, []).append(message.log_time * 1e-9)
-                s = _raw_stamp(message.data) if stamped else None
+                s = raw_stamp(message.data) if stamped else None
                 self.stamp.setdefault(topic, []).append(math.nan if s is None else s)
                 if decode:
                     self.values.add(topic, dec, message.data if dec is not None else None)
