@@ -40,6 +40,7 @@ def launch_entries(scenario: dict) -> List[Dict]:
     out.append({'package': 'catheter_bringup', 'executable': 'recorder_node',
                 'name': 'recorder_node',
                 'parameters': [{'path': f"bags/{scenario['name']}.mcap",
+                                'scenario': scenario.get('source') or scenario['name'],
                                 'exclude': list(rec['exclude']) or [''],
                                 'topics': list(rec.get('only') or []) or ['']}]})
     return out
