@@ -1,7 +1,7 @@
 """The FAM accuracy-against-time figure (``fam_accuracy.png``): the tip error of fam_solver
-against solve_elastica for growing arc counts, measured on this machine. Measuring takes tens
-of seconds, so the main command draws it only when the file is missing or older than the
-fam_solver sources (`is_current`).
+against solve_elastica for growing arc counts, with solve times measured on this machine
+(about a second). The times differ from run to run, so the main command draws it only when
+the file is missing or older than the fam_solver sources (`is_current`), not on every run.
 """
 from __future__ import annotations
 

@@ -10,8 +10,9 @@ the thesis's numbers and write the plots.
 2. prints the metrics (analyze): IMA vs DFR in normal and outage intervals, the image force
    estimation error, rate and latency per node, with progress lines while it works;
 3. writes PNG plots and the metrics into out/<run name>_*; the FAM accuracy plot
-   (out/fam_accuracy.png, tens of seconds to measure) only when it is missing or older than
-   the fam_solver sources (``--fam`` redraws it, ``--no-fam`` never draws it).
+   (out/fam_accuracy.png: solve times measured on this machine, so a redraw changes it
+   every time) only when it is missing or older than the fam_solver sources (``--fam``
+   redraws it, ``--no-fam`` never draws it).
 
 The run name is the scenario's, or says what was changed (``--set``, a copied YAML), so a
 changed run never overwrites the default run's files (`catheter_bringup.overrides`).
@@ -117,7 +118,7 @@ def _fam_plot(out: pathlib.Path, a) -> list:
     if not a.fam and is_current(out):
         _say(f'FAM accuracy plot up to date ({out / FILE}; --fam redraws it)')
         return []
-    _say('FAM accuracy plot: measuring fam_solver against solve_elastica (tens of seconds)')
+    _say('FAM accuracy plot: measuring fam_solver against solve_elastica')
     p = fam_accuracy_plot(out)
     if not p:
         _say('FAM accuracy plot skipped: fam_solver not importable')

@@ -301,7 +301,7 @@ def main(argv=None):
     ap.add_argument('bag', nargs='?', help='an .mcap recording')
     ap.add_argument('--out', default='out')
     ap.add_argument('--fam', action='store_true',
-                    help='also measure and draw the FAM accuracy plot (tens of seconds)')
+                    help='also measure and draw the FAM accuracy plot')
     a = ap.parse_args(argv)
 
     def body():
