@@ -27,9 +27,12 @@ Bezier and circle share their ends and end tangents (they differ inside the arc 
 """
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from .arcs import arc_funcs, bezier_lambda
+from .problem import Problem, repeat_problem
 
 N_GAUSS = 8
 
@@ -47,7 +50,7 @@ def _lambda_and_derivative(phi):
 class BezierModel:
     """Residuals of the Bezier arc model for a given _Problem (loads fixed per case)."""
 
-    def __init__(self, prob):
+    def __init__(self, prob: Problem):
         self.prob = prob
         taus = sorted({t for a, t, _ in prob.point_forces if t < 1.0})
         edges = [0.0] + taus + [1.0]
@@ -106,7 +109,6 @@ class BezierModel:
         dMq = np.zeros_like(Mq)
         tip_rot = None
         Einv = np.conj(E)
-        idx = np.arange(N)
         for ld in loads:
             F = ld.F
             if ld.follower:
@@ -141,3 +143,32 @@ class BezierModel:
         dR = dMq - EI * dkap
         Gi = (R * dR) @ self.wq
         return Gi * (l / EI) ** 2
+
+
+class BezierResidual:
+    """Bezier residual and (for small N) its finite-difference Jacobian."""
+    FD_MAX_N = 24
+
+    def __init__(self, prob: Problem):
+        self.prob = prob
+        self.model = BezierModel(prob)
+        self._rep = None
+
+    def residual(self, phi: np.ndarray, loads, m: np.ndarray) -> np.ndarray:
+        return self.model.residual(phi, loads, m)
+
+    def jacobian(self, phi: np.ndarray, scale) -> Optional[np.ndarray]:
+        B, N = phi.shape
+        if N > self.FD_MAX_N:
+            return None
+        if self._rep is None or self._rep[0] != B:
+            rp = repeat_problem(self.prob, N + 1)
+            self._rep = (B, rp, BezierModel(rp))
+        _, rp, model = self._rep
+        h = 1e-7 * np.maximum(1.0, np.abs(phi))
+        P = np.repeat(phi, N + 1, axis=0).reshape(B, N + 1, N)
+        idx = np.arange(N)
+        P[:, idx + 1, idx] += h
+        loads, m = rp.loads(np.repeat(scale, N + 1) if np.ndim(scale) else scale)
+        R = model.residual(P.reshape(B * (N + 1), N), loads, m).reshape(B, N + 1, N)
+        return np.transpose((R[:, 1:, :] - R[:, :1, :]) / h[:, :, None], (0, 2, 1))
