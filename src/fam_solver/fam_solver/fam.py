@@ -86,7 +86,7 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
             initial = remap(initial[None], np.full((1, n), 1.0 / n),
                             (np.asarray(init_frac) / init_len)[None])[0]
     clothoid = arc_model == 'clothoid'
-    if arc_model != 'bezier' and not pfs and n <= DENSE_MAX_N:
+    if arc_model != 'bezier' and not pfs:
         out = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower, initial,
                          spacing, clothoid)
         if out is None and initial is not None:

@@ -1,48 +1,117 @@
 """Fast path: one load case with tip loads only (force, moment; dead or follower), circular
-or clothoid arcs. The same equations as ``equations.evaluate`` / ``linsolve``, written with
-1-D arrays and as few numpy calls as possible (numpy call overhead dominates at N = 12),
-LAPACK called directly. Returns None when the direct attempt is not accepted; the caller then
-uses the general path (``globalise``). No rclpy here.
+or clothoid arcs, any N. The same equations as ``equations.evaluate`` / ``linsolve``, written
+with 1-D arrays and as few numpy calls as possible (numpy call overhead dominates at N = 12),
+LAPACK called directly.
+
+* N <= DENSE_MAX_N: Newton with the dense Jacobian from the rescaled small-deflection start;
+  accepted when it turned the way the small-deflection beam turns and the branch check holds
+  (``linsolve.energy_stable``); otherwise the load is applied by continuation on this path
+  (``_continuation``).
+* N > DENSE_MAX_N: the COARSE_N solution (this path) interpolated onto the arcs, then Newton
+  with the O(N) banded solve; stability judged on the COARSE_N model, as ``globalise.stability``.
+
+Returns None when neither is accepted (a fold, a critical point, a straight catheter under
+compression); the caller then uses the general path (``globalise``). No rclpy here.
 """
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import Optional, Tuple
 
 import numpy as np
-from scipy.linalg.lapack import dgeev as _dgeev, dgesv as _dgesv
+from scipy.linalg.lapack import dgesv as _dgesv
 
-from .arcs import _CCOEF, _CCOEF8, _K, SERIES_LIMIT, arc_funcs, clothoid_funcs
 from .equations import RHO_MAX, clothoid_terms
+from .linsolve import DENSE_MAX_N, banded_solve, energy_stable
 from .mesh import fast_grade
+from .problem import COARSE_N
 
 _MAXR = np.maximum.reduce
 _MINR = np.minimum.reduce
 _FAST_CACHE = {}
 _EQUAL_CACHE = {}
+#: fast path, clothoid arcs: the rates' Jacobian terms are added once max|r| < this (rad);
+#: further out the circular-arc factors do as well and cost less
+_QUASI_ABOVE = 1e-2
+#: ... and from the first step below this N (the rates, ~ load / N^2, are large there)
+_QUASI_MIN_N = 3
+#: continuation on the fast path: at most this many Newton iterations in all, and steps not
+#: below this load fraction (smaller steps mean a fold or a critical point: general path)
+_CONT_MAX_ITERS = 200
+_CONT_MIN_STEP = 1e-3
+
+# Every function the arcs need is linear in E_k = integral_0^1 v^k e^{i phi v} dv, k = 0..4
+# (see ``arcs``): g = E0, q = E1, g' = i E1, q' = i E2, k = (E2 - E1)/2, k - km = (E3 - E2)/2,
+# k' = i (E3 - E2)/2, (k - km)' = i (E4 - E3)/2. Below |phi| < _SERIES_LIMIT the Taylor series
+# E_k = sum_j (i phi)^j / (j! (k + j + 1)) (_K_FAST terms: truncation < 1e-20, rounding
+# ~e^|phi| 1e-16), as ONE Vandermonde product; beyond it the closed forms
+# E_0 = (e^{i phi} - 1)/(i phi), E_k = (e^{i phi} - k E_{k-1}) / (i phi). The series reaches
+# further than in ``arcs`` so that few-arc models (N = 1-4, arcs of 1-3 rad) stay on the
+# cheap product.
+_EMAP = np.zeros((5, 8), dtype=complex)
+_EMAP[0, 0] = _EMAP[1, 1] = 1.0
+_EMAP[1, 2] = _EMAP[2, 3] = 1j
+_EMAP[1:3, 4] = (-0.5, 0.5)
+_EMAP[2:4, 5] = (-0.5, 0.5)
+_EMAP[2:4, 6] = (-0.5j, 0.5j)
+_EMAP[3:5, 7] = (-0.5j, 0.5j)
+_SERIES_LIMIT = 3.0
+_K_FAST = 34
+_EC = np.array([[1j ** j / math.factorial(j) / (k + j + 1) for k in range(5)] for j in range(_K_FAST)])
+_COEF4 = _EC[:, :3] @ _EMAP[:3, :4]     # g, q, g', q'
+_COEF8 = _EC @ _EMAP                    # ... and k, k - km, k', (k - km)'
 
 
-def _fast_consts(n):
+def _fast_consts(n: int):
     c = _FAST_CACHE.get(n)
     if c is None:
         idx = np.arange(n)
-        lower = idx[:, None] > idx[None, :]
-        c = (lower, np.eye(n), np.diag_indices(n))
+        c = (idx[:, None] > idx[None, :],)
         _FAST_CACHE[n] = c
     return c
 
 
-def fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rtol=1e-12,
-                     clothoid=False):
+def _arc_values(phi: np.ndarray, pmax: float, V: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """(N, 4) g, q, g', q' (or (N, 8) with k, k-km, k', (k-km)' when coef has 8 columns):
+    the series (one Vandermonde product; V (N, _K_FAST) holds the powers' storage) for
+    |phi| < _SERIES_LIMIT, the closed forms from E_0..E_4 elsewhere."""
+    V1 = V[:, 1:]
+    if pmax < _SERIES_LIMIT:
+        V1[...] = phi[:, None]
+        np.multiply.accumulate(V1, axis=1, out=V1)
+        return V @ coef
+    m = coef.shape[1]
+    k = 5 if m == 8 else 3
+    big = np.abs(phi) >= _SERIES_LIMIT
+    a = 1j * np.where(big, phi, 1.0)
+    e = np.exp(a)
+    ia = 1.0 / a
+    E = np.empty((phi.size, k), dtype=complex)
+    E[:, 0] = (e - 1.0) * ia
+    for j in range(1, k):
+        E[:, j] = (e - j * E[:, j - 1]) * ia
+    R = E @ _EMAP[:k, :m]
+    if big.all():
+        return R
+    V1[...] = np.where(big, 0.0, phi)[:, None]
+    np.multiply.accumulate(V1, axis=1, out=V1)
+    return np.where(big[:, None], R, V @ coef)
+
+
+def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
+                    phi: np.ndarray, max_iter: int, step_limit: float = 0.3, rtol: float = 1e-12,
+                    clothoid: bool = False):
     """Damped Newton for one tip-loaded case. F complex (base or tip frame), m float.
     Stops at max|r| <= 1e-13 + rtol max|phi| (converged is judged with rtol = 1e-12).
     clothoid: clothoid arcs (as in evaluate; the Jacobian has the rates' derivatives once
-    max|r| < _QUASI_ABOVE).
+    max|r| < _QUASI_ABOVE). N <= DENSE_MAX_N: dense Jacobian (returned); beyond: the O(N)
+    banded solve (no Jacobian returned).
 
     Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
-    Jacobian of the last Newton step (None if no step was taken) and the clothoid rates
-    (N,) at phi (None for circular arcs)."""
-    lower, eye, diag = _fast_consts(n)
+    Jacobian of the last Newton step (None if no step was taken or N > DENSE_MAX_N) and the
+    clothoid rates (N,) at phi (None for circular arcs)."""
+    dense = n <= DENSE_MAX_N
+    lower = _fast_consts(n)[0] if dense else None
     cF0 = F.conjugate()
     acc = np.add.accumulate
     best = (phi, math.inf, 0j, None)
@@ -52,23 +121,15 @@ def fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rtol
     wc = w[:, None]
     w_r = w / RHO_MAX
     iR = 1j * RHO_MAX
-    coef = _CCOEF8 if clothoid else _CCOEF
-    V = np.empty((n, _K))       # powers phi^0..phi^(K-1) by a running product (** is 3x slower)
+    coef = _COEF8 if clothoid else _COEF4
+    V = np.empty((n, _K_FAST))       # powers phi^0..phi^(K-1) by a running product (** is 3x slower)
     V[:, 0] = 1.0
-    V1 = V[:, 1:]
     for it in range(max_iter + 1):
         th_end = acc(phi)
         lE = l * np.exp(1j * (th_end - phi))
         pmax = _MAXR(np.abs(phi))
-        if pmax < SERIES_LIMIT:
-            V1[...] = phi[:, None]
-            np.multiply.accumulate(V1, axis=1, out=V1)
-            R = V @ coef                         # (N, 4 or 8): g, q, g', q' (, k, k-km, k', (k-km)')
-        elif clothoid:
-            R = np.stack(clothoid_funcs(phi), axis=1)
-        else:
-            R = np.stack(arc_funcs(phi), axis=1)
-        R *= lE[:, None]                         # l e^{i theta_start} times those
+        R = _arc_values(phi, pmax, V, coef)  # (N, 4 or 8): g, q, g', q' (, k, k-km, k', (k-km)')
+        R *= lE[:, None]                     # l e^{i theta_start} times those
         if follower:
             t = float(th_end[-1])
             cF = cF0 * complex(math.cos(t), -math.sin(t))
@@ -93,32 +154,42 @@ def fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rtol
             best = (phi, res, complex(P[-1]), th_r)
         if res <= 1e-13 + rtol * pmax or it == max_iter:
             break
+        # -dMbar/dphi = D: D_ij = a_i (j < i), d_i (j = i), c_j + e_i (j > i); J = I + W D
         Y = R[:, 2:] * cF                      # g', q' (, k, k-km, k', (k-km)') terms
         irc = (1j * rel * cF).imag
-        Bd = irc + Y[:, 1].imag
-        C = irc + Y[:, 0].imag
-        if clothoid and res < _QUASI_ABOVE:
+        d = irc + Y[:, 1].imag
+        c = irc + Y[:, 0].imag
+        e = None
+        if clothoid and (res < _QUASI_ABOVE or n < _QUASI_MIN_N):
             # with the rates' own derivatives (see clothoid_terms): quadratic convergence
             rho_ = RHO_MAX * th_r
             Yr = Y.real
             lo_, dg_, up_, row_ = clothoid_terms(z0.real, Y[:, 0].imag, Yr[:, 2], Yr[:, 3],
-                                                  w, th_r, follower, rho_ * Yr[:, 4],
-                                                  rho_ * Yr[:, 5])
-            Bd = Bd + dg_
+                                                 w, th_r, follower, rho_ * Yr[:, 4],
+                                                 rho_ * Yr[:, 5])
+            d = d + dg_
+            c = c + up_
             if follower:
-                D = np.where(lower, 0.0, (C + up_) - (ZF.real - row_)[:, None])
-                Bd = Bd - ZF.real
+                a, e = 0.0, row_ - ZF.real
+                d = d - ZF.real
             else:
-                D = np.where(lower, (ZF.real + lo_)[:, None], C + up_)
+                a = ZF.real + lo_
         elif follower:   # (clothoid far from the solution: circular-arc factors, cheaper)
-            D = np.where(lower, 0.0, C - ZF.real[:, None])
-            Bd = Bd - ZF.real
+            a, e = 0.0, -ZF.real
+            d = d - ZF.real
         else:
-            D = np.where(lower, ZF.real[:, None], C)
-        D *= wc
-        D.flat[::n + 1] = w * Bd + 1.0    # J = I - w dMbar/dphi, dMbar/dphi = -D / w
-        J = D
-        dx = _dgesv(D, r)[2]
+            a = ZF.real
+        if dense:
+            if follower:
+                D = np.where(lower, 0.0, c + e[:, None])
+            else:
+                D = np.where(lower, a[:, None], c)
+            D *= wc
+            D.flat[::n + 1] = w * d + 1.0
+            J = D
+            dx = _dgesv(D, r)[2]
+        else:   # J = I - (-W) D: the banded solver's convention
+            dx = banded_solve(-w, (np.broadcast_to(a, (n,)), d, c, e), r)
         mx = _MAXR(np.abs(dx))
         if not mx < math.inf:
             break
@@ -133,19 +204,15 @@ def fast_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit=0.3, rtol
     return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J, rho
 
 
-#: fast path, clothoid arcs: the rates' Jacobian terms are added once max|r| < this (rad);
-#: further out the circular-arc factors do as well and cost less
-_QUASI_ABOVE = 1e-2
+def _jacobian_at(phi: np.ndarray, l: np.ndarray, w: np.ndarray, F: complex, m: float,
+                 follower: bool, clothoid: bool) -> Optional[np.ndarray]:
+    """The dense Jacobian (N <= DENSE_MAX_N) at phi: the one a Newton step from phi uses."""
+    J = fast_tip_newton(phi.size, l, w, F, m, follower, phi, 1, step_limit=math.inf, rtol=-1.0,
+                        clothoid=clothoid)[5]
+    return J
 
 
-def fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform', clothoid=False):
-    """Whole single-case solve for tip loads (exact or clothoid arcs, N <= DENSE_MAX_N), or
-    None when the direct attempt is not accepted (the caller then uses the general path).
-
-    Returns phi, converged, iterations, residual, tip (complex), stable, fractions (None:
-    equal arcs), clothoid rates (None for circular arcs)."""
-    mi = 20 if clothoid else 12
-    cl = clothoid
+def _equal_arcs(n: int, L: float, EI: float):
     key = (n, L, EI)
     c = _EQUAL_CACHE.get(key)
     if c is None:
@@ -153,13 +220,84 @@ def fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform', clotho
             _EQUAL_CACHE.clear()
         l = np.full(n, L / n)
         c = _EQUAL_CACHE[key] = (l, l / EI, L - (np.cumsum(l) - 0.5 * l))
-    l, w, lever = c
-    lin = w * (m + F.imag * lever)    # small-deflection solution
-    th_lin = float(lin.sum())
+    return c
+
+
+def _resample(phi: np.ndarray, n: int) -> np.ndarray:
+    """Arc angles of the same curvature (piecewise linear between equal-arc midpoints) on n
+    equal arcs: phi_new = kappa(s_mid) L / n."""
+    m = phi.size
+    sm = (np.arange(m) + 0.5) / m
+    sn = (np.arange(n) + 0.5) / n
+    return np.interp(sn, sm, phi) * (m / n)
+
+
+def _continuation(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
+                  clothoid: bool, lin: np.ndarray, max_iter: int):
+    """Load the case from zero on the fast path (N <= DENSE_MAX_N): secant predictor (the
+    small-deflection shape for the first step), at most 0.5 rad tip-angle change per step,
+    the branch check after every step, as ``globalise.continuation`` does; None when the
+    path needs steps below _CONT_MIN_STEP (a fold or a critical point) or too many
+    iterations: the general path then handles it (snap-through, instability)."""
+    th_lin = float(np.max(np.abs(np.add.accumulate(lin))))
+    s, ds = 0.0, min(0.25, 0.3 / max(th_lin, 1e-12))
+    phi = np.zeros(n)
+    prev, prev_s = None, 0.0
+    total = 0
+    out = None
+    while s < 1.0:
+        if ds < _CONT_MIN_STEP or total > _CONT_MAX_ITERS:
+            return None
+        s_new = min(1.0, s + ds)
+        guess = lin * s_new if prev is None else phi + (phi - prev) * ((s_new - s) / (s - prev_s))
+        last = s_new >= 1.0
+        p, c, it, res, tip, J, rho = fast_tip_newton(n, l, w, F * s_new, m * s_new, follower,
+                                                     guess, max_iter,
+                                                     rtol=1e-12 if last else 1e-9,
+                                                     clothoid=clothoid)
+        total += it
+        if last:
+            c = res <= 1e-13 + 1e-12 * _MAXR(np.abs(p))
+        else:
+            c = res <= 1e-13 + 1e-9 * _MAXR(np.abs(p))
+        ok = c and abs(float(p.sum() - phi.sum())) <= 0.5
+        if ok:
+            Jc = J if J is not None else _jacobian_at(p, l, w, F * s_new, m * s_new, follower,
+                                                      clothoid)
+            ok = Jc is None or energy_stable(Jc, w)
+        if not ok:
+            ds *= 0.5
+            continue
+        prev, prev_s, phi, s = phi, s, p, s_new
+        ds = min(ds * 2.0, 0.5)
+        out = (p, total, res, tip, rho)
+    return out
+
+
+def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool,
+               initial: Optional[np.ndarray] = None, spacing: str = 'uniform',
+               clothoid: bool = False) -> Optional[Tuple]:
+    """Whole single-case solve for tip loads (circular or clothoid arcs), or None when it is
+    not accepted (the caller then uses the general path).
+
+    Returns phi, converged, iterations, residual, tip (complex), stable, fractions (None:
+    equal arcs), clothoid rates (None for circular arcs)."""
     if m == 0.0 and F == 0:
         return None
+    mi = 20 if clothoid else 12
+    cl = clothoid
+    dense = n <= DENSE_MAX_N
+    l, w, lever = _equal_arcs(n, L, EI)
+    lin = w * (m + F.imag * lever)    # small-deflection solution
+    th_lin = float(lin.sum())
+    it0 = 0
     if initial is not None:
         phi0 = initial
+    elif not dense:
+        coarse = fast_solve(COARSE_N, L, EI, F, m, follower, clothoid=clothoid)
+        if coarse is None:
+            return None
+        phi0, it0 = _resample(coarse[0], n), coarse[2]
     else:
         ath = abs(th_lin)
         target = min(ath, 1.5)
@@ -172,52 +310,88 @@ def fast_solve(n, L, EI, F, m, follower, initial=None, spacing='uniform', clotho
     # ~1e-9 moves the tip of the graded solution by ~1e-12 L) -- saves one Newton step
     graded = spacing == 'graded' and n > 1 and not follower
     phi, conv, it, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, phi0, mi,
-                                                       rtol=1e-9 if graded else 1e-12, clothoid=cl)
+                                                      rtol=1e-9 if graded else 1e-12, clothoid=cl)
+    stepped = it > 0
+    it += it0
     if graded:
         conv = res <= 1e-13 + 1e-9 * max(_MAXR(phi), -_MINR(phi))
-    if not conv or not (np.all(np.isfinite(phi)) and math.isfinite(tip.real) and math.isfinite(tip.imag)):
-        return None
+    finite = conv and np.all(np.isfinite(phi)) and math.isfinite(tip.real) and math.isfinite(tip.imag)
     th = float(phi.sum())
-    if not np.any(phi):
-        J = None
-    elif initial is None and abs(th_lin) >= 0.1 and (th > 0) != (th_lin > 0):
-        return None
-    # axial compression at the tip -> stability matters; large loads -> branch check
-    Ft = F if follower else F * complex(math.cos(th), -math.sin(th))
-    compress = Ft.real < 0
-    stable = True
+    direct = finite and (initial is not None or not np.any(phi) or abs(th_lin) < 0.1
+                         or (th > 0) == (th_lin > 0))
+    if direct and np.any(phi) and (initial is not None or (dense and abs(th_lin) > 0.3)):
+        # the branch check (large loads, warm starts; N > DENSE_MAX_N: the coarse solution had it)
+        direct = _stable_at(phi, J, w, None, L, EI, F, m, follower, cl)
+    if not direct:
+        if initial is not None or not dense:
+            return None
+        # not the natural branch from this start: load from zero on the fast path
+        out = _continuation(n, l, w, F, m, follower, cl, lin, mi)
+        if out is None:
+            return None
+        phi, it2, res, tip, rho = out
+        it += it2
+        th = float(phi.sum())
+        J, stepped = None, True
+    Jw = w
     frac = None
-    if graded and J is None and not res <= 1e-13 + 1e-12 * _MAXR(np.abs(phi)):
+    if graded and not stepped and not res <= 1e-13 + 1e-12 * _MAXR(np.abs(phi)):
         # the loose first pass stopped without a Newton step (tiny loads): finish it
         phi, conv, it2, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, phi, mi,
-                                                            clothoid=cl)
+                                                           clothoid=cl)
         it += it2
         if not conv:
             return None
     if graded and np.any(phi):
         # second pass on graded arcs from this equal-arc solution (see graded_fractions);
-        # the branch check below then uses the graded Jacobian
+        # the stability check below then uses the graded Jacobian
         f, start = fast_grade(phi, F, follower)
         lg = L * f
         p2, c2, it2, r2, tip2, J2, rho2 = fast_tip_newton(n, lg, lg / EI, F, m, follower, start,
-                                                           mi, clothoid=cl)
+                                                          mi, clothoid=cl)
         it += it2
         if c2 and abs(float(p2.sum()) - th) < 0.5 and \
                 math.isfinite(tip2.real) and math.isfinite(tip2.imag):
-            phi, res, tip, frac, rho = p2, r2, tip2, f, rho2
-            J = J2 if J2 is not None else J
+            phi, res, tip, frac, rho, J, Jw = p2, r2, tip2, f, rho2, J2, lg / EI
         else:   # keep the equal arcs: finish their solution to the full tolerance
-            phi, conv, it2, res, tip, J1, rho = fast_tip_newton(n, l, w, F, m, follower, phi, mi,
-                                                                 clothoid=cl)
+            phi, conv, it2, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, phi, mi,
+                                                               clothoid=cl)
             it += it2
-            J = J1 if J1 is not None else J
             if not conv:
                 return None
-    if J is not None and (compress or abs(th_lin) > 0.3 or initial is not None):
-        wr = _dgeev(J, compute_vl=0, compute_vr=0)[0]
-        stable = bool(_MINR(wr) > 1e-9)
-        if not stable:
-            return None      # possibly another branch: let continuation decide
-    elif J is None and compress:
-        return None          # straight under compression: the general path judges stability
-    return phi, True, it, res, tip, stable, frac, rho
+    # axial compression at the tip: stability matters
+    Ft = F if follower else F * complex(math.cos(th), -math.sin(th))
+    if Ft.real < 0:
+        if not np.any(phi):
+            return None      # straight under compression: the general path judges stability
+        if not _stable_at(phi, J, Jw, frac, L, EI, F, m, follower, cl):
+            return None      # unstable: let the general path decide and flag it
+    return phi, True, it, res, tip, True, frac, rho
+
+
+def _stable_at(phi: np.ndarray, J: Optional[np.ndarray], Jw: np.ndarray,
+               frac: Optional[np.ndarray], L: float, EI: float, F: complex, m: float,
+               follower: bool, clothoid: bool) -> bool:
+    """Branch / stability check at the solution phi (on arcs L * frac, None: equal arcs): on
+    J (the last Newton step's Jacobian, row weights Jw) when given, else on the Jacobian at
+    phi; beyond DENSE_MAX_N on the COARSE_N model with the same curvature."""
+    n = phi.size
+    if n > DENSE_MAX_N:
+        lc, Jw, _ = _equal_arcs(COARSE_N, L, EI)
+        pc = _resample(phi if frac is None else _to_equal(phi, frac), COARSE_N)
+        J = _jacobian_at(pc, lc, Jw, F, m, follower, clothoid)
+    elif J is None:
+        lj = L / n if frac is None else L * frac
+        lj = np.broadcast_to(lj, (n,))
+        Jw = lj / EI
+        J = _jacobian_at(phi, lj, Jw, F, m, follower, clothoid)
+    return J is None or energy_stable(J, Jw)
+
+
+def _to_equal(phi: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """Arc angles on equal arcs of the tangent-angle curve of phi on arcs ``frac``."""
+    n = phi.size
+    Th = np.concatenate([[0.0], np.add.accumulate(phi)])
+    b = np.concatenate([[0.0], np.add.accumulate(frac)])
+    b[-1] = 1.0
+    return np.diff(np.interp(np.arange(n + 1) / n, b, Th))

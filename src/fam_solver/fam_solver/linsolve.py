@@ -1,12 +1,14 @@
 """Linear algebra of the FAM Newton step: the Jacobian J = I - W D from its semiseparable
-factors (see ``equations.evaluate``), dense for N <= DENSE_MAX_N and O(N) beyond, and the
-branch / stability check on its eigenvalues. No rclpy here.
+factors (see ``equations.evaluate``), dense for N <= DENSE_MAX_N and O(N) beyond (a forward
+sweep vectorised over cases, or one banded LAPACK solve for a single case), and the branch /
+stability check on its eigenvalues. No rclpy here.
 """
 from __future__ import annotations
 
 from typing import Optional, Tuple
 
 import numpy as np
+from scipy.linalg.lapack import dgbsv as _dgbsv, dgeev as _dgeev, dpotrf as _dpotrf
 
 from .equations import Factors
 
@@ -92,3 +94,57 @@ def principal_ok(w, fac: Factors) -> np.ndarray:
     J = dense_jacobian(w, fac)
     ev = np.linalg.eigvals(J)
     return np.min(ev.real, axis=1) > 1e-9
+
+
+def banded_solve(w: np.ndarray, fac: Factors, rhs: np.ndarray) -> np.ndarray:
+    """Solve J x = rhs for ONE case, J = I - W D (factors (A, Bd, C, e), each (N,), as in
+    ``equations.evaluate``), in O(N) with one LAPACK banded solve (dgbsv).
+
+    Unknowns: the partial sums y_i = x_0 + ... + x_i and z_i = sum_{j > i} C_j x_j, ordered
+    (y_0, z_0, y_1, z_1, ...). Row i of J x = rhs and z_i - z_{i+1} = C_{i+1} (y_{i+1} - y_i)
+    are then banded (2 sub- and 2 super-diagonals) except for Y = y_{N-1}, which enters row i
+    through e_i (follower forces): it is solved for from a second right-hand side."""
+    A, Bd, C, e = fac
+    n = A.shape[0]
+    w = np.broadcast_to(np.asarray(w, dtype=float), (n,))
+    wB = 1.0 - w * Bd
+    ab = np.zeros((7, 2 * n))           # LAPACK band storage, kl = ku = 2: A[r, c] at ab[4 + r - c, c]
+    ab[4, 0::2] = wB if e is None else wB + w * e      # row i: y_i
+    ab[6, 0:-2:2] = -wB[1:] - w[1:] * A[1:]             # row i: y_{i-1}
+    ab[3, 1::2] = -w                                     # row i: z_i
+    ab[4, 1::2] = 1.0                                    # z-row i: z_i
+    ab[2, 3::2] = -1.0                                   # z-row i: -z_{i+1}
+    ab[3, 2::2] = -C[1:]                                 # z-row i: -C_{i+1} y_{i+1}
+    ab[5, 0:-2:2] = C[1:]                                # z-row i: +C_{i+1} y_i
+    follower = e is not None and bool(np.any(e))
+    b = np.zeros((2 * n, 2 if follower else 1))
+    b[0::2, 0] = rhs
+    if follower:
+        b[0::2, 1] = w * e
+    u = _dgbsv(2, 2, ab, b)[2]
+    y = u[0::2, 0]
+    if follower:
+        Y = y[-1] / (1.0 - u[-2, 1])
+        y = y + Y * u[0::2, 1]
+    x = np.empty(n)
+    x[0] = y[0]
+    np.subtract(y[1:], y[:-1], out=x[1:])
+    return x
+
+
+def energy_stable(J: np.ndarray, w: np.ndarray) -> bool:
+    """True when every eigenvalue of J (N, N) = I - W D has a real part > 1e-9: the branch and
+    stability criterion of ``principal_ok`` for one case.
+
+    Cheap sufficient test first: Re(lambda(J)) >= the smallest eigenvalue of W^1/2 S W^1/2,
+    S the symmetric part of W^-1 J, so a Cholesky factorisation of S - 1e-9 W^-1 that succeeds
+    proves it (for dead loads on circular arcs W^-1 J is the energy Hessian, symmetric, and
+    the test is exact). Otherwise (follower forces, clothoid arcs near a critical point) the
+    eigenvalues decide (dgeev)."""
+    M = J / w[:, None]
+    S = M + M.T
+    S.flat[::J.shape[0] + 1] -= 2e-9 / w
+    if _dpotrf(S, lower=0, clean=0, overwrite_a=1)[1] == 0:
+        return True
+    wr = _dgeev(J, compute_vl=0, compute_vr=0)[0]
+    return bool(np.min(wr) > 1e-9)
