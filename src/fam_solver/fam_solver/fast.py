@@ -39,6 +39,8 @@ _QUASI_MIN_N = 3
 #: below this load fraction (smaller steps mean a fold or a critical point: general path)
 _CONT_MAX_ITERS = 200
 _CONT_MIN_STEP = 1e-3
+#: ... and the intermediate steps solved to this relative tolerance (the last to 1e-12)
+_CONT_RTOL = 1e-4
 
 # Every function the arcs need is linear in E_k = integral_0^1 v^k e^{i phi v} dv, k = 0..4
 # (see ``arcs``): g = E0, q = E1, g' = i E1, q' = i E2, k = (E2 - E1)/2, k - km = (E3 - E2)/2,
@@ -240,7 +242,7 @@ def _continuation(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, fo
     path needs steps below _CONT_MIN_STEP (a fold or a critical point) or too many
     iterations: the general path then handles it (snap-through, instability)."""
     th_lin = float(np.max(np.abs(np.add.accumulate(lin))))
-    s, ds = 0.0, min(0.25, 0.3 / max(th_lin, 1e-12))
+    s, ds = 0.0, min(0.5, 0.5 / max(th_lin, 1e-12))
     phi = np.zeros(n)
     prev, prev_s = None, 0.0
     total = 0
@@ -253,13 +255,13 @@ def _continuation(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, fo
         last = s_new >= 1.0
         p, c, it, res, tip, J, rho = fast_tip_newton(n, l, w, F * s_new, m * s_new, follower,
                                                      guess, max_iter,
-                                                     rtol=1e-12 if last else 1e-9,
+                                                     rtol=1e-12 if last else _CONT_RTOL,
                                                      clothoid=clothoid)
         total += it
         if last:
             c = res <= 1e-13 + 1e-12 * _MAXR(np.abs(p))
         else:
-            c = res <= 1e-13 + 1e-9 * _MAXR(np.abs(p))
+            c = res <= 1e-13 + _CONT_RTOL * _MAXR(np.abs(p))
         ok = c and abs(float(p.sum() - phi.sum())) <= 0.5
         if ok:
             Jc = J if J is not None else _jacobian_at(p, l, w, F * s_new, m * s_new, follower,
@@ -318,9 +320,12 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
     finite = conv and np.all(np.isfinite(phi)) and math.isfinite(tip.real) and math.isfinite(tip.imag)
     th = float(phi.sum())
     direct = finite and (initial is not None or not np.any(phi) or abs(th_lin) < 0.1
-                         or (th > 0) == (th_lin > 0))
-    if direct and np.any(phi) and (initial is not None or (dense and abs(th_lin) > 0.3)):
-        # the branch check (large loads, warm starts; N > DENSE_MAX_N: the coarse solution had it)
+                         or (th > 0) == (th_lin > 0)
+                         or (dense and _stiffened_sign(l, w, F, m, follower, cl, lin) == (th > 0)))
+    if direct and np.any(phi) and (initial is not None or (dense and abs(th_lin) > 0.3)
+                                   or _compressed(F, th, follower)):
+        # the branch check (large loads, warm starts, axial compression; N > DENSE_MAX_N:
+        # on the coarse model, whose solution had the check for large loads)
         direct = _stable_at(phi, J, w, None, L, EI, F, m, follower, cl)
     if not direct:
         if initial is not None or not dense:
@@ -360,13 +365,32 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
             if not conv:
                 return None
     # axial compression at the tip: stability matters
-    Ft = F if follower else F * complex(math.cos(th), -math.sin(th))
-    if Ft.real < 0:
+    if _compressed(F, th, follower):
         if not np.any(phi):
             return None      # straight under compression: the general path judges stability
         if not _stable_at(phi, J, Jw, frac, L, EI, F, m, follower, cl):
             return None      # unstable: let the general path decide and flag it
     return phi, True, it, res, tip, True, frac, rho
+
+
+def _compressed(F: complex, th: float, follower: bool) -> bool:
+    """The tip force pushes along the tip tangent (tip angle th): stability matters."""
+    return (F if follower else F * complex(math.cos(th), -math.sin(th))).real < 0
+
+
+def _stiffened_sign(l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
+                    clothoid: bool, lin: np.ndarray) -> Optional[bool]:
+    """Sign (True: > 0) of the tip angle of the small-deflection solution WITH the geometric
+    stiffness of the loads (one Newton step from the straight shape, J(0)^-1 phi_lin), or
+    None when the straight shape is not stable (past buckling). An axial tension stiffens the
+    response to a lateral force more than to a moment, so with both the natural branch can
+    turn against phi_lin; where phi_lin's sign disagrees with the direct solution, this sign
+    may confirm it (random force + moment loads: it accepted 18 direct solutions that load
+    continuation reaches too, and none that it does not)."""
+    J0 = _jacobian_at(np.zeros(l.size), l, w, F, m, follower, clothoid)
+    if J0 is None or not energy_stable(J0, w):
+        return None
+    return float(np.sum(_dgesv(J0, lin)[2])) > 0
 
 
 def _stable_at(phi: np.ndarray, J: Optional[np.ndarray], Jw: np.ndarray,
