@@ -35,6 +35,7 @@ from .arcs import arc_funcs, bezier_lambda
 from .problem import Problem, repeat_problem
 
 N_GAUSS = 8
+_GAUSS = np.polynomial.legendre.leggauss(N_GAUSS)
 
 
 def _lambda_and_derivative(phi):
@@ -48,13 +49,13 @@ def _lambda_and_derivative(phi):
 
 
 class BezierModel:
-    """Residuals of the Bezier arc model for a given _Problem (loads fixed per case)."""
+    """Residuals of the Bezier arc model for a given Problem (loads fixed per case)."""
 
     def __init__(self, prob: Problem):
         self.prob = prob
         taus = sorted({t for a, t, _ in prob.point_forces if t < 1.0})
         edges = [0.0] + taus + [1.0]
-        xg, wg = np.polynomial.legendre.leggauss(N_GAUSS)
+        xg, wg = _GAUSS
         ts, ws = [], []
         for a, b in zip(edges[:-1], edges[1:]):
             ts.append(a + (b - a) * (xg + 1) / 2)
@@ -146,8 +147,11 @@ class BezierModel:
 
 
 class BezierResidual:
-    """Bezier residual and (for small N) its finite-difference Jacobian."""
-    FD_MAX_N = 24
+    """Bezier residual and (for N <= FD_MAX_N) its finite-difference Jacobian; beyond, Newton
+    uses the circular-arc model's analytic Jacobian (quasi-Newton: a few more iterations,
+    each far cheaper than the O(N^2) finite differences; the switch sits where the two cost
+    about the same, so the solve time does not fall from N to 2N)."""
+    FD_MAX_N = 12
 
     def __init__(self, prob: Problem):
         self.prob = prob
