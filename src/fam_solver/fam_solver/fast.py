@@ -15,6 +15,7 @@ compression); the caller then uses the general path (``globalise``). No rclpy he
 """
 from __future__ import annotations
 
+import bisect
 import math
 from typing import Optional, Tuple
 
@@ -41,6 +42,13 @@ _CONT_MAX_ITERS = 200
 _CONT_MIN_STEP = 1e-3
 #: ... and the intermediate steps solved to this relative tolerance (the last to 1e-12)
 _CONT_RTOL = 1e-4
+#: models of more arcs whose direct attempt fails start from the solution on this many arcs
+#: (which has the branch checks and, if need be, the load continuation on few arcs)
+_FALLBACK_N = 12
+#: the direct attempt from the small-deflection start is given up after this many Newton
+#: iterations still far from a solution (max|r| > _QUASI_ABOVE; the bench cases are below
+#: it after 2-3)
+_PATIENCE = 4
 
 # Every function the arcs need is linear in E_k = integral_0^1 v^k e^{i phi v} dv, k = 0..4
 # (see ``arcs``): g = E0, q = E1, g' = i E1, q' = i E2, k = (E2 - E1)/2, k - km = (E3 - E2)/2,
@@ -62,6 +70,10 @@ _K_FAST = 34
 _EC = np.array([[1j ** j / math.factorial(j) / (k + j + 1) for k in range(5)] for j in range(_K_FAST)])
 _COEF4 = _EC[:, :3] @ _EMAP[:3, :4]     # g, q, g', q'
 _COEF8 = _EC @ _EMAP                    # ... and k, k - km, k', (k - km)'
+# fewer terms where all arcs are short (many arcs): k terms while max|phi|^k / k! <= 1e-17
+_TERMS_FOR = list(range(6, _K_FAST + 1))
+_PHI_FOR_TERMS = [(1e-17 * math.factorial(k)) ** (1.0 / k) for k in _TERMS_FOR]
+_BLOCK = 256
 
 
 def _fast_consts(n: int):
@@ -77,11 +89,13 @@ def _arc_values(phi: np.ndarray, pmax: float, V: np.ndarray, coef: np.ndarray) -
     """(N, 4) g, q, g', q' (or (N, 8) with k, k-km, k', (k-km)' when coef has 8 columns):
     the series (one Vandermonde product; V (N, _K_FAST) holds the powers' storage) for
     |phi| < _SERIES_LIMIT, the closed forms from E_0..E_4 elsewhere."""
-    V1 = V[:, 1:]
     if pmax < _SERIES_LIMIT:
+        k = _TERMS_FOR[bisect.bisect_left(_PHI_FOR_TERMS, pmax)]
+        V1 = V[:, 1:k]
         V1[...] = phi[:, None]
         np.multiply.accumulate(V1, axis=1, out=V1)
-        return V @ coef
+        return _product(V[:, :k], coef[:k])
+    V1 = V[:, 1:]
     m = coef.shape[1]
     k = 5 if m == 8 else 3
     big = np.abs(phi) >= _SERIES_LIMIT
@@ -97,17 +111,30 @@ def _arc_values(phi: np.ndarray, pmax: float, V: np.ndarray, coef: np.ndarray) -
         return R
     V1[...] = np.where(big, 0.0, phi)[:, None]
     np.multiply.accumulate(V1, axis=1, out=V1)
-    return np.where(big[:, None], R, V @ coef)
+    return np.where(big[:, None], R, _product(V, coef))
+
+
+def _product(V: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """V @ coef in row blocks of _BLOCK: a large product would start BLAS threads, which
+    stall (10x slower) when the machine's cores are busy; blocks this small stay in one."""
+    n = V.shape[0]
+    if n <= _BLOCK:
+        return V @ coef
+    out = np.empty((n, coef.shape[1]), dtype=complex)
+    for i in range(0, n, _BLOCK):
+        np.matmul(V[i:i + _BLOCK], coef, out=out[i:i + _BLOCK])
+    return out
 
 
 def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
                     phi: np.ndarray, max_iter: int, step_limit: float = 0.3, rtol: float = 1e-12,
-                    clothoid: bool = False):
+                    clothoid: bool = False, patience: int = 1 << 30):
     """Damped Newton for one tip-loaded case. F complex (base or tip frame), m float.
     Stops at max|r| <= 1e-13 + rtol max|phi| (converged is judged with rtol = 1e-12).
     clothoid: clothoid arcs (as in evaluate; the Jacobian has the rates' derivatives once
     max|r| < _QUASI_ABOVE). N <= DENSE_MAX_N: dense Jacobian (returned); beyond: the O(N)
-    banded solve (no Jacobian returned).
+    banded solve (no Jacobian returned). Gives up after ``patience`` iterations while max|r|
+    is still above _QUASI_ABOVE (a start that leads nowhere near a solution).
 
     Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
     Jacobian of the last Newton step (None if no step was taken or N > DENSE_MAX_N) and the
@@ -154,7 +181,7 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
             res = math.inf
         if res < best[1]:
             best = (phi, res, complex(P[-1]), th_r)
-        if res <= 1e-13 + rtol * pmax or it == max_iter:
+        if res <= 1e-13 + rtol * pmax or it == max_iter or (it >= patience and res > _QUASI_ABOVE):
             break
         # -dMbar/dphi = D: D_ij = a_i (j < i), d_i (j = i), c_j + e_i (j > i); J = I + W D
         Y = R[:, 2:] * cF                      # g', q' (, k, k-km, k', (k-km)') terms
@@ -276,6 +303,57 @@ def _continuation(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, fo
     return out
 
 
+def _linear_start(lin: np.ndarray, th_lin: float, F: complex, m: float, follower: bool,
+                  L: float, EI: float) -> np.ndarray:
+    """Newton's start: the small-deflection shape rescaled to a plausible tip angle (towards
+    the force for a dead tip force alone, else at most 1.5 rad)."""
+    ath = abs(th_lin)
+    target = min(ath, 1.5)
+    beta = math.atan2(F.imag, F.real)
+    if not follower and m == 0.0 and beta != 0.0 and (beta > 0) == (th_lin > 0):
+        a_ax = max(0.0, -math.cos(beta)) * abs(F) * L * L / EI / 2
+        target = abs(beta) * -math.expm1(-(ath + a_ax) / abs(beta))
+    return (lin / ath) * target if ath > 0 else lin   # not target / ath: overflows for denormal loads
+
+
+def _coarse_start(n: int, L: float, EI: float, F: complex, m: float, follower: bool,
+                  clothoid: bool, nc: int = COARSE_N) -> Optional[Tuple[np.ndarray, int, float]]:
+    """The solution on nc arcs (this path) resampled onto n equal arcs, its iterations and
+    tip angle; None when the coarse model is not solved on this path."""
+    coarse = fast_solve(nc, L, EI, F, m, follower, clothoid=clothoid)
+    if coarse is None:
+        return None
+    return _resample(coarse[0], n), coarse[2], float(coarse[0].sum())
+
+
+def _accepted(phi: np.ndarray, conv: bool, res: float, tip: complex, rtol: float,
+              th_c: Optional[float], warm: bool, dense: bool, th_lin: float, l: np.ndarray,
+              w: np.ndarray, F: complex, m: float, follower: bool, clothoid: bool,
+              lin: np.ndarray, L: float, EI: float, J: Optional[np.ndarray]) -> bool:
+    """Acceptance of a direct solution: converged (to rtol), finite; on the branch of the
+    coarse solution it started from (tip angle within 0.5 rad), or else turned the way the
+    small-deflection beam (or its stiffened version) turns, or hardly turned at all (other
+    branches loop); and the branch check (large loads, warm starts, axial compression)."""
+    if rtol != 1e-12:
+        conv = res <= 1e-13 + rtol * max(_MAXR(phi), -_MINR(phi))
+    if not (conv and np.all(np.isfinite(phi)) and math.isfinite(tip.real)
+            and math.isfinite(tip.imag)):
+        return False
+    if not np.any(phi):
+        return True
+    th = float(phi.sum())
+    if th_c is not None:
+        if abs(th - th_c) >= 0.5:
+            return False
+    elif not (warm or abs(th_lin) < 0.1 or abs(th) < 0.1 or (th > 0) == (th_lin > 0)
+              or (dense and _stiffened_sign(l, w, F, m, follower, clothoid, lin) == (th > 0))):
+        return False
+    if warm or (dense and abs(th_lin) > 0.3) or _compressed(F, th, follower):
+        # N > DENSE_MAX_N: on the coarse model, whose solution had the check for large loads
+        return _stable_at(phi, J, w, None, L, EI, F, m, follower, clothoid)
+    return True
+
+
 def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool,
                initial: Optional[np.ndarray] = None, spacing: str = 'uniform',
                clothoid: bool = False) -> Optional[Tuple]:
@@ -286,58 +364,54 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
     equal arcs), clothoid rates (None for circular arcs)."""
     if m == 0.0 and F == 0:
         return None
-    mi = 20 if clothoid else 12
+    mi = 12
     cl = clothoid
     dense = n <= DENSE_MAX_N
     l, w, lever = _equal_arcs(n, L, EI)
     lin = w * (m + F.imag * lever)    # small-deflection solution
     th_lin = float(lin.sum())
-    it0 = 0
+    graded = spacing == 'graded' and n > 1 and not follower
+    th_c = None        # tip angle of the accepted coarse solution the start came from
     if initial is not None:
-        phi0 = initial
-    elif not dense:
-        coarse = fast_solve(COARSE_N, L, EI, F, m, follower, clothoid=clothoid)
-        if coarse is None:
+        phi0, it0 = initial, 0
+    elif not dense:          # from the COARSE_N solution
+        start = _coarse_start(n, L, EI, F, m, follower, cl, COARSE_N)
+        if start is None:
             return None
-        phi0, it0 = _resample(coarse[0], n), coarse[2]
+        phi0, it0, th_c = start
     else:
-        ath = abs(th_lin)
-        target = min(ath, 1.5)
-        beta = math.atan2(F.imag, F.real)
-        if not follower and m == 0.0 and beta != 0.0 and (beta > 0) == (th_lin > 0):
-            a_ax = max(0.0, -math.cos(beta)) * abs(F) * L * L / EI / 2
-            target = abs(beta) * -math.expm1(-(ath + a_ax) / abs(beta))
-        phi0 = (lin / ath) * target if ath > 0 else lin   # not target / ath: overflows for denormal loads
+        phi0, it0 = _linear_start(lin, th_lin, F, m, follower, L, EI), 0
     # graded: this equal-arc solution only places the arcs; stop it at 1e-9 (an iterate error
     # ~1e-9 moves the tip of the graded solution by ~1e-12 L) -- saves one Newton step
-    graded = spacing == 'graded' and n > 1 and not follower
+    rtol = 1e-9 if graded else 1e-12
     phi, conv, it, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, phi0, mi,
-                                                      rtol=1e-9 if graded else 1e-12, clothoid=cl)
+                                                      rtol=rtol, clothoid=cl,
+                                                      patience=_PATIENCE if th_c is None else mi)
     stepped = it > 0
     it += it0
-    if graded:
-        conv = res <= 1e-13 + 1e-9 * max(_MAXR(phi), -_MINR(phi))
-    finite = conv and np.all(np.isfinite(phi)) and math.isfinite(tip.real) and math.isfinite(tip.imag)
-    th = float(phi.sum())
-    direct = finite and (initial is not None or not np.any(phi) or abs(th_lin) < 0.1
-                         or (th > 0) == (th_lin > 0)
-                         or (dense and _stiffened_sign(l, w, F, m, follower, cl, lin) == (th > 0)))
-    if direct and np.any(phi) and (initial is not None or (dense and abs(th_lin) > 0.3)
-                                   or _compressed(F, th, follower)):
-        # the branch check (large loads, warm starts, axial compression; N > DENSE_MAX_N:
-        # on the coarse model, whose solution had the check for large loads)
-        direct = _stable_at(phi, J, w, None, L, EI, F, m, follower, cl)
-    if not direct:
-        if initial is not None or not dense:
+    direct = _accepted(phi, conv, res, tip, rtol, th_c, initial is not None, dense, th_lin,
+                       l, w, F, m, follower, cl, lin, L, EI, J)
+    if not direct and initial is None and dense and n > _FALLBACK_N:
+        # not the natural branch from this start: from the _FALLBACK_N solution instead
+        start = _coarse_start(n, L, EI, F, m, follower, cl, _FALLBACK_N)
+        if start is None:
             return None
+        phi, conv, it2, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, start[0], mi,
+                                                           rtol=rtol, clothoid=cl)
+        it += it2 + start[1]
+        stepped = it2 > 0
+        direct = _accepted(phi, conv, res, tip, rtol, start[2], False, dense, th_lin,
+                           l, w, F, m, follower, cl, lin, L, EI, J)
+    elif not direct and initial is None and dense:
         # not the natural branch from this start: load from zero on the fast path
         out = _continuation(n, l, w, F, m, follower, cl, lin, mi)
-        if out is None:
-            return None
-        phi, it2, res, tip, rho = out
-        it += it2
-        th = float(phi.sum())
-        J, stepped = None, True
+        if out is not None:
+            phi, it2, res, tip, rho = out
+            it += it2
+            J, stepped, direct = None, True, True
+    if not direct:
+        return None
+    th = float(phi.sum())
     Jw = w
     frac = None
     if graded and not stepped and not res <= 1e-13 + 1e-12 * _MAXR(np.abs(phi)):
