@@ -14,7 +14,8 @@ Where each idea lives:
 * ``linsolve``   the Newton step (dense for small N, O(N) beyond) and the eigenvalue checks;
 * ``globalise``  which equilibrium: direct attempt, load continuation, snap-through, buckling;
 * ``mesh``       graded arc lengths (``spacing='graded'``);
-* ``fast``       the single-case fast path for tip loads;
+* ``fast``       the single-case fast path for tip loads (which equilibrium);
+* ``fast_newton`` its Newton kernel (1-D arrays, LAPACK directly);
 * ``batch``      ``solve_fam_batch``, the general path vectorised over cases;
 * ``status``     outcome codes (``Status``) of ``Shape`` and ``BatchShape``.
 
