@@ -10,6 +10,9 @@ A mutant list is a module ``tests/mutation/<name>.py`` that defines
     TESTS = ['tests/fam_solver', '-k', 'not node']     # pytest arguments for this list
     MUTANTS = [Mutant('M01', 'src/pkg/pkg/mod.py', 'old text', 'new text', 'what it breaks'), ...]
 
+A mutant that survives and is known to be harmless (equivalent in every outcome the package
+promises) carries the reason in ``harmless=``; it is reported as such, not as a failure.
+
 ``old`` must occur exactly once in the file. Safety: a file with uncommitted changes is refused
 (``git diff --quiet``), every mutation is undone in a ``finally`` (also on Ctrl-C), and the
 file's bytes are checked to be the original afterwards. Each pytest run gets a fresh bytecode
@@ -17,7 +20,8 @@ cache directory (PYTHONPYCACHEPREFIX), so no stale .pyc of the original or of an
 can be imported. The selection must pass unmutated first (baseline).
 
 Prints one line per mutant (killed / SURVIVED, seconds) and a summary; exit status 0 when
-every mutant was killed, 1 when some survived, 2 on a usage or baseline error.
+every mutant was killed or is a known harmless survivor, 1 otherwise, 2 on a usage or
+baseline error.
 """
 from __future__ import annotations
 
@@ -42,6 +46,7 @@ class Mutant:
     old: str            # text replaced (must occur exactly once)
     new: str
     why: str            # the property the mutant breaks
+    harmless: str = ''  # for a known survivor: why it does no harm (an equivalent mutant)
 
 
 def load_list(name: str):
@@ -128,11 +133,17 @@ def main(argv=None) -> int:
     killed = sum(r == 'killed' for _, r in results)
     survived = [m for m, r in results if r == 'SURVIVED']
     invalid = [m for m, r in results if r == 'INVALID']
-    print(f'{a.name}: {len(results)} mutants, {killed} killed, {len(survived)} survived'
+    unexplained = [m for m in survived if not m.harmless]
+    print(f'{a.name}: {len(results)} mutants, {killed} killed, {len(survived)} survived '
+          f'({len(survived) - len(unexplained)} known harmless, {len(unexplained)} not)'
           + (f', {len(invalid)} invalid (old text not found once)' if invalid else ''))
     for m in survived:
-        print(f'  survivor {m.id}: {m.why}')
-    return 0 if not survived and not invalid else 1
+        print(f'  survivor {m.id}: {m.why}' +
+              (f' -- harmless: {m.harmless}' if m.harmless else ' -- NOT EXPLAINED'))
+    for m in mutants:
+        if m.harmless and (m, 'killed') in results:
+            print(f'  note: {m.id} is marked harmless but was killed: drop the mark')
+    return 0 if not unexplained and not invalid else 1
 
 
 if __name__ == '__main__':
