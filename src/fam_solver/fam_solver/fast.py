@@ -38,8 +38,7 @@ _CONT_RTOL = 1e-4
 #: (which has the branch checks and, if need be, the load continuation on few arcs)
 _FALLBACK_N = 12
 #: the direct attempt from the small-deflection start is given up after this many Newton
-#: iterations still far from a solution (max|r| > fast_newton.QUASI_ABOVE; the bench cases are below
-#: it after 2-3)
+#: iterations still far from a solution (max|r| > fast_newton.QUASI_ABOVE)
 _PATIENCE = 4
 
 
@@ -261,8 +260,8 @@ def _stiffened_sign(l: np.ndarray, w: np.ndarray, F: complex, m: float, follower
     None when the straight shape is not stable (past buckling). An axial tension stiffens the
     response to a lateral force more than to a moment, so with both the natural branch can
     turn against phi_lin; where phi_lin's sign disagrees with the direct solution, this sign
-    may confirm it (random force + moment loads: it accepted 18 direct solutions that load
-    continuation reaches too, and none that it does not)."""
+    may confirm it (how often, and that it never confirmed a solution load continuation does
+    not reach: package README, design record)."""
     J0 = jacobian_at(np.zeros(l.size), l, w, F, m, follower, clothoid)
     if J0 is None or not energy_stable(J0, w):
         return None

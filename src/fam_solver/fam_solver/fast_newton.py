@@ -90,7 +90,7 @@ def _arc_values(phi: np.ndarray, pmax: float, V: np.ndarray, coef: np.ndarray) -
 
 def _product(V: np.ndarray, coef: np.ndarray) -> np.ndarray:
     """V @ coef in row blocks of _BLOCK: a large product would start BLAS threads, which
-    stall (10x slower) when the machine's cores are busy; blocks this small stay in one."""
+    stall when the machine's cores are busy; blocks this small stay in one thread."""
     n = V.shape[0]
     if n <= _BLOCK:
         return V @ coef
@@ -125,7 +125,7 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     w_r = w / RHO_MAX
     iR = 1j * RHO_MAX
     coef = _COEF8 if clothoid else _COEF4
-    V = np.empty((n, _K_FAST))       # powers phi^0..phi^(K-1) by a running product (** is 3x slower)
+    V = np.empty((n, _K_FAST))       # powers phi^0..phi^(K-1) by a running product (cheaper than **)
     V[:, 0] = 1.0
     for it in range(max_iter + 1):
         th_end = acc(phi)
