@@ -294,8 +294,8 @@ def table_cliffs():
                 cases.append(Loads(tip_force=(F * math.cos(b), F * math.sin(b)), tip_moment=m))
                 labels.append(f'{F} N at {math.degrees(b):.0f} deg, {m * 1e3:+.2f} mN m')
     print('### Tip force with tip moment (Blazer 0.1-0.3 N at 45/90/135 deg, moments +-F L/4; '
-          'N = 12, 48, 100)')
-    ns2 = [12, 48, 100]
+          'N = 12, 24, 48, 100)')
+    ns2 = [12, 24, 48, 100]
     print('| model, spacing | ' + ' | '.join(f'N = {n}' for n in ns2) +
           ' | max slowest/median | median non-decreasing (largest drop) |')
     print('|---|' + '---|' * (len(ns2) + 2))

@@ -197,12 +197,17 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
         start = _coarse_start(n, L, EI, F, m, follower, cl, _FALLBACK_N)
         if start is None:
             return None
-        phi, conv, it2, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, start[0], mi,
-                                                           rtol=rtol, clothoid=cl)
-        it += it2 + start[1]
-        stepped = it2 > 0
+        it += start[1]
+        # the direct solution stands if it is on the coarse solution's branch ...
         direct = _accepted(phi, conv, res, tip, rtol, start[2], False, dense, th_lin,
                            l, w, F, m, follower, cl, lin, L, EI, J)
+        if not direct:      # ... else Newton from the coarse solution
+            phi, conv, it2, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, start[0],
+                                                               mi, rtol=rtol, clothoid=cl)
+            it += it2
+            stepped = it2 > 0
+            direct = _accepted(phi, conv, res, tip, rtol, start[2], False, dense, th_lin,
+                               l, w, F, m, follower, cl, lin, L, EI, J)
     elif not direct and initial is None and dense:
         # not the natural branch from this start: load from zero on the fast path
         out = _continuation(n, l, w, F, m, follower, cl, lin, mi)

@@ -108,7 +108,8 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     clothoid: clothoid arcs (as in evaluate; the Jacobian has the rates' derivatives once
     max|r| < QUASI_ABOVE). N <= DENSE_MAX_N: dense Jacobian (returned); beyond: the O(N)
     banded solve (no Jacobian returned). Gives up after ``patience`` iterations while max|r|
-    is still above QUASI_ABOVE (a start that leads nowhere near a solution).
+    is still above QUASI_ABOVE and fell less than 10x in the last two (a start that leads
+    nowhere near a solution).
 
     Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
     Jacobian of the last Newton step (None if no step was taken or N > DENSE_MAX_N) and the
@@ -127,6 +128,7 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     coef = _COEF8 if clothoid else _COEF4
     V = np.empty((n, _K_FAST))       # powers phi^0..phi^(K-1) by a running product (cheaper than **)
     V[:, 0] = 1.0
+    hist = [math.inf] * 3          # max|r| of the last iterations (for ``patience``)
     for it in range(max_iter + 1):
         th_end = acc(phi)
         lE = l * np.exp(1j * (th_end - phi))
@@ -155,8 +157,10 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
             res = math.inf
         if res < best[1]:
             best = (phi, res, complex(P[-1]), th_r)
-        if res <= 1e-13 + rtol * pmax or it == max_iter or (it >= patience and res > QUASI_ABOVE):
+        if res <= 1e-13 + rtol * pmax or it == max_iter or \
+                (it >= patience and res > QUASI_ABOVE and res > 0.1 * hist[(it - 2) % 3]):
             break
+        hist[it % 3] = res
         # -dMbar/dphi = D: D_ij = a_i (j < i), d_i (j = i), c_j + e_i (j > i); J = I + W D
         Y = R[:, 2:] * cF                      # g', q' (, k, k-km, k', (k-km)') terms
         irc = (1j * rel * cF).imag
