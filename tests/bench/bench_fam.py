@@ -133,8 +133,8 @@ def table1():
         print(f'{name}: {len(cases)} cases, load parameter (|F| L^2 + |M| L)/EI up to {max(alphas):.1f}; '
               f'reference median {t_ref[name] * 1e3:.1f} ms')
     print()
-    hdr = (f'| case set | model | spacing | N | max err %L | mean err %L | order | median wall ms '
-           f'| median cpu ms | vs target 0.2 ms | vs thesis C++ 3 ms | converged |')
+    hdr = ('| case set | model | spacing | N | max err %L | mean err %L | order | median wall ms '
+           '| median cpu ms | vs target 0.2 ms | vs thesis C++ 3 ms | converged |')
     print(hdr)
     print('|' + '---|' * 12)
     summary = {}
