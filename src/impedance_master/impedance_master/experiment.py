@@ -43,7 +43,7 @@ from impedance_master.operator import OPERATORS, experiment_trajectory
 from impedance_master.rendering import DfrRenderer, ImaRenderer
 from sim_slave.vessels import vessel_spec
 
-MODES = ('ima', 'ima_thesis', 'dfr')
+MODES = ('ima', 'ima_thesis', 'dfr', 'anchored')
 EXPERIMENT_II_OUTAGES = ((4.0, 1.0), (8.0, 1.0))
 
 
@@ -98,9 +98,12 @@ class ExperimentConfig:
     vessel_params: Tuple[Tuple[str, float], ...] = ()
     operator: str = 'minjerk'
     operator_params: Tuple[Tuple[str, object], ...] = ()
+    anchoring: str = 'none'
+    anchor_length: float = float('inf')
+    ident_params: Tuple[Tuple[str, object], ...] = ()
 
     def __post_init__(self):
-        for name in ('vessel_params', 'operator_params'):
+        for name in ('vessel_params', 'operator_params', 'ident_params'):
             v = getattr(self, name)
             if isinstance(v, dict):
                 object.__setattr__(self, name, tuple(sorted(v.items())))
@@ -172,8 +175,8 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
                           hand_damping=cfg.hand_damping,
                           seed=seed)
     ident = None
-    if cfg.mode == 'ima':
-        ident = make_identifier(window=1.0, rate=cfg.rate)
+    if cfg.mode in ('ima', 'anchored'):
+        ident = make_identifier(window=1.0, rate=cfg.rate, **dict(cfg.ident_params))
     elif cfg.mode == 'ima_thesis':
         ident = SlidingWindowIdentifier(window=1.0, rate=cfg.rate, offset=cfg.thesis_offset)
     if ident is not None and cfg.pretrain is not None:
@@ -182,7 +185,9 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
         renderer = DfrRenderer(limit=cfg.limit)
     else:
         renderer = ImaRenderer(limit=cfg.limit, dt=dt, blend_time=cfg.blend_time,
-                               max_rate=cfg.max_rate, passivity=cfg.passivity)
+                               max_rate=cfg.max_rate, passivity=cfg.passivity,
+                               anchoring='full' if cfg.mode == 'anchored' else cfg.anchoring,
+                               anchor_length=cfg.anchor_length)
     imp_every = max(1, int(round(cfg.rate / cfg.impedance_rate)))
 
     keys = ('t', 'x_hand', 'x_master', 'xd_master', 'x_slave', 'f_hand', 'f_desired', 'reference',

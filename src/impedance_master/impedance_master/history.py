@@ -3,13 +3,25 @@ history of the slave's data.
 
 Exponentially weighted least squares with a long memory (`HistoryParams.memory` s of motion)
 of the table kind of `impedance.Impedance`: static force, Coulomb and breakaway friction and
-viscous drag as functions of inserted length on a grid, a Dahl friction state for direction
-and presliding, the mass term. Smoothness priors make unvisited grid nodes extrapolate from
+viscous drag as functions of inserted length on a grid, Dahl friction states for direction
+and presliding (their presliding length chosen by the data among `HistoryParams.sigmas`:
+stiff catheters reverse their friction within a fraction of a millimetre, compliant shafts
+and vessel beds over millimetres), the mass term. Smoothness priors make unvisited grid nodes extrapolate from
 visited ones (friction linearly, static force flat); parameters are physically bounded
 (friction, breakaway and drag >= 0, a static force that never pulls the catheter in, a mass
-of grams) by an active-set solve. Samples at rest are not learned from (the model is held).
-Forgetting, priors and bounds make the solve well posed whatever the data: the matrix is
-the data's information plus a positive definite prior, never singular.
+of grams) by an active-set solve (`history_prior`). Samples at rest are not learned from
+(the model is held). Forgetting, priors and bounds make the solve well posed whatever the
+data: the matrix is the data's information plus a positive definite prior, never singular.
+
+Bounded influence: physically impossible samples are refused before they touch any state
+(`gating.SampleGate`: counted in `n_rejected` / `rejected`); the measured force enters the
+fit clipped to the current model's prediction +- a robust band (`HistoryParams.clip_*`,
+counted in `n_clipped`), so one outlier sample of any size moves the fit as one sample with
+a residual of at most that band would. A model outside the `envelope` is not published
+(status 'out_of_envelope', the previous model is held).
+
+Each published model carries an `impedance.Anchor`: the slave's state, measured force and
+low-passed residual at the sample it was made at.
 """
 from __future__ import annotations
 
@@ -20,9 +32,12 @@ from typing import Optional
 import numpy as np
 
 from catheter_common.checks import finite, positive
+from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
 from impedance_master.filters import Differentiator
+from impedance_master.gating import Despiker, SampleGate
 from impedance_master.history_params import HistoryParams
-from impedance_master.impedance import FrictionState, Impedance
+from impedance_master.history_prior import build_prior, candidate_index, n_params
+from impedance_master.impedance import Anchor, FrictionState, Impedance, steady_states
 
 
 class HistoryIdentifier:
@@ -34,12 +49,21 @@ class HistoryIdentifier:
         rate: Hz, sample rate.
         params: a `HistoryParams` (None: the defaults); keyword overrides of its fields may
             be given directly (``HistoryIdentifier(memory=30.0)``).
+        gate: the `SampleGate` refusing impossible samples (None: the default gate).
+        envelope: the `ModelEnvelope` a model must satisfy to be published (None: the default).
     Every field of the params is also an attribute (``ident.memory``), read-only by
     convention; `params` holds them all.
+    Attributes after update: `status` ('filling', 'ok', 'at_rest', 'out_of_envelope',
+    'ill_conditioned'), `n_samples`, `n_moving`, `n_solves`, `n_held`, `n_rejected` and
+    `rejected` (from the gate), `n_clipped` (forces clipped to the robust band),
+    `n_out_of_envelope`, `scale` (N, running mean absolute residual), `last`.
     """
 
+    STATE_VERSION = 2
+
     def __init__(self, window: float = 1.0, rate: float = 1000.0,
-                 params: Optional[HistoryParams] = None, **overrides):
+                 params: Optional[HistoryParams] = None, gate: Optional[SampleGate] = None,
+                 envelope: Optional[ModelEnvelope] = None, **overrides):
         self.window = positive('window', window)
         self.rate = positive('rate', rate)
         if params is None:
@@ -54,63 +78,29 @@ class HistoryIdentifier:
         self.params = p
         for f in fields(p):
             setattr(self, f.name, getattr(p, f.name))
+        if gate is not None and not isinstance(gate, SampleGate):
+            raise ValueError(f'gate must be a SampleGate, got {type(gate).__name__}')
+        self.gate = gate if gate is not None else SampleGate(rate=self.rate)
+        if envelope is not None and not isinstance(envelope, ModelEnvelope):
+            raise ValueError(f'envelope must be a ModelEnvelope, got {type(envelope).__name__}')
+        self.envelope = envelope if envelope is not None else DEFAULT_ENVELOPE
         self.dx = p.dx
         self._nodes = self.x_min + self.dx * np.arange(self.n_nodes)
-        G = self.n_nodes
-        self.P = 4 * G + 1
+        self.P = n_params(p)
+        self._K = len(self.sigmas)
+        self._cand = [candidate_index(p, k) for k in range(self._K)]
         # scales of the feature columns: velocity by V, acceleration by A (coefficients in N)
         self._V = 0.04
         self._A = 1.0
         self._lam = math.exp(-1.0 / (self.memory * self.rate))
-        # second-difference prior on each of the four tables, small ridge on everything
-        D = np.zeros((G - 2, G))
-        for i in range(G - 2):
-            D[i, i:i + 3] = (1.0, -2.0, 1.0)
-        DtD = D.T @ D
-        D1 = np.zeros((G - 1, G))
-        for i in range(G - 1):
-            D1[i, i:i + 2] = (-1.0, 1.0)
-        D1tD1 = D1.T @ D1
-        D3 = np.zeros((G - 3, G))
-        for i in range(G - 3):
-            D3[i, i:i + 4] = (-1.0, 3.0, -3.0, 1.0)
-        D3tD3 = D3.T @ D3
-        Pm = np.zeros((self.P, self.P))
-        for g in range(4):
-            if g == 0:
-                blk = self.smoothness * (D1tD1 if self.static_first_difference else DtD)
-            else:
-                blk = self.friction_smoothness * DtD + self.friction_kink * D3tD3
-            Pm[g * G:(g + 1) * G, g * G:(g + 1) * G] = blk
-        Pm += 1e-6 * np.eye(self.P)
-        # no inserted length, no friction, breakaway or drag: F, B, C vanish at x = 0 (when the
-        # grid reaches it). Anchors the friction's slope when only a few mm have been seen
-        # (else a static bump can take the rise and friction extrapolates flat)
-        if self.origin_weight > 0.0 and self.x_min <= 0.0 <= self.x_max:
-            u = -self.x_min / self.dx
-            j = min(int(u), G - 2)
-            h = np.zeros(G)
-            h[j], h[j + 1] = 1.0 - (u - j), u - j
-            for g in (1, 2, 3):
-                Pm[g * G:(g + 1) * G, g * G:(g + 1) * G] += self.origin_weight * np.outer(h, h)
-        # the static table is shrunk toward 0: a force seen in one direction only is
-        # attributed to friction (which reverses), the usual case in catheter insertion
-        Pm[:G, :G] += self.static_ridge * np.eye(G)
-        # the breakaway table is a refinement seen only near reversals and stops: shrink it
-        Pm[2 * G:3 * G, 2 * G:3 * G] += self.breakaway_ridge * np.eye(G)
-        Pm[3 * G:4 * G, 3 * G:4 * G] += self.viscous_ridge * np.eye(G)
-        self._prior = Pm
-        lo = np.full(self.P, -np.inf)
-        hi = np.full(self.P, np.inf)
-        lo[:G], hi[:G] = self.static_min, self.max_force          # S
-        lo[G:3 * G] = 0.0                                          # F, B >= 0
-        hi[G:3 * G] = self.max_force
-        lo[3 * G:4 * G] = 0.0                                      # C >= 0
-        lo[4 * G], hi[4 * G] = 0.0, self.max_mass * self._A        # mass
-        self._lo, self._hi = lo, hi
+        self._prior, self._lo, self._hi = build_prior(p, self._A)
+        self._res_alpha = (1.0 - math.exp(-1.0 / (self.residual_time * self.rate))
+                           if self.residual_time > 0.0 else 1.0)
+        self._scale_alpha = 1.0 - math.exp(-1.0 / (self.scale_time * self.rate))
         self.reset()
 
     def reset(self) -> None:
+        """Forget everything learned (the gate's counters too)."""
         self._A_mat = np.zeros((self.P, self.P))
         self._b = np.zeros(self.P)
         self._Phi = np.zeros((self.solve_every, self.P))
@@ -118,19 +108,37 @@ class HistoryIdentifier:
         self._rows = 0
         self._moving_in_batch = 0
         self._since_solve = 0
-        self._z = FrictionState(self.sigma, self.v_s, self.beta)
+        self._zs = [FrictionState(sg, self.v_s, self.beta) if sg > 0.0 else None
+                    for sg in self.sigmas]
+        self.selected = self.sigmas.index(self.sigma)     # the rendered candidate
+        self._last_k = self.selected                      # the candidate of `last`
+        self.n_selections = 0
         self._da = Differentiator(self.rate)      # x'' from x' when not given
+        self.gate.reset()
+        self._despike = Despiker()
         self.n_samples = 0
         self.n_moving = 0
         self.n_solves = 0
         self.n_held = 0
+        self.n_clipped = 0
+        self.n_out_of_envelope = 0
         self.status = 'filling'
         self.theta = np.zeros(self.P)
         self.last: Optional[Impedance] = None
+        self._sample = None          # (x, xd, xdd, zs, f) of the latest sample
+        self._res = 0.0              # low-passed residual f - model at the slave's state
+        self.scale = self.clip_floor / max(self.clip_factor, 1.0)
+        self.envelope_reason: Optional[str] = None
 
-    # ------------------------------------------------------------------ persistence (JSON)
-    STATE_VERSION = 1
+    @property
+    def n_rejected(self) -> int:
+        return self.gate.n_rejected
 
+    @property
+    def rejected(self) -> dict:
+        return dict(self.gate.rejected)
+
+    # ------------------------------------------------------------------ persistence
     def get_state(self) -> dict:
         """The learned information (normal equations) as plain JSON-able values."""
         self._flush()
@@ -140,55 +148,66 @@ class HistoryIdentifier:
 
     def set_state(self, state: dict) -> Optional[Impedance]:
         """Continue from `get_state()` output (same grid and friction hyper-parameters);
-        returns the model solved from it (None if it holds too little motion)."""
+        returns the model solved from it (None if it holds too little motion).
+        ValueError (nothing changed) if the state is malformed, of another version or grid,
+        not finite, not a valid information matrix, or gives a model outside the envelope."""
         if not isinstance(state, dict) or state.get('kind') != 'HistoryIdentifier':
             raise ValueError('state must be a dict from HistoryIdentifier.get_state()')
         if state.get('version') != self.STATE_VERSION:
             raise ValueError(f'state version must be {self.STATE_VERSION}, '
                              f'got {state.get("version")!r}')
-        grid = state.get('grid', {})
-        mine = _json_ready(self)
-        for k, v in mine.items():
-            if k not in grid or not math.isclose(float(grid[k]), float(v), rel_tol=1e-12):
+        grid = state.get('grid')
+        if not isinstance(grid, dict):
+            raise ValueError('state grid must be a dict')
+        for k, v in _json_ready(self).items():
+            try:
+                same = k in grid and math.isclose(float(grid[k]), float(v), rel_tol=1e-12)
+            except (TypeError, ValueError):
+                same = False
+            if not same:
                 raise ValueError(f'state grid {k}={grid.get(k)!r} differs from this '
                                  f'identifier\'s {v!r}')
-        A = np.asarray(state.get('A'), dtype=float)
-        b = np.asarray(state.get('b'), dtype=float)
+        try:
+            A = np.asarray(state.get('A'), dtype=float)
+            b = np.asarray(state.get('b'), dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError('state A and b must be numeric arrays') from None
         if A.shape != (self.P, self.P) or b.shape != (self.P,):
             raise ValueError(f'state A must be {self.P}x{self.P} and b {self.P}, got '
                              f'{A.shape} and {b.shape}')
         if not (np.all(np.isfinite(A)) and np.all(np.isfinite(b))):
             raise ValueError('state A and b must be finite')
+        A = 0.5 * (A + A.T)
+        if np.any(np.diag(A) < 0.0) or np.linalg.eigvalsh(A).min() < -1e-9 * max(
+                1.0, float(np.abs(A).max())):
+            raise ValueError('state A must be positive semi-definite (an information matrix)')
         n = state.get('n_moving')
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:
             raise ValueError(f'state n_moving must be an int >= 0, got {n!r}')
+        saved = (self._A_mat, self._b, self.n_moving, self.last, self.theta, self.status)
         self.reset()
-        self._A_mat = 0.5 * (A + A.T)
-        self._b = b
-        self.n_moving = n
-        if n >= self.window * self.rate:
-            return self._solve(moved=True)
-        return None
+        self._A_mat, self._b, self.n_moving = A, b.copy(), n
+        if n < self.window * self.rate:
+            return None
+        model = self._solve(moved=True)
+        if self.status != 'ok':
+            self._A_mat, self._b, self.n_moving, self.last, self.theta, self.status = saved
+            raise ValueError(f'state gives no usable model ({self.status}: '
+                             f'{self.envelope_reason})')
+        return model
 
     def save_state(self, path: str) -> None:
-        """Write `get_state()` as JSON (atomically: temporary file, then rename)."""
-        import json
-        import os
-        tmp = f'{path}.tmp'
-        with open(tmp, 'w', encoding='utf-8') as fh:
-            json.dump(self.get_state(), fh)
-        os.replace(tmp, path)
+        """Write `get_state()` atomically (see `state_file.write_state`)."""
+        from impedance_master.state_file import write_state
+        write_state(path, self.get_state())
 
     def load_state(self, path: str) -> Optional[Impedance]:
-        """Read a JSON file written by `save_state` and continue from it."""
-        import json
-        with open(path, encoding='utf-8') as fh:
-            try:
-                state = json.load(fh)
-            except json.JSONDecodeError as exc:
-                raise ValueError(f'path {path!r} is not a JSON state file: {exc}') from None
-        return self.set_state(state)
+        """Read a JSON file written by `save_state` and continue from it (ValueError if it
+        is unreadable or rejected; see `set_state`)."""
+        from impedance_master.state_file import read_state
+        return self.set_state(read_state(path))
 
+    # ------------------------------------------------------------------ samples
     def update(self, x: float, xd: float, xdd: Optional[float], f: float) -> Optional[Impedance]:
         """Add one sample (x m, x' m/s, x'' m/s^2 or None, measured force f N).
 
@@ -196,43 +215,48 @@ class HistoryIdentifier:
         has no acceleration field, passes; the simulated robot's x'' is exactly that
         difference). Leaving it at 0 instead removes the mass column from the fit, which
         doubled the outage error of the ROS graph against the pure experiment.
+        Non-finite values: ValueError naming the argument. Impossible samples (see
+        `gating.SampleGate`) are counted and ignored.
 
         Returns None until `window` seconds of motion have been seen, then the latest model
         (a new one every `solve_every` samples; the same object in between).
         """
         x = finite('x', x)
         xd = finite('xd', xd)
-        xdd_diff = self._da(xd)
-        xdd = xdd_diff if xdd is None else finite('xdd', xdd)
+        xdd_in = None if xdd is None else finite('xdd', xdd)
         f = finite('f', f)
-        z1, z2 = self._z.update(x, xd)
+        if self.gate.check(x, xd, xdd_in, f) is not None:
+            return self.last
+        if self.gate.resync:                 # the axis really moved there: restart the states
+            for st in self._zs:
+                if st is not None:
+                    st.reset(x, st.z1, st.z2)
+            self._da = Differentiator(self.rate)
+            self._despike.reset((x, xd, xdd_in, f))
+        x, xd, xdd_in, f = self._despike(x, xd, xdd_in, f)
+        xdd_diff = self._da(xd)
+        xdd = xdd_diff if xdd_in is None else xdd_in
+        zs = [st.update(x, xd) if st is not None else steady_states(xd, self.v_s, self.beta)
+              for st in self._zs]
+        z = zs[self._last_k]
         self.n_samples += 1
+        model = self.last
+        if model is not None and model.valid:
+            pred = model.force(x, xd, xdd, z)
+            r = f - pred
+            band = max(self.clip_floor, self.clip_factor * self.scale)
+            if self.clip_factor > 0.0 and abs(r) > band:
+                self.n_clipped += 1
+                r = math.copysign(band, r)
+            f_fit = pred + r
+            self.scale += self._scale_alpha * (min(abs(r), 3.0 * self.scale + 1e-4)
+                                               - self.scale)
+            self._res += self._res_alpha * (r - self._res)
+        else:
+            f_fit = f
+        self._sample = (x, xd, xdd, zs, f)
         if abs(xd) >= self.rest_velocity:
-            G = self.n_nodes
-            u = (x - self.x_min) / self.dx
-            if u <= 0.0:
-                j, w = 0, 0.0
-            elif u >= G - 1:
-                j, w = G - 2, 1.0
-            else:
-                j = int(u)
-                w = u - j
-            w0 = 1.0 - w
-            dz = z2 - z1
-            vz = xd / self._V
-            row = self._Phi[self._rows]
-            row[j] = w0
-            row[j + 1] = w
-            row[G + j] = w0 * z1
-            row[G + j + 1] = w * z1
-            row[2 * G + j] = w0 * dz
-            row[2 * G + j + 1] = w * dz
-            row[3 * G + j] = w0 * vz
-            row[3 * G + j + 1] = w * vz
-            row[4 * G] = xdd / self._A
-            self._f[self._rows] = f
-            self._rows += 1
-            self.n_moving += 1
+            self._add_row(x, xd, xdd, zs, f_fit)
         self._since_solve += 1
         if self._since_solve >= self.solve_every or self._rows >= self.solve_every:
             self._flush()
@@ -241,6 +265,37 @@ class HistoryIdentifier:
                 return self._solve(moved=self._moving_in_batch > 0)
             return None
         return self.last
+
+    def _add_row(self, x, xd, xdd, zs, f) -> None:
+        G = self.n_nodes
+        u = (x - self.x_min) / self.dx
+        if u <= 0.0:
+            j, w = 0, 0.0
+        elif u >= G - 1:
+            j, w = G - 2, 1.0
+        else:
+            j = int(u)
+            w = u - j
+        w0 = 1.0 - w
+        row = self._Phi[self._rows]
+        row[j] = w0
+        row[j + 1] = w
+        g = G
+        for z1, z2 in zs:
+            row[g + j] = w0 * z1
+            row[g + j + 1] = w * z1
+            g += G
+            dz = z2 - z1
+            row[g + j] = w0 * dz
+            row[g + j + 1] = w * dz
+            g += G
+        vz = xd / self._V
+        row[g + j] = w0 * vz
+        row[g + j + 1] = w * vz
+        row[-1] = xdd / self._A
+        self._f[self._rows] = f
+        self._rows += 1
+        self.n_moving += 1
 
     def _flush(self) -> None:
         k = self._rows
@@ -256,54 +311,106 @@ class HistoryIdentifier:
         self._Phi[:k] = 0.0
         self._rows = 0
 
-    def _solve(self, moved: bool) -> Impedance:
+    # ------------------------------------------------------------------ solve
+    def _hold(self, status: str) -> Optional[Impedance]:
+        self.status = status
+        self.n_held += 1
+        if self.last is None:
+            return Impedance(valid=False, status=status)
+        return self.last
+
+    def _solve_candidate(self, k: int):
+        """(theta of candidate k in Impedance order, penalised objective) by an active-set
+        solve within the bounds."""
+        idx = self._cand[k]
+        M = self._A_mat[np.ix_(idx, idx)] + self._prior[np.ix_(idx, idx)]
+        b = self._b[idx]
+        lo, hi = self._lo[idx], self._hi[idx]
+        n = idx.size
+        free = np.ones(n, dtype=bool)
+        theta = np.zeros(n)
+        for _ in range(4):  # active set: clamp violated bounds, re-solve the rest
+            fi = np.flatnonzero(free)
+            rhs = b[fi] - M[np.ix_(fi, ~free)] @ theta[~free]
+            theta[fi] = np.linalg.solve(M[np.ix_(fi, fi)], rhs)
+            bad = free & ((theta < lo) | (theta > hi))
+            if not bad.any():
+                break
+            theta[bad] = np.clip(theta[bad], lo[bad], hi[bad])
+            free &= ~bad
+        theta = np.clip(theta, lo, hi)
+        return theta, float(theta @ M @ theta - 2.0 * b @ theta)
+
+    def _select(self) -> None:
+        """Render the candidate presliding length whose penalised fit is best, if it beats
+        the current one by more than select_margin residual variances."""
+        if self._K == 1:
+            return
+        cur = self.selected
+        objs = [self._solve_candidate(k)[1] for k in range(self._K)]
+        best = int(np.argmin(objs))
+        var = (1.25 * self.scale) ** 2
+        if best != cur and objs[cur] - objs[best] > self.select_margin * var:
+            self.selected = best
+            self.n_selections += 1
+
+    def _solve(self, moved: bool) -> Optional[Impedance]:
         if not moved and self.last is not None:
             self.status = 'at_rest'
             self.n_held += 1
             self.last.status = 'at_rest'
             return self.last
-        M = self._A_mat + self._prior
-        b = self._b.copy()
-        free = np.ones(self.P, dtype=bool)
-        theta = np.zeros(self.P)
-        for _ in range(4):  # active set: clamp violated bounds, re-solve the rest
-            idx = np.flatnonzero(free)
-            rhs = b[idx] - M[np.ix_(idx, ~free)] @ theta[~free]
-            theta[idx] = np.linalg.solve(M[np.ix_(idx, idx)], rhs)
-            bad = free & ((theta < self._lo) | (theta > self._hi))
-            if not bad.any():
-                break
-            theta[bad] = np.clip(theta[bad], self._lo[bad], self._hi[bad])
-            free &= ~bad
-        theta = np.clip(theta, self._lo, self._hi)
+        if self.n_solves % self.select_every == 0:
+            self._select()
+        theta, _ = self._solve_candidate(self.selected)
         if not np.all(np.isfinite(theta)):
-            self.status = 'ill_conditioned'
-            self.n_held += 1
-            return self.last if self.last is not None else Impedance(valid=False,
-                                                                     status=self.status)
+            return self._hold('ill_conditioned')
+        new = self._model(theta)
+        self.envelope_reason = self.envelope.check(new)
+        if self.envelope_reason is not None:
+            self.n_out_of_envelope += 1
+            return self._hold('out_of_envelope')
         self.theta = theta
         self.n_solves += 1
         self.status = 'ok'
+        smp = self._sample
+        if smp is not None:
+            x, xd, xdd, zs, f = smp
+            z = zs[self.selected]
+            m_new = new.force(x, xd, xdd, z)
+            if self.last is not None and self.last.valid:   # the residual w.r.t. the new model
+                self._res += self.last.force(x, xd, xdd, zs[self._last_k]) - m_new
+            else:
+                self._res = f - m_new
+            new.anchor = Anchor(x, xd, xdd, z[0], z[1], f, self._res)
+        self.last = new
+        self._last_k = self.selected
+        return new
+
+    def _model(self, theta: np.ndarray) -> Impedance:
+        """The Impedance of a candidate's parameters (S, F, B, C, mass). The linear part goes
+        in m, c, k, offset (the thesis's terms): the straight line through the static table
+        and the mean drag, weighted by how much data each node has seen; the tables keep
+        the rest, so force() is unchanged on the grid (outside it the linear part continues
+        while the tables hold their end values)."""
         G = self.n_nodes
-        # report the linear part in m, c, k, offset (the thesis's terms): the straight line
-        # through the static table and the mean drag, weighted by how much data each node
-        # has seen; the tables keep the rest, so force() is unchanged on the grid (outside
-        # it the linear part continues while the tables hold their end values)
         S = theta[:G]
         C = theta[3 * G:4 * G] / self._V
-        info = np.diag(self._A_mat)
+        idx = self._cand[self.selected]
+        info = np.diag(self._A_mat)[idx]
         w = info[:G] + 1e-9
         k, off = np.polyfit(self._nodes, S, 1, w=np.sqrt(w))
         wc = info[3 * G:4 * G] + 1e-9
         c = float(np.sum(wc * C) / np.sum(wc))
-        self.last = Impedance(
-            m=float(theta[4 * G]) / self._A, c=c, k=float(k), offset=float(off), valid=True,
-            x0=self.x_min, dx=self.dx, sigma=self.sigma, v_s=self.v_s, beta=self.beta,
-            S=(S - (k * self._nodes + off)).tolist(), F=theta[G:2 * G].tolist(),
+        return Impedance(
+            m=float(theta[-1]) / self._A, c=c, k=float(k), offset=float(off), valid=True,
+            x0=self.x_min, dx=self.dx, sigma=self.sigmas[self.selected], v_s=self.v_s,
+            beta=self.beta, S=(S - (k * self._nodes + off)).tolist(), F=theta[G:2 * G].tolist(),
             B=theta[2 * G:3 * G].tolist(), C=(C - c).tolist(), status='ok')
-        return self.last
 
 
 def _json_ready(ident: HistoryIdentifier) -> dict:
-    return {'x_min': ident.x_min, 'x_max': ident.x_max, 'n_nodes': ident.n_nodes,
-            'sigma': ident.sigma, 'v_s': ident.v_s, 'beta': ident.beta}
+    d = {'x_min': ident.x_min, 'x_max': ident.x_max, 'n_nodes': ident.n_nodes,
+         'v_s': ident.v_s, 'beta': ident.beta, 'n_sigmas': len(ident.sigmas)}
+    d.update({f'sigma{i}': v for i, v in enumerate(ident.sigmas)})
+    return d

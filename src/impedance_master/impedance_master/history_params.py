@@ -7,6 +7,7 @@ much as w samples of data at that grid node).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
+from typing import Tuple
 
 from catheter_common.checks import finite, nonneg, positive
 
@@ -24,7 +25,19 @@ class HistoryParams:
     Grid and friction states:
         x_min, x_max: m, range of the inserted-length grid (outside: constant extrapolation).
         n_nodes: grid nodes (3..128).
-        sigma: m, presliding length of the friction states.
+        sigma: m, presliding length of the friction states at the start (until the data
+            select another of `sigmas`).
+        sigmas: m, candidate presliding lengths (must contain sigma; 0 is the stateless
+            friction law: friction follows the velocity, tanh(x' / v_s), and vanishes at
+            rest, as a smooth Coulomb law does). The fit keeps a friction bank (F and B
+            tables on friction states of that length) per candidate and, every
+            `select_every` solves, renders the candidate whose penalised fit is best by
+            more than `select_margin` residual variances (the current one otherwise): a
+            catheter whose shaft or vessel bed is compliant reverses its friction over
+            millimetres, not the 0.3 mm of a stiff one, some friction holds at rest and
+            some does not, and the reversals and slow motions show which.
+        select_every: solves between selections; select_margin: see sigmas (in units of
+            the running residual variance, i.e. samples' worth of noise).
         v_s: m/s, velocity scale of the breakaway (Stribeck) state; beta: its relative height
             (the learned B table scales it; beta only shapes the state's dynamics).
     Memory and cadence:
@@ -64,12 +77,25 @@ class HistoryParams:
         static_min: N, lower bound of S (0: a vessel pushes back on a catheter, it does not
             pull it in; what a one-direction fit would put as negative static force is
             friction or drag). Must lie in [-max_force, max_force).
+    Anchor:
+        residual_time: s, time constant of the low-pass of the residual (measured force minus
+            the current model at the slave's state) sent in each model's `Anchor` (0: raw).
+    Bounded influence (robust fit):
+        clip_floor: N, clip_factor: the measured force enters the fit clipped to the current
+            model's prediction +- max(clip_floor, clip_factor * scale), where scale is the
+            running mean absolute residual (time constant scale_time s of samples, itself
+            fed with residuals clipped at 3 scales). One outlier of any size moves the fit
+            as one sample with that residual would (clip_factor 0: no clipping).
+        scale_time: s.
     """
 
     x_min: float = 0.0
     x_max: float = 0.08
     n_nodes: int = 17
     sigma: float = 3e-4
+    sigmas: Tuple[float, ...] = (3e-4,)
+    select_every: int = 5
+    select_margin: float = 20.0
     v_s: float = 0.002
     beta: float = 0.5
     memory: float = 60.0
@@ -86,6 +112,10 @@ class HistoryParams:
     max_mass: float = 0.05
     max_force: float = 5.0
     static_min: float = 0.0
+    residual_time: float = 0.1
+    clip_floor: float = 1.0
+    clip_factor: float = 10.0
+    scale_time: float = 1.0
 
     def __post_init__(self):
         finite('x_min', self.x_min)
@@ -94,11 +124,23 @@ class HistoryParams:
             raise ValueError(f'x_max must be > x_min, got {self.x_max!r} <= {self.x_min!r}')
         _int('n_nodes', self.n_nodes, 3, 128)
         _int('solve_every', self.solve_every, 1, 100_000)
-        for name in ('sigma', 'v_s', 'beta', 'memory', 'rest_velocity', 'smoothness',
-                     'friction_smoothness', 'static_ridge', 'breakaway_ridge', 'viscous_ridge',
-                     'max_mass', 'max_force'):
+        _int('select_every', self.select_every, 1, 100_000)
+        sig = self.sigmas
+        if isinstance(sig, list):
+            object.__setattr__(self, 'sigmas', tuple(sig))
+        if not isinstance(self.sigmas, tuple) or not 1 <= len(self.sigmas) <= 8:
+            raise ValueError(f'sigmas must be a tuple of 1..8 lengths, got {sig!r}')
+        for i, v in enumerate(self.sigmas):
+            nonneg(f'sigmas[{i}]', v)
+        if self.sigma not in self.sigmas:
+            raise ValueError(f'sigma {self.sigma!r} must be one of sigmas {self.sigmas!r}')
+        nonneg('sigma', self.sigma)
+        for name in ('v_s', 'beta', 'memory', 'rest_velocity', 'smoothness',
+                     'scale_time', 'friction_smoothness', 'static_ridge', 'breakaway_ridge',
+                     'viscous_ridge', 'max_mass', 'max_force'):
             positive(name, getattr(self, name))
-        for name in ('friction_kink', 'origin_weight'):
+        for name in ('friction_kink', 'origin_weight', 'residual_time', 'clip_floor',
+                     'clip_factor', 'select_margin'):
             nonneg(name, getattr(self, name))
         if not isinstance(self.static_first_difference, bool):
             raise ValueError('static_first_difference must be a bool, got '
