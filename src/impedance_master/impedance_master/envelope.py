@@ -18,6 +18,8 @@ import math
 from dataclasses import dataclass
 from typing import Optional
 
+import numpy as np
+
 from catheter_common.checks import finite, positive
 from impedance_master.impedance import Impedance
 
@@ -111,43 +113,27 @@ class ModelEnvelope:
 
     def force_bound(self, imp: Impedance) -> float:
         """Largest |force| (N) `imp` predicts over the workspace (see class doc); inf if it
-        overflows."""
-        try:
-            dyn = abs(imp.m) * self.max_accel
+        overflows. The bound is a sum of terms each piecewise linear in x, so its maximum
+        over x is at a grid node or at an end of the workspace."""
+        with np.errstate(all='ignore'):
             xs = [self.x_lo, self.x_hi]
-            if imp.S is not None:
-                n = len(imp.S)
-                xs += [imp.x0 + i * imp.dx for i in range(n)
-                       if self.x_lo < imp.x0 + i * imp.dx < self.x_hi]
-            worst = 0.0
-            for x in xs:
-                worst = max(worst, self._bound_at(imp, x))
-            out = dyn + worst
-        except OverflowError:
-            return math.inf
-        return out if math.isfinite(out) else math.inf
-
-    def _bound_at(self, imp: Impedance, x: float) -> float:
-        static = imp.k * x + imp.offset
-        damping = imp.c
-        fric = 0.0
-        if imp.S is not None:
-            n1 = len(imp.S) - 1
-            u = (x - imp.x0) / imp.dx
-            if u <= 0.0:
-                j, w = 0, 0.0
-            elif u >= n1:
-                j, w = n1 - 1, 1.0
+            if imp.S is None:
+                x = np.asarray(xs)
+                static = imp.k * x + imp.offset
+                damping = np.full(2, imp.c)
+                fric = 0.0
             else:
-                j = int(u)
-                w = u - j
-
-            def at(t):
-                return (1.0 - w) * t[j] + w * t[j + 1]
-            static += at(imp.S)
-            damping += at(imp.C)
-            fric = abs(at(imp.F)) + (2.0 + imp.beta) * abs(at(imp.B))
-        return abs(static) + abs(damping) * self.max_speed + fric
+                n = len(imp.S)
+                nodes = imp.x0 + imp.dx * np.arange(n)
+                x = np.concatenate([xs, nodes[(nodes > self.x_lo) & (nodes < self.x_hi)]])
+                grid = lambda t: np.interp(x, nodes, np.asarray(t, dtype=float))  # noqa: E731
+                static = imp.k * x + imp.offset + grid(imp.S)
+                damping = imp.c + grid(imp.C)
+                fric = np.abs(grid(imp.F)) + (2.0 + imp.beta) * np.abs(grid(imp.B))
+            total = (np.abs(static) + np.abs(damping) * self.max_speed + fric).max() \
+                + abs(imp.m) * self.max_accel
+        out = float(total)
+        return out if math.isfinite(out) else math.inf
 
 
 #: the envelope every identifier and renderer uses unless given another

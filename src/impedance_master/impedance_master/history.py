@@ -30,6 +30,7 @@ from dataclasses import fields, replace
 from typing import Optional
 
 import numpy as np
+from scipy.linalg import cho_factor, cho_solve
 
 from catheter_common.checks import finite, positive
 from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
@@ -94,6 +95,10 @@ class HistoryIdentifier:
         self._A = 1.0
         self._lam = math.exp(-1.0 / (self.memory * self.rate))
         self._prior, self._lo, self._hi = build_prior(p, self._A)
+        # per candidate: its prior block and bounds (constant), for the solves
+        self._cand_prior = [self._prior[np.ix_(i, i)] for i in self._cand]
+        self._cand_lo = [self._lo[i] for i in self._cand]
+        self._cand_hi = [self._hi[i] for i in self._cand]
         self._res_alpha = (1.0 - math.exp(-1.0 / (self.residual_time * self.rate))
                            if self.residual_time > 0.0 else 1.0)
         self._scale_alpha = 1.0 - math.exp(-1.0 / (self.scale_time * self.rate))
@@ -103,6 +108,11 @@ class HistoryIdentifier:
         """Forget everything learned (the gate's counters too)."""
         self._A_mat = np.zeros((self.P, self.P))
         self._b = np.zeros(self.P)
+        # the same information from the samples where the candidates' friction states are
+        # in transition (after a reversal or a start from rest): where presliding shows
+        self._A_rev = np.zeros((self.P, self.P))
+        self._b_rev = np.zeros(self.P)
+        self._rev = np.zeros(self.solve_every, dtype=bool)
         self._Phi = np.zeros((self.solve_every, self.P))
         self._f = np.zeros(self.solve_every)
         self._rows = 0
@@ -111,6 +121,7 @@ class HistoryIdentifier:
         self._zs = [FrictionState(sg, self.v_s, self.beta) if sg > 0.0 else None
                     for sg in self.sigmas]
         self.selected = self.sigmas.index(self.sigma)     # the rendered candidate
+
         self._last_k = self.selected                      # the candidate of `last`
         self.n_selections = 0
         self._da = Differentiator(self.rate)      # x'' from x' when not given
@@ -140,17 +151,17 @@ class HistoryIdentifier:
 
     # ------------------------------------------------------------------ persistence
     def get_state(self) -> dict:
-        """The learned information (normal equations) as plain JSON-able values."""
+        """The learned information (normal equations, also those of the transition samples
+        that select the presliding length) as plain JSON-able values."""
         self._flush()
         return {'version': self.STATE_VERSION, 'kind': 'HistoryIdentifier',
                 'grid': _json_ready(self), 'n_moving': int(self.n_moving),
-                'A': self._A_mat.tolist(), 'b': self._b.tolist()}
+                'selected': int(self.selected),
+                'A': self._A_mat.tolist(), 'b': self._b.tolist(),
+                'A_rev': self._A_rev.tolist(), 'b_rev': self._b_rev.tolist()}
 
-    def set_state(self, state: dict) -> Optional[Impedance]:
-        """Continue from `get_state()` output (same grid and friction hyper-parameters);
-        returns the model solved from it (None if it holds too little motion).
-        ValueError (nothing changed) if the state is malformed, of another version or grid,
-        not finite, not a valid information matrix, or gives a model outside the envelope."""
+    def _parse_state(self, state) -> dict:
+        """The validated arrays of a `get_state()` dict (ValueError naming what is wrong)."""
         if not isinstance(state, dict) or state.get('kind') != 'HistoryIdentifier':
             raise ValueError('state must be a dict from HistoryIdentifier.get_state()')
         if state.get('version') != self.STATE_VERSION:
@@ -167,34 +178,56 @@ class HistoryIdentifier:
             if not same:
                 raise ValueError(f'state grid {k}={grid.get(k)!r} differs from this '
                                  f'identifier\'s {v!r}')
-        try:
-            A = np.asarray(state.get('A'), dtype=float)
-            b = np.asarray(state.get('b'), dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError('state A and b must be numeric arrays') from None
-        if A.shape != (self.P, self.P) or b.shape != (self.P,):
-            raise ValueError(f'state A must be {self.P}x{self.P} and b {self.P}, got '
-                             f'{A.shape} and {b.shape}')
-        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(b))):
-            raise ValueError('state A and b must be finite')
-        A = 0.5 * (A + A.T)
-        if np.any(np.diag(A) < 0.0) or np.linalg.eigvalsh(A).min() < -1e-9 * max(
-                1.0, float(np.abs(A).max())):
-            raise ValueError('state A must be positive semi-definite (an information matrix)')
+        out = {}
+        for name, shape in (('A', (self.P, self.P)), ('b', (self.P,)),
+                            ('A_rev', (self.P, self.P)), ('b_rev', (self.P,))):
+            try:
+                a = np.asarray(state.get(name), dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(f'state {name} must be a numeric array') from None
+            if a.shape != shape:
+                raise ValueError(f'state {name} must have shape {shape}, got {a.shape}')
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f'state {name} must be finite')
+            if a.ndim == 2:
+                a = 0.5 * (a + a.T)
+                if np.linalg.eigvalsh(a).min() < -1e-9 * max(1.0, float(np.abs(a).max())):
+                    raise ValueError(f'state {name} must be positive semi-definite (an '
+                                     'information matrix)')
+            out[name] = a
         n = state.get('n_moving')
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:
             raise ValueError(f'state n_moving must be an int >= 0, got {n!r}')
-        saved = (self._A_mat, self._b, self.n_moving, self.last, self.theta, self.status)
+        k = state.get('selected')
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < self._K:
+            raise ValueError(f'state selected must be an int in 0..{self._K - 1}, got {k!r}')
+        out['n_moving'], out['selected'] = n, k
+        return out
+
+    def _install(self, arrays: dict) -> Optional[Impedance]:
         self.reset()
-        self._A_mat, self._b, self.n_moving = A, b.copy(), n
-        if n < self.window * self.rate:
+        self._A_mat, self._b = arrays['A'], arrays['b'].copy()
+        self._A_rev, self._b_rev = arrays['A_rev'], arrays['b_rev'].copy()
+        self.n_moving, self.selected = arrays['n_moving'], arrays['selected']
+        self._last_k = self.selected
+        if self.n_moving < self.window * self.rate:
             return None
-        model = self._solve(moved=True)
-        if self.status != 'ok':
-            self._A_mat, self._b, self.n_moving, self.last, self.theta, self.status = saved
-            raise ValueError(f'state gives no usable model ({self.status}: '
-                             f'{self.envelope_reason})')
-        return model
+        return self._solve(moved=True)
+
+    def set_state(self, state: dict) -> Optional[Impedance]:
+        """Continue from `get_state()` output (same grid and friction hyper-parameters);
+        returns the model solved from it (None if it holds too little motion).
+        ValueError, and nothing changed, if the state is malformed, of another version or
+        grid, not finite, not an information matrix, or gives no model inside the envelope
+        (a tampered file)."""
+        arrays = self._parse_state(state)
+        probe = HistoryIdentifier(window=self.window, rate=self.rate, params=self.params,
+                                  envelope=self.envelope)
+        probe._install(arrays)
+        if probe.n_moving >= self.window * self.rate and probe.status != 'ok':
+            raise ValueError(f'state gives no usable model ({probe.status}: '
+                             f'{probe.envelope_reason})')
+        return self._install(arrays)
 
     def save_state(self, path: str) -> None:
         """Write `get_state()` atomically (see `state_file.write_state`)."""
@@ -294,6 +327,7 @@ class HistoryIdentifier:
         row[g + j + 1] = w * vz
         row[-1] = xdd / self._A
         self._f[self._rows] = f
+        self._rev[self._rows] = any(abs(z[0]) < 0.95 for z in zs)
         self._rows += 1
         self.n_moving += 1
 
@@ -308,6 +342,14 @@ class HistoryIdentifier:
         self._b *= decay
         self._A_mat += Phi.T @ Phi
         self._b += Phi.T @ self._f[:k]
+        if self._K > 1:
+            self._A_rev *= decay
+            self._b_rev *= decay
+            rev = self._rev[:k]
+            if rev.any():
+                Pr = Phi[rev]
+                self._A_rev += Pr.T @ Pr
+                self._b_rev += Pr.T @ self._f[:k][rev]
         self._Phi[:k] = 0.0
         self._rows = 0
 
@@ -320,34 +362,42 @@ class HistoryIdentifier:
         return self.last
 
     def _solve_candidate(self, k: int):
-        """(theta of candidate k in Impedance order, penalised objective) by an active-set
-        solve within the bounds."""
+        """(theta of candidate k in Impedance order, penalised objective): solve, clamp the
+        parameters outside their bounds, re-solve the others, at most 4 rounds (bounds once
+        clamped stay clamped: the tuned behaviour of the default; then clipped into the
+        box)."""
         idx = self._cand[k]
-        M = self._A_mat[np.ix_(idx, idx)] + self._prior[np.ix_(idx, idx)]
+        M = self._A_mat[np.ix_(idx, idx)]
+        M += self._cand_prior[k]
         b = self._b[idx]
-        lo, hi = self._lo[idx], self._hi[idx]
-        n = idx.size
-        free = np.ones(n, dtype=bool)
-        theta = np.zeros(n)
-        for _ in range(4):  # active set: clamp violated bounds, re-solve the rest
-            fi = np.flatnonzero(free)
-            rhs = b[fi] - M[np.ix_(fi, ~free)] @ theta[~free]
-            theta[fi] = np.linalg.solve(M[np.ix_(fi, fi)], rhs)
+        lo, hi = self._cand_lo[k], self._cand_hi[k]
+        free = np.ones(idx.size, dtype=bool)
+        theta = _spd_solve(M, b)
+        for _ in range(3):
             bad = free & ((theta < lo) | (theta > hi))
             if not bad.any():
                 break
             theta[bad] = np.clip(theta[bad], lo[bad], hi[bad])
             free &= ~bad
+            fi = np.flatnonzero(free)
+            rhs = b[fi] - M[np.ix_(fi, np.flatnonzero(~free))] @ theta[~free]
+            theta[fi] = _spd_solve(M[np.ix_(fi, fi)], rhs)
         theta = np.clip(theta, lo, hi)
         return theta, float(theta @ M @ theta - 2.0 * b @ theta)
 
     def _select(self) -> None:
-        """Render the candidate presliding length whose penalised fit is best, if it beats
-        the current one by more than select_margin residual variances."""
+        """Render the candidate presliding length whose fit (on all data) is best on the
+        samples where friction states are in transition, if it beats the current one there
+        by more than select_margin residual variances."""
         if self._K == 1:
             return
         cur = self.selected
-        objs = [self._solve_candidate(k)[1] for k in range(self._K)]
+        objs = []
+        for k in range(self._K):
+            theta, _ = self._solve_candidate(k)
+            idx = self._cand[k]
+            objs.append(float(theta @ self._A_rev[np.ix_(idx, idx)] @ theta
+                              - 2.0 * self._b_rev[idx] @ theta))
         best = int(np.argmin(objs))
         var = (1.25 * self.scale) ** 2
         if best != cur and objs[cur] - objs[best] > self.select_margin * var:
@@ -398,15 +448,33 @@ class HistoryIdentifier:
         C = theta[3 * G:4 * G] / self._V
         idx = self._cand[self.selected]
         info = np.diag(self._A_mat)[idx]
-        w = info[:G] + 1e-9
-        k, off = np.polyfit(self._nodes, S, 1, w=np.sqrt(w))
+        k, off = _line(self._nodes, S, info[:G] + 1e-9)
         wc = info[3 * G:4 * G] + 1e-9
         c = float(np.sum(wc * C) / np.sum(wc))
-        return Impedance(
-            m=float(theta[-1]) / self._A, c=c, k=float(k), offset=float(off), valid=True,
-            x0=self.x_min, dx=self.dx, sigma=self.sigmas[self.selected], v_s=self.v_s,
-            beta=self.beta, S=(S - (k * self._nodes + off)).tolist(), F=theta[G:2 * G].tolist(),
-            B=theta[2 * G:3 * G].tolist(), C=(C - c).tolist(), status='ok')
+        return Impedance.from_arrays(
+            float(theta[-1]) / self._A, c, k, off, x0=self.x_min, dx=self.dx,
+            sigma=self.sigmas[self.selected], v_s=self.v_s, beta=self.beta,
+            S=S - (k * self._nodes + off), F=theta[G:2 * G], B=theta[2 * G:3 * G], C=C - c,
+            status='ok')
+
+
+def _spd_solve(M: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve M x = b for a symmetric positive definite M (Cholesky; LU if that fails)."""
+    try:
+        return cho_solve(cho_factor(M, check_finite=False), b, check_finite=False)
+    except np.linalg.LinAlgError:
+        return np.linalg.solve(M, b)
+
+
+def _line(x: np.ndarray, y: np.ndarray, w: np.ndarray):
+    """(slope, intercept) of the least-squares line through (x, y) with weights w."""
+    sw = w.sum()
+    mx = (w * x).sum() / sw
+    my = (w * y).sum() / sw
+    dx = x - mx
+    sxx = (w * dx * dx).sum()
+    k = (w * dx * (y - my)).sum() / sxx if sxx > 0.0 else 0.0
+    return float(k), float(my - k * mx)
 
 
 def _json_ready(ident: HistoryIdentifier) -> dict:

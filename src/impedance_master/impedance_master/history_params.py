@@ -37,7 +37,11 @@ class HistoryParams:
             millimetres, not the 0.3 mm of a stiff one, some friction holds at rest and
             some does not, and the reversals and slow motions show which.
         select_every: solves between selections; select_margin: see sigmas (in units of
-            the running residual variance, i.e. samples' worth of noise).
+            the running residual variance, i.e. samples' worth of noise). 100: two fits
+            with 2 n_nodes = 34 free parameters each differ by chance by a chi-square of up
+            to 2 x 34 degrees of freedom, whose 99th percentile is about 100; a candidate
+            must fit better than that to be rendered (after a reversal the true one wins
+            by thousands).
         v_s: m/s, velocity scale of the breakaway (Stribeck) state; beta: its relative height
             (the learned B table scales it; beta only shapes the state's dynamics).
     Memory and cadence:
@@ -93,9 +97,9 @@ class HistoryParams:
     x_max: float = 0.08
     n_nodes: int = 17
     sigma: float = 3e-4
-    sigmas: Tuple[float, ...] = (3e-4,)
-    select_every: int = 5
-    select_margin: float = 20.0
+    sigmas: Tuple[float, ...] = (3e-4, 1e-3, 3e-3)
+    select_every: int = 10
+    select_margin: float = 100.0
     v_s: float = 0.002
     beta: float = 0.5
     memory: float = 60.0

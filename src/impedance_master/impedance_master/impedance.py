@@ -194,6 +194,24 @@ class Impedance:
             self.anchor = Anchor(*(finite(f'anchor.{n}', v)
                                    for n, v in zip(Anchor._fields, anchor)))
 
+    @classmethod
+    def from_arrays(cls, m: float, c: float, k: float, offset: float, *, x0: float,
+                    dx: float, sigma: float, v_s: float, beta: float, S, F, B, C,
+                    status: str = '') -> 'Impedance':
+        """A valid table model from numpy arrays (one vectorised finiteness check instead
+        of one per node; the identifiers' fast path). ValueError if anything is not finite."""
+        import numpy as np
+        tabs = [np.asarray(t, dtype=float) for t in (S, F, B, C)]
+        n = tabs[0].size
+        if any(t.shape != (n,) for t in tabs) or not 2 <= n <= MAX_NODES:
+            raise ValueError(f'S, F, B, C must be 1-D of one length in 2..{MAX_NODES}')
+        if not all(bool(np.all(np.isfinite(t))) for t in tabs):
+            raise ValueError('S, F, B, C must be finite')
+        imp = cls(m, c, k, offset, True, x0=x0, dx=dx, sigma=sigma, v_s=v_s, beta=beta,
+                  status=status)
+        imp.S, imp.F, imp.B, imp.C = (t.tolist() for t in tabs)
+        return imp
+
     # ------------------------------------------------------------------ evaluation
     @property
     def kind(self) -> int:
