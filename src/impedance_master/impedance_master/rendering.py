@@ -22,7 +22,8 @@ What it refuses, and what then reaches the hand:
   the model that produced it is DROPPED (`n_dropped`), the intermediate reset, fallback;
 * in every case the output is finite and within [-limit, limit] (`safety`); the renderer
   recovers by itself: good input with a model in use, or the next accepted model, takes
-  over bumplessly from the fallback's current value.
+  over from the fallback's current value, the difference decaying with
+  max(blend_time, RECOVER_TIME = 50 ms) (no step at the hand, even with blend_time 0).
 
 `DfrRenderer` returns the last received slave force (held during outages); a force that is
 not finite or above the envelope's max_force is refused (counted), the last one is kept.
@@ -42,6 +43,8 @@ from impedance_master.impedance import FrictionState, Impedance
 from impedance_master.safety import ERROR, OK, WARN, RendererStatus, SafeOutput, check_number
 
 ANCHORING = ('none', 'full', 'residual')
+#: s, smallest time constant of the take-over from the fallback to the model's force
+RECOVER_TIME = 0.05
 
 
 def _same(a: Impedance, b: Optional[Impedance]) -> bool:
@@ -186,6 +189,7 @@ class ImaRenderer(_Rendered):
     def blend_time(self, value) -> None:
         self._blend_time = nonneg('blend_time', value)
         self._decay = math.exp(-self._out.dt / self._blend_time) if self._blend_time > 0 else 0.0
+        self._bump_decay = self._decay
 
     @property
     def passivity(self) -> bool:
@@ -256,10 +260,17 @@ class ImaRenderer(_Rendered):
         self.model = new
         self.n_switches += 1
         if self._out.in_fallback:       # a good model after a fault: take over bumplessly
-            self._bump = old_f - self._eval(x, xd, xdd)
-            self._out.recover()
+            self._take_over(old_f - self._eval(x, xd, xdd))
         elif self._blend_time > 0.0:    # the old-new difference decays with blend_time
             self._bump += old_f - self._eval(x, xd, xdd)
+            self._bump_decay = self._decay
+
+    def _take_over(self, bump: float) -> None:
+        """Leave the fallback: the difference to the fallback's force decays with
+        RECOVER_TIME (whatever blend_time is: a recovery never steps the hand)."""
+        self._bump = bump
+        self._bump_decay = math.exp(-self._out.dt / max(self._blend_time, RECOVER_TIME))
+        self._out.recover()
 
     def _drop(self, why: str) -> None:
         """A non-finite or absurd intermediate: drop the model, reset the intermediates."""
@@ -301,10 +312,9 @@ class ImaRenderer(_Rendered):
             self._drop(f'evaluation gave {f!r} (bump {self._bump!r})')
             return self._out.output(math.nan)
         if self._out.in_fallback:       # good input again with a model: take over bumplessly
-            self._bump = self._out.last - f
-            self._out.recover()
+            self._take_over(self._out.last - f)
         f += self._bump
-        self._bump *= self._decay
+        self._bump *= self._bump_decay
         out = self._out.output(f, self._passivity_step if self._passivity else None)
         if self._out.in_fallback:       # the passivity step was not finite
             self._drop(f'passivity gave a non-finite force (energy {self.energy!r})')
