@@ -471,7 +471,9 @@ def test_default_identifier_reports_the_linear_part_in_m_c_k_offset():
     visited = slice(2, 11)            # nodes at 10..50 mm (the script spans 8..56 mm)
     # 3 noise sigmas: the static prior is deliberately local (weak smoothness), so next to
     # the stroke's end (50 mm) S follows the data more than a global spring prior would
-    assert max(np.abs(imp.F[visited])) < 0.01 and max(np.abs(imp.S[visited])) < 0.015
+    # (the same 3-sigma bound on F: with the presliding-length selection the slow bank may
+    # be selected here and take up up to 13 mN of the static prior's bias at 50 mm)
+    assert max(np.abs(imp.F[visited])) < 0.015 and max(np.abs(imp.S[visited])) < 0.015
     # force() is the same model as before the split (the same 3-sigma bound: at 50 mm the
     # local static table is 0.010-0.011 N off this global spring)
     for xx, v in ((0.01, 0.02), (0.03, -0.01), (0.05, 0.0)):

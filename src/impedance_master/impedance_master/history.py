@@ -108,11 +108,6 @@ class HistoryIdentifier:
         """Forget everything learned (the gate's counters too)."""
         self._A_mat = np.zeros((self.P, self.P))
         self._b = np.zeros(self.P)
-        # the same information from the samples where the candidates' friction states are
-        # in transition (after a reversal or a start from rest): where presliding shows
-        self._A_rev = np.zeros((self.P, self.P))
-        self._b_rev = np.zeros(self.P)
-        self._rev = np.zeros(self.solve_every, dtype=bool)
         self._Phi = np.zeros((self.solve_every, self.P))
         self._f = np.zeros(self.solve_every)
         self._rows = 0
@@ -151,14 +146,13 @@ class HistoryIdentifier:
 
     # ------------------------------------------------------------------ persistence
     def get_state(self) -> dict:
-        """The learned information (normal equations, also those of the transition samples
-        that select the presliding length) as plain JSON-able values."""
+        """The learned information (normal equations of every friction bank) and the
+        selected presliding length as plain JSON-able values."""
         self._flush()
         return {'version': self.STATE_VERSION, 'kind': 'HistoryIdentifier',
                 'grid': _json_ready(self), 'n_moving': int(self.n_moving),
                 'selected': int(self.selected),
-                'A': self._A_mat.tolist(), 'b': self._b.tolist(),
-                'A_rev': self._A_rev.tolist(), 'b_rev': self._b_rev.tolist()}
+                'A': self._A_mat.tolist(), 'b': self._b.tolist()}
 
     def _parse_state(self, state) -> dict:
         """The validated arrays of a `get_state()` dict (ValueError naming what is wrong)."""
@@ -179,8 +173,7 @@ class HistoryIdentifier:
                 raise ValueError(f'state grid {k}={grid.get(k)!r} differs from this '
                                  f'identifier\'s {v!r}')
         out = {}
-        for name, shape in (('A', (self.P, self.P)), ('b', (self.P,)),
-                            ('A_rev', (self.P, self.P)), ('b_rev', (self.P,))):
+        for name, shape in (('A', (self.P, self.P)), ('b', (self.P,))):
             try:
                 a = np.asarray(state.get(name), dtype=float)
             except (TypeError, ValueError):
@@ -207,7 +200,6 @@ class HistoryIdentifier:
     def _install(self, arrays: dict) -> Optional[Impedance]:
         self.reset()
         self._A_mat, self._b = arrays['A'], arrays['b'].copy()
-        self._A_rev, self._b_rev = arrays['A_rev'], arrays['b_rev'].copy()
         self.n_moving, self.selected = arrays['n_moving'], arrays['selected']
         self._last_k = self.selected
         if self.n_moving < self.window * self.rate:
@@ -259,7 +251,7 @@ class HistoryIdentifier:
         xdd_in = None if xdd is None else finite('xdd', xdd)
         f = finite('f', f)
         if self.gate.check(x, xd, xdd_in, f) is not None:
-            return self.last
+            return self._tick()         # refused: learned from nothing, the cadence goes on
         if self.gate.resync:                 # the axis really moved there: restart the states
             for st in self._zs:
                 if st is not None:
@@ -290,6 +282,10 @@ class HistoryIdentifier:
         self._sample = (x, xd, xdd, zs, f)
         if abs(xd) >= self.rest_velocity:
             self._add_row(x, xd, xdd, zs, f_fit)
+        return self._tick()
+
+    def _tick(self) -> Optional[Impedance]:
+        """One sample period: a new model every `solve_every` samples."""
         self._since_solve += 1
         if self._since_solve >= self.solve_every or self._rows >= self.solve_every:
             self._flush()
@@ -327,7 +323,6 @@ class HistoryIdentifier:
         row[g + j + 1] = w * vz
         row[-1] = xdd / self._A
         self._f[self._rows] = f
-        self._rev[self._rows] = any(abs(z[0]) < 0.95 for z in zs)
         self._rows += 1
         self.n_moving += 1
 
@@ -342,14 +337,6 @@ class HistoryIdentifier:
         self._b *= decay
         self._A_mat += Phi.T @ Phi
         self._b += Phi.T @ self._f[:k]
-        if self._K > 1:
-            self._A_rev *= decay
-            self._b_rev *= decay
-            rev = self._rev[:k]
-            if rev.any():
-                Pr = Phi[rev]
-                self._A_rev += Pr.T @ Pr
-                self._b_rev += Pr.T @ self._f[:k][rev]
         self._Phi[:k] = 0.0
         self._rows = 0
 
@@ -386,18 +373,12 @@ class HistoryIdentifier:
         return theta, float(theta @ M @ theta - 2.0 * b @ theta)
 
     def _select(self) -> None:
-        """Render the candidate presliding length whose fit (on all data) is best on the
-        samples where friction states are in transition, if it beats the current one there
-        by more than select_margin residual variances."""
+        """Render the candidate presliding length whose penalised fit is best, if it beats
+        the current one by more than select_margin residual variances."""
         if self._K == 1:
             return
         cur = self.selected
-        objs = []
-        for k in range(self._K):
-            theta, _ = self._solve_candidate(k)
-            idx = self._cand[k]
-            objs.append(float(theta @ self._A_rev[np.ix_(idx, idx)] @ theta
-                              - 2.0 * self._b_rev[idx] @ theta))
+        objs = [self._solve_candidate(k)[1] for k in range(self._K)]
         best = int(np.argmin(objs))
         var = (1.25 * self.scale) ** 2
         if best != cur and objs[cur] - objs[best] > self.select_margin * var:

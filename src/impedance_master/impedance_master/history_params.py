@@ -35,7 +35,7 @@ class HistoryParams:
             more than `select_margin` residual variances (the current one otherwise): a
             catheter whose shaft or vessel bed is compliant reverses its friction over
             millimetres, not the 0.3 mm of a stiff one, some friction holds at rest and
-            some does not, and the reversals and slow motions show which.
+            some does not, and reversals, starts and changes of speed show which.
         select_every: solves between selections; select_margin: see sigmas (in units of
             the running residual variance, i.e. samples' worth of noise). 100: two fits
             with 2 n_nodes = 34 free parameters each differ by chance by a chi-square of up

@@ -8,7 +8,10 @@ stay where they were and the solve is never singular), conditioning checked on t
 Cholesky pivots, and "at rest" detection (no velocity excitation in the window: the last
 good estimate is held and `status` says so). The same 2nd-order low-pass filter is applied
 to x, x', x'' and f, so the linear relation between them is preserved (consistent
-filtering) while sensor noise and differentiation noise are cut.
+filtering) while sensor noise and differentiation noise are cut. Physically impossible
+samples (`gating.SampleGate`: a force of 1e6 N, a velocity of 1e300) are refused and
+counted (`gate.n_rejected`); otherwise the fit is the thesis's plain least squares (an
+outlier that passes the gate weighs in until it leaves the window).
 """
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ from typing import Optional
 
 from catheter_common.checks import finite, positive
 from impedance_master.filters import Biquad, Differentiator
+from impedance_master.gating import SampleGate
 from impedance_master.impedance import Impedance
 
 
@@ -74,6 +78,7 @@ class SlidingWindowIdentifier:
 
     def reset(self) -> None:
         """Forget every sample and the last estimate."""
+        self.gate = SampleGate(rate=self.rate)
         self._filters = [Biquad(self.cutoff, self.rate) for _ in range(4)] if self.cutoff else None
         self._dv = Differentiator(self.rate)
         self._da = Differentiator(self.rate)
@@ -113,6 +118,11 @@ class SlidingWindowIdentifier:
         Returns None until the window has filled once, then an `Impedance` (linear kind)
         whose `valid` is False only while no good estimate exists yet.
         """
+        x, f = finite('x', x), finite('f', f)
+        xd = None if xd is None else finite('xd', xd)
+        xdd = None if xdd is None else finite('xdd', xdd)
+        if self.gate.check(x, 0.0 if xd is None else xd, xdd, f) is not None:
+            return self.last if self._count >= self.n else None
         a, v, xx, ff = self._filtered(x, xd, xdd, f)
         s0, s1, s2, _ = self._scale
         p0, p1, p2 = a / s0, v / s1, xx / s2
