@@ -139,16 +139,23 @@ def test_breathing_phase_does_not_change_the_cardiac_phase():
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.sampled_from(VESSELS), st.integers(0, 50),
-       st.lists(st.tuples(st.floats(-0.01, 0.09), st.floats(-0.05, 0.05)), min_size=5,
-                max_size=40))
-def test_every_vessel_is_finite_bounded_and_zero_outside_the_body(name, seed, states):
+@given(st.sampled_from(VESSELS), st.integers(0, 50), st.floats(-0.01, 0.08),
+       st.lists(st.tuples(st.floats(-0.1, 0.1), st.integers(1, 50)), min_size=1,
+                max_size=30))
+def test_every_vessel_is_finite_bounded_and_zero_outside_the_body(name, seed, x0, moves):
+    """Any motion the insertion axis can make (speeds up to its 0.1 m/s): every vessel's
+    force is finite, below 2 N (the clinical range), and 0 outside the body (rigid
+    shaft: with a compliant shaft the inserted part lags the drive)."""
     v = make_vessel(name, seed=seed)
-    for i, (x, xd) in enumerate(states):
-        f = v.force((i + 1) * DT, x, xd)
-        assert math.isfinite(f) and abs(f) < 2.0
-        if x <= 0.0 and v.params.shaft_stiffness == 0.0:
-            assert f == 0.0
+    x, t = x0, 0.0
+    for xd, n in moves:
+        for _ in range(n):
+            t += DT
+            x += xd * DT
+            f = v.force(t, x, xd)
+            assert math.isfinite(f) and abs(f) < 2.0
+            if x <= 0.0 and v.params.shaft_stiffness == 0.0:
+                assert f == 0.0
 
 
 def test_soft_vessel_presliding_is_millimetres():
