@@ -143,6 +143,7 @@ def test_a_model_that_overflows_is_dropped_and_the_next_one_blends_in():
     assert ren.set_impedance(Impedance(1e300, 0.0, 0.0, 0.0))
     f = ren.desired_force(0.005, 0.0, 1e10)
     assert math.isfinite(f) and ren.n_dropped == 1 and ren.model is None
+    assert 'evaluation' in ren.last_reason and 'inf' in ren.last_reason   # says why
     assert ren.status().level == ERROR
     ren.set_impedance(GOOD)
     out = [ren.desired_force(*STATE) for _ in range(500)]
