@@ -137,7 +137,7 @@ def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:
 def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
                trim_px: float, at_start: bool = False,
                half_contrast: bool = True, quadratic: bool = True,
-               span_widths: float = 1.5) -> Tuple[np.ndarray, float]:
+               span_widths: float = 1.5) -> Tuple[np.ndarray, float, bool]:
     """Restore one end of an ordered path (N, 2): drop the last trim_px of it (a skeleton
     curls into a corner of a flat end), fit a parabola to the preceding ~1.5 widths (the
     end may bend strongly: a loaded catheter's base) and walk along it until the darkness
@@ -147,11 +147,13 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     The edge level is `level` (the segmentation threshold), or with half_contrast the
     midpoint between the catheter's darkness on the path and the local background beside
     it (an unbiased edge for a symmetric blur; a threshold above the midpoint would put
-    the end inside the tube). Returns (new path, extension length px)."""
+    the end inside the tube). Returns (new path, extension length px, found): found is
+    False when the darkness never fell to the edge level within the search (the path is
+    then extended by the whole search length and should not be trusted)."""
     if at_start:
-        p, ext = extend_end(px[::-1], score, level, width_px, trim_px, False, half_contrast,
-                            quadratic, span_widths)
-        return p[::-1], ext
+        p, ext, found = extend_end(px[::-1], score, level, width_px, trim_px, False,
+                                   half_contrast, quadratic, span_widths)
+        return p[::-1], ext, found
     if not np.isfinite(level):
         raise ValueError(f'level must be finite, got {level!r}')
     H, W = score.shape
@@ -159,14 +161,14 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     s = np.concatenate([[0.0], np.cumsum(seg)])
     L = s[-1]
     if L < 3 * max(trim_px, 1.0) + 4:
-        return px, 0.0
+        return px, 0.0, True
     keep = s <= L - trim_px
     body = px[keep]
     sb = s[keep]
     span = max(span_widths * width_px, 6.0)
     tail = body[sb >= sb[-1] - span]
     if tail.shape[0] < 3:
-        return px, 0.0
+        return px, 0.0, True
     c = tail.mean(axis=0)
     _, _, vt = np.linalg.svd(tail - c, full_matrices=False)
     d = vt[0]
@@ -217,7 +219,7 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     # new points every pixel (along the axis) up to the sub-pixel end
     steps = np.append(np.arange(a_e, t_end - 0.1, 1.0), t_end)
     new = curve(steps)
-    return np.vstack([body[:-1], new]), ext
+    return np.vstack([body[:-1], new]), ext, bool(below.any())
 
 
 def smooth_path(px: np.ndarray, window: int = 5) -> np.ndarray:
