@@ -10,12 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
+import cv2
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from skimage.morphology import skeletonize
 
-__all__ = ['Centerline', 'skeleton_path', 'extend_end', 'smooth_path']
+__all__ = ['Centerline', 'skeleton_path', 'extend_end', 'smooth_path', 'trim_thin_tip']
 
 _OFFS = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
 
@@ -121,6 +122,34 @@ def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
     return Centerline('ok', pixels=px, base_cut=base_cut, skeleton_px=n)
 
 
+def trim_thin_tip(px: np.ndarray, mask: np.ndarray, offset, width_px: float,
+                  frac: float = 0.7) -> Tuple[np.ndarray, float]:
+    """Cut the tip end of an ordered skeleton path (N, 2) (full-frame pixels, integer
+    skeleton positions) where the mask (ROI at `offset`) becomes thinner than `frac` (0.7) of the
+    path's median width: a thin structure (a guidewire out of the tip, a wire touching it)
+    continues the catheter there. Returns (path, length cut in pixels)."""
+    # pad with background: a tight ROI would put no background pixel beside a straight tube
+    m = cv2.copyMakeBorder(mask.astype(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    dt = cv2.distanceTransform(m, cv2.DIST_L2, 3)[1:-1, 1:-1]
+    ij = np.rint(px - np.asarray(offset, dtype=float)).astype(int)
+    ij[:, 0] = np.clip(ij[:, 0], 0, mask.shape[1] - 1)
+    ij[:, 1] = np.clip(ij[:, 1], 0, mask.shape[0] - 1)
+    half = dt[ij[:, 1], ij[:, 0]]
+    thin = half < frac * float(np.median(half))
+    if not thin.any():
+        return px, 0.0
+    # the earliest point from which on (nearly) everything to the tip is thin
+    suffix = np.cumsum(thin[::-1])[::-1] / np.arange(len(thin), 0, -1)
+    cand = np.flatnonzero(thin & (suffix >= 0.8))
+    if cand.size == 0 or cand[0] == 0:
+        return px, 0.0
+    j = int(cand[0])
+    cut = float(np.sum(np.hypot(*np.diff(px[j - 1:], axis=0).T)))
+    if cut <= 0.75 * width_px:
+        return px, 0.0
+    return px[:j], cut
+
+
 def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:
     H, W = img.shape
     x = np.clip(pts[:, 0], 0, W - 1.000001)
@@ -179,8 +208,9 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     bq = (tail - c) @ nrm
     if quadratic and tail.shape[0] >= 5 and np.ptp(a) > 2.0:
         coef = np.polyfit(a, bq, 2)
-        # bound the curvature by the tube's (a skeleton cannot bend tighter than ~its width)
-        coef[0] = np.clip(coef[0], -0.5 / width_px, 0.5 / width_px)
+        # bound the curvature: a bending radius of at least 3 widths (the Blazer under 0.3 N
+        # bends to 7 mm = 3 widths at most; a skeleton's corner curl bends tighter)
+        coef[0] = np.clip(coef[0], -1.0 / (6.0 * width_px), 1.0 / (6.0 * width_px))
     else:
         coef = np.array([0.0, 0.0, 0.0])
     a_e = float(np.dot(body[-1] - c, d))

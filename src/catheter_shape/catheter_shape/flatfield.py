@@ -20,8 +20,8 @@ of 132 measure darkness in grey levels, so a catheter that transmits 35 % of the
 into fragments wherever the scene or the vignetting is dark.
 
 Level. The catheter's own contrast c (the median darkness of the pixels clearly above the
-noise, d > 6 sigma, sigma from the median absolute deviation of d; near the clamp pixel
-when it is known, so that clutter elsewhere does not count) sets the threshold c / 2: the half-contrast edge, unbiased for a symmetric blur, from faint (c ~ 0.15) to
+noise, d > 6 sigma, sigma from the median absolute deviation of d; where the catheter
+leaves the clamp when the clamp pixel is known, so that clutter elsewhere does not count) sets the threshold c / 2: the half-contrast edge, unbiased for a symmetric blur, from faint (c ~ 0.15) to
 saturated (c ~ 1) catheters. The darkness is smoothed first by a Gaussian of about a
 tenth of the catheter's width (faint catheters: the noise drops 5-10x, the centreline and
 the half-contrast tip end do not move).
@@ -110,16 +110,18 @@ def _median(x: np.ndarray) -> float:
 
 def flat_field(gray: np.ndarray, background: Optional[np.ndarray], width_px: float,
                full_scale: float = 255.0, min_contrast: float = MIN_CONTRAST,
-               base_px=None) -> FlatField:
+               base_px=None, base_dir=None) -> FlatField:
     """Relative darkness of a grey frame (uint8 or uint16 (H, W)) against `background`
     (float32 from `prepare_background`, same shape) or, without one, against
     `estimate_background`; smoothed, thresholded at half the catheter's contrast.
 
     full_scale: the largest value the frame can hold (255 for uint8; pixels at >= 98 % of
     it are saturated and left out of the exposure estimate). base_px: the clamp pixel
-    (u, v), optional: when it lies in the frame, the contrast is measured on the catheter
-    where it leaves the clamp (within 2.5 widths), so that many small dark structures
-    elsewhere (texture, clutter) cannot pull the level down to their own darkness."""
+    (u, v), optional, with base_dir the unit pixel direction in which the catheter leaves
+    it (+x of catheter_base): when it lies in the frame, the contrast is measured on the
+    catheter where it leaves the clamp (a disc of 1.5 widths, 1.5 widths ahead of the clamp
+    pixel), so that many small dark structures elsewhere (texture, clutter) cannot pull the
+    level down to their own darkness, nor the clamp behind the base push it up."""
     # smooth the integer frame (fixed-point, fast), then divide: blur(frame) / blur(bg) is
     # the blurred transmission wherever the background is smooth on the blur's scale
     f = _blur(gray, smoothing_sigma(width_px)).astype(np.float32)
@@ -150,9 +152,12 @@ def flat_field(gray: np.ndarray, background: Optional[np.ndarray], width_px: flo
     seed = max(SEED_SIGMAS * sigma + med, min_contrast)
     H, W = d.shape
     if base_px is not None and 0 <= base_px[0] <= W - 1 and 0 <= base_px[1] <= H - 1:
-        r = int(np.ceil(2.5 * width_px))
-        u, v = int(round(base_px[0])), int(round(base_px[1]))
-        win = d[max(v - r, 0):v + r + 1, max(u - r, 0):u + r + 1]
+        c = np.asarray(base_px, dtype=float)
+        if base_dir is not None:
+            c = c + 1.5 * width_px * np.asarray(base_dir, dtype=float)
+        r = int(np.ceil(1.5 * width_px))
+        u, v = int(round(c[0])), int(round(c[1]))
+        win = d[max(v - r, 0):max(v + r + 1, 0), max(u - r, 0):max(u + r + 1, 0)]
         near = win[win > seed]
         if near.size >= 0.5 * width_px ** 2:
             contrast = _median(near)

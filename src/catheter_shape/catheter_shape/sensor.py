@@ -12,7 +12,7 @@ import numpy as np
 from catheter_common.checks import finite, nonneg, positive
 from catheter_shape.bezier import _dist, _newton_params, _project_global, fit_bezier_detailed
 from catheter_shape.camera import BLAZER_DIAMETER, _check_psi
-from catheter_shape.centerline import extend_end, skeleton_path, smooth_path
+from catheter_shape.centerline import extend_end, skeleton_path, smooth_path, trim_thin_tip
 from catheter_shape.flatfield import flat_field, prepare_background
 from catheter_shape.plausibility import (MAX_KINK, MAX_TURNING, check_fold, inside_frame,
                                          on_border, path_length)
@@ -92,7 +92,8 @@ class ShapeSensor:
         within +-0.4 mm on the tuning styles). min_visible: fraction of the length that must
         be seen (tissue may hide the tip), default 0.5.
     base_tolerance: the centreline's base end may lie this many catheter widths from
-        base_px (default 2.0; the skeleton stops half a width short).
+        base_px (default 2.0; the skeleton stops half a width short); a centreline that runs
+        past base_px (through a clamp in the mask) must pass within one width of it.
     max_turning, max_kink: rad, plausibility bounds of the centreline's tangent (total
         turning; turning within one catheter width); see catheter_shape.plausibility.
     max_fit_error: m, largest distance of a centreline point to the fitted curve (default
@@ -231,7 +232,8 @@ class ShapeSensor:
         w_px = self.width_px
         contrast = float('nan')
         if self.method == 'flatfield':
-            ff = flat_field(gray, self._bg_f, w_px, full_scale=full, base_px=self.base_px)
+            ff = flat_field(gray, self._bg_f, w_px, full_scale=full, base_px=self.base_px,
+                            base_dir=self._ex_px)
             if ff.status != 'ok':
                 return fail(ff.status, 'nothing darker than the noise', tm, t0)
             mask, score, level, contrast = ff.mask, ff.score, ff.level, ff.contrast
@@ -261,6 +263,9 @@ class ShapeSensor:
             return fail('bad_segmentation', f'the dark object is {width:.1f} px wide for a '
                                             f'{w_px:.1f} px catheter', tm, t0)
         half_contrast = self.method == 'flatfield' or (bg is not None and self.method == 'fixed')
+        # a thin structure continuing the tip (a guidewire out of it, a wire touching it) is
+        # not the catheter: the path ends where the mask gets thinner than 0.7 of its width
+        cl.pixels, _ = trim_thin_tip(cl.pixels, seg.mask, seg.offset, w_px)
         px, status, message = self._ends(cl, score, level, gray.shape, half_contrast)
         if status != 'ok':
             return fail(status, message, tm, t0)
@@ -291,11 +296,11 @@ class ShapeSensor:
         bp_in = bp is not None and 0 <= bp[0] <= W - 1 and 0 <= bp[1] <= H - 1
         if not bp_in:
             # the catheter must enter from the border: restore the base end up to it (the
-            # skeleton stops short of it); the clamped base carries the largest moment, so
-            # a parabola follows its curvature
-            px, _, _ = extend_end(px, score, level, w_px, trim_px=BASE_TRIM * w_px,
-                                  at_start=True, half_contrast=half_contrast, quadratic=True,
-                                  span_widths=2.5)
+            # skeleton stops short of it and curls into a corner of the cut: a whole width
+            # is dropped); the clamped base carries the largest moment, so a parabola
+            # follows its curvature
+            px, _, _ = extend_end(px, score, level, w_px, trim_px=w_px, at_start=True,
+                                  half_contrast=half_contrast, quadratic=True, span_widths=3.0)
             if on_border(px[0], shape):
                 return px, 'ok', ''
             if bp is None:
@@ -304,13 +309,18 @@ class ShapeSensor:
             return px, 'base_mismatch', ('the clamp (base_px) is outside the image but the '
                                          'catheter does not enter from the border')
         b0 = px[0]
+        gap = float(np.hypot(*(b0 - bp)))
         if cl.base_cut:
             # the path ran through the clamp and was cut at its pixel nearest base_px: start
-            # it at the calibrated clamp point itself
-            if np.hypot(*(px[0] - bp)) <= 0.5 * w_px:
+            # it at the calibrated clamp point itself. The catheter's axis passes through the
+            # clamp point: a path that only passes near it (one width or more) runs beside
+            # it, and cutting there would drop a piece of the catheter.
+            if gap > min(1.0, self.base_tolerance) * w_px:
+                return px, 'base_mismatch', (f'the catheter passes {gap:.1f} px from the clamp '
+                                             f'pixel base_px (> 1 width)')
+            if gap <= 0.5 * w_px:
                 px = np.vstack([bp, px[1:]])
             return px, 'ok', ''
-        gap = float(np.hypot(*(b0 - bp)))
         if gap > self.base_tolerance * w_px:
             return px, 'base_mismatch', (f'the catheter starts {gap:.1f} px from the clamp '
                                          f'pixel base_px (> {self.base_tolerance:g} widths)')
