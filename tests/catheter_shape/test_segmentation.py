@@ -51,16 +51,16 @@ def test_clutter_far_from_the_clamp_does_not_pull_the_level_down():
     it would be the dots'."""
     rng = np.random.default_rng(0)
     img = np.full((300, 400), 200.0, np.float32)
-    for _ in range(400):
+    for _ in range(150):
         c = (int(rng.integers(0, 400)), int(rng.integers(0, 300)))
-        cv2.circle(img, c, 5, 178.0, -1)                # 11 % darker dots
+        cv2.circle(img, c, 6, 170.0, -1)                # 15 % darker dots
     cv2.line(img, (30, 150), (330, 150), 40.0, 15)      # the catheter, 80 % darker
     img = cv2.GaussianBlur(img, (0, 0), 1.0).astype(np.uint8)
     at_clamp = flat_field(img, None, 15.0, base_px=(30.0, 150.0), base_dir=(1.0, 0.0))
     anywhere = flat_field(img, None, 15.0)
-    assert at_clamp.contrast > 0.6 and at_clamp.level > 0.3
+    assert at_clamp.contrast > 0.5 and at_clamp.level > 0.25
     assert anywhere.contrast < 0.3                      # what the clamp window avoids
-    assert not at_clamp.mask[:140].any() and not at_clamp.mask[160:].any()
+    assert not at_clamp.mask[:135].any() and not at_clamp.mask[166:].any()
 
 
 def test_flat_field_with_a_background_sees_only_the_catheter():

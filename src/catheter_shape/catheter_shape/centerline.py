@@ -125,17 +125,27 @@ def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
 def trim_thin_tip(px: np.ndarray, mask: np.ndarray, offset, width_px: float,
                   frac: float = 0.7) -> Tuple[np.ndarray, float]:
     """Cut the tip end of an ordered skeleton path (N, 2) (full-frame pixels, integer
-    skeleton positions) where the mask (ROI at `offset`) becomes thinner than `frac` (0.7) of the
-    path's median width: a thin structure (a guidewire out of the tip, a wire touching it)
-    continues the catheter there. Returns (path, length cut in pixels)."""
-    # pad with background: a tight ROI would put no background pixel beside a straight tube
-    m = cv2.copyMakeBorder(mask.astype(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
-    dt = cv2.distanceTransform(m, cv2.DIST_L2, 3)[1:-1, 1:-1]
+    skeleton positions) where the mask (ROI at `offset`) becomes thinner than `frac` of the
+    path's median width (over the tip half; at least 0.45 width_px as the half-width): a
+    thin structure (a guidewire out of the tip, a wire touching it) continues the catheter
+    there. Returns (path, length cut in pixels)."""
+    # the distance transform of the mask around the tip-side half of the path only (speed),
+    # padded with background (a tight ROI would put no background beside a straight tube)
     ij = np.rint(px - np.asarray(offset, dtype=float)).astype(int)
     ij[:, 0] = np.clip(ij[:, 0], 0, mask.shape[1] - 1)
     ij[:, 1] = np.clip(ij[:, 1], 0, mask.shape[0] - 1)
-    half = dt[ij[:, 1], ij[:, 0]]
-    thin = half < frac * float(np.median(half))
+    ij = ij[len(ij) // 2:]
+    r = int(np.ceil(width_px)) + 2
+    x0, y0 = max(int(ij[:, 0].min()) - r, 0), max(int(ij[:, 1].min()) - r, 0)
+    x1 = min(int(ij[:, 0].max()) + r + 1, mask.shape[1])
+    y1 = min(int(ij[:, 1].max()) + r + 1, mask.shape[0])
+    m = cv2.copyMakeBorder(mask[y0:y1, x0:x1].astype(np.uint8), 1, 1, 1, 1,
+                           cv2.BORDER_CONSTANT, value=0)
+    dt = cv2.distanceTransform(m, cv2.DIST_L2, 3)[1:-1, 1:-1]
+    half = dt[ij[:, 1] - y0, ij[:, 0] - x0]
+    # a long wire could be the median of the tip half: the catheter's half-width is about
+    # half its diameter at least
+    thin = half < frac * max(float(np.median(half)), 0.45 * width_px)
     if not thin.any():
         return px, 0.0
     # the earliest point from which on (nearly) everything to the tip is thin
@@ -143,7 +153,7 @@ def trim_thin_tip(px: np.ndarray, mask: np.ndarray, offset, width_px: float,
     cand = np.flatnonzero(thin & (suffix >= 0.8))
     if cand.size == 0 or cand[0] == 0:
         return px, 0.0
-    j = int(cand[0])
+    j = int(cand[0]) + (len(px) - len(half))          # index in the whole path
     cut = float(np.sum(np.hypot(*np.diff(px[j - 1:], axis=0).T)))
     if cut <= 0.75 * width_px:
         return px, 0.0

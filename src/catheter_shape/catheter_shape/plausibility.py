@@ -57,7 +57,10 @@ def turning(px: np.ndarray, width_px: float) -> Tuple[float, float]:
 def self_intersects(px: np.ndarray, step: float) -> bool:
     """True when the polyline, resampled at `step`, crosses itself (non-adjacent segments
     intersect)."""
-    q = resample(px, step)
+    return _crosses(resample(px, step))
+
+
+def _crosses(q: np.ndarray) -> bool:
     n = len(q) - 1
     if n < 3:
         return False
@@ -92,13 +95,21 @@ def check_fold(px: np.ndarray, width_px: float, max_turning: float = MAX_TURNING
     """None when the path (smoothed) is a shape a clamped catheter can take; else the
     reason (the tangent turns more than max_turning in total, or more than max_kink within
     one width, or the path crosses itself)."""
-    total, kink = turning(px, width_px)
+    step = max(0.5 * width_px, 1.0)
+    q = resample(px, step)
+    if len(q) < 3:
+        return None
+    d = np.diff(q, axis=0)
+    th = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    total = float(np.ptp(th))
+    k = max(1, int(round(width_px / step)))
+    kink = float(np.max(np.abs(th[k:] - th[:-k]))) if len(th) > k else float(np.ptp(th))
     if total > max_turning:
         return (f'the centreline turns {np.degrees(total):.0f} deg in total '
                 f'(> {np.degrees(max_turning):.0f})')
     if kink > max_kink:
         return (f'the centreline turns {np.degrees(kink):.0f} deg within one catheter width '
                 f'(> {np.degrees(max_kink):.0f}): a kink')
-    if self_intersects(px, max(width_px, 2.0)):
+    if _crosses(q):
         return 'the centreline crosses itself'
     return None

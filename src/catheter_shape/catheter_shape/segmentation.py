@@ -139,7 +139,7 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
                        max_fill: float = 0.5, base_px=None) -> Segmentation:
     """Clean a binary mask and keep the catheter: the component at the clamp pixel base_px
     (when given and inside the frame; else the largest) plus fragments within max_gap_px of
-    it that are at least 1.5 widths long (joined by a bar of the catheter's width: gaps
+    it that are at least 1.5 widths long (joined by the convex hull of both ends: gaps
     from occlusion or low contrast; a roundish blob near the tip is not joined); fails
     with 'multiple_objects' when another component of at least second_ratio of the kept
     one's area remains (two catheters, or a piece of this one too far away), 'no_catheter'
@@ -202,8 +202,13 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
             i, j = np.unravel_index(int(np.argmin(d2)), d2.shape)
             if d2[i, j] <= max_gap_px ** 2:
                 keep.append(int(k))
-                bars.append(((int(F[i, 0]) + wx0, int(F[i, 1]) + wy0),
-                             (int(M[j, 0]) + wx0, int(M[j, 1]) + wy0)))
+                # the bridge: the convex hull of both ends (the pixels within a width of the
+                # nearest pair), so the gap is filled across the whole width of the tube
+                r2 = (np.sqrt(d2[i, j]) + width_px) ** 2
+                fe = F[np.sum((F - M[j]) ** 2, 1) <= r2]
+                me = M[np.sum((M - F[i]) ** 2, 1) <= r2]
+                hull = cv2.convexHull(np.vstack([fe, me]) + np.float32([wx0, wy0]))
+                bars.append(np.rint(hull).astype(np.int32))
                 joined = True
         if not joined and a >= second_ratio * stats[main, cv2.CC_STAT_AREA]:
             return Segmentation('multiple_objects', n_objects=2,
@@ -211,8 +216,7 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
                                         f'{stats[main, cv2.CC_STAT_AREA]} px')
     out = np.isin(labels, keep).astype(np.uint8) if len(keep) > 1 else \
         (labels == main).astype(np.uint8)
-    t = max(1, int(round(0.6 * width_px)))
-    for p, q in bars:
-        cv2.line(out, p, q, 1, t)
+    for hull in bars:
+        cv2.fillConvexPoly(out, hull, 1)
     return Segmentation('ok', mask=out, offset=(u0, v0), area=int(out.sum()),
                         n_objects=1, bridged=len(bars))

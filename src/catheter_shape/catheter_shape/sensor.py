@@ -115,7 +115,7 @@ class ShapeSensor:
                  correction: str = 'regularized', param_weight: float = 0.05,
                  base_constraint: str = 'none', diameter: float = BLAZER_DIAMETER,
                  max_gap: float = 0.003, min_length: float = 0.005, smooth: int = 5,
-                 max_fit_points: int = 120, keep_mask: bool = False,
+                 max_fit_points: int = 60, keep_mask: bool = False,
                  length: Optional[float] = None, length_tolerance: float = 0.025,
                  min_visible: float = 0.5, base_tolerance: float = 2.0,
                  max_turning: float = MAX_TURNING, max_kink: float = MAX_KINK,
@@ -291,7 +291,7 @@ class ShapeSensor:
                                   half_contrast=half_contrast, quadratic=False, span_widths=2.0)
         if not found:
             return px, 'bad_tip', 'the darkness does not end within 1.5 widths of the skeleton'
-        if on_border(px[-1], shape):
+        if on_border(px[-1], shape, 0.5 * w_px + 1.0):
             return px, 'tip_out_of_view', 'the tip end lies on the image border'
         bp_in = bp is not None and 0 <= bp[0] <= W - 1 and 0 <= bp[1] <= H - 1
         if not bp_in:
@@ -342,6 +342,16 @@ class ShapeSensor:
         length = path_length(px) * self._m_per_px
         if not inside_frame(px, shape):
             return 'outside_frame', 'a centreline point lies outside the frame', length
+        # beyond where it enters the image, a tube whose centreline comes within half a width
+        # of the border is cut by it: its visible part is not centred on the centreline
+        H, W = shape
+        edge = np.minimum(np.minimum(px[:, 0], W - 1 - px[:, 0]),
+                          np.minimum(px[:, 1], H - 1 - px[:, 1]))
+        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(px, axis=0).T))])
+        w_px = self.width_px
+        if np.any((edge < 0.5 * w_px) & (s > 1.5 * w_px)):
+            return ('outside_frame', 'the catheter runs along the image border (partly out of '
+                    'view)', length)
         if self.length is not None:
             L = self.length
             if length > L * (1.0 + self.length_tolerance):
