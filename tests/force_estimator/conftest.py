@@ -36,7 +36,7 @@ def toy_models():
     mlp, _ = fit_mlp(X[tr], Y[tr], n_init=2, max_iter=500)
     big, _ = fit_mlp(X[tr], Y[tr], hidden_layer_sizes=(16, 16), n_init=1, max_iter=300)
     for m in (svr, mlp, big):
-        calibrate(m, X[tr], X[va], Y[va], table=toy_table())
+        calibrate(m, X[tr], X[va], Y[va], table=toy_table(), Y_train=Y[tr])
     return X, Y, {'svr': svr, 'mlp': mlp, 'big': big}, rep_s
 
 

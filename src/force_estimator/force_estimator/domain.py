@@ -9,6 +9,11 @@ for held-out inputs of the training distribution (they are inside by constructio
 margin: a shape the pipeline can produce for a tip force in range is inside; control points
 scaled by 1e6, a tip 1 km away or the fit of a wrong segmentation are far outside.
 
+The reference inputs' training forces are stored too: the forces that made an input's
+nearest neighbours say how well such a shape determines its force (the observability table
+at those forces), whatever the model's own, possibly wrong, estimate: a straight catheter's
+neighbours include axial pulls of every size.
+
 Pure numpy; no rclpy.
 """
 from __future__ import annotations
@@ -17,7 +22,7 @@ from typing import Optional
 
 import numpy as np
 
-__all__ = ['DomainCheck', 'DOMAIN_QUANTILE', 'DOMAIN_MARGIN', 'MAX_REFERENCE']
+__all__ = ['DomainCheck', 'DOMAIN_QUANTILE', 'DOMAIN_MARGIN', 'MAX_REFERENCE', 'NEIGHBOURS']
 
 #: quantile of the held-out inputs' nearest-neighbour distances that sets the threshold
 DOMAIN_QUANTILE = 0.995
@@ -25,12 +30,15 @@ DOMAIN_QUANTILE = 0.995
 DOMAIN_MARGIN = 1.5
 #: at most this many training inputs are kept as the reference set
 MAX_REFERENCE = 4000
+#: neighbours whose training forces measure how well the shape determines the force
+NEIGHBOURS = 8
 
 
 class DomainCheck:
-    """reference: (n, 12) training features, m; threshold: m (> 0)."""
+    """reference: (n, 12) training features, m; threshold: m (> 0); targets: optional
+    (n, 2) training forces of the reference inputs, N (for `neighbour_spread`)."""
 
-    def __init__(self, reference: np.ndarray, threshold: float):
+    def __init__(self, reference: np.ndarray, threshold: float, targets=None):
         ref = np.ascontiguousarray(reference, dtype=float)
         if ref.ndim != 2 or ref.shape[1] != 12 or ref.shape[0] < 1:
             raise ValueError(f'reference must have shape (n >= 1, 12), got {ref.shape}')
@@ -38,9 +46,23 @@ class DomainCheck:
             raise ValueError('reference contains non-finite values')
         if not (np.isfinite(threshold) and threshold > 0):
             raise ValueError(f'threshold must be positive and finite, got {threshold!r}')
+        if targets is not None:
+            targets = np.ascontiguousarray(targets, dtype=float)
+            if targets.shape != (ref.shape[0], 2) or not np.isfinite(targets).all():
+                raise ValueError(f'reference targets must be finite with shape '
+                                 f'({ref.shape[0]}, 2), got {targets.shape}')
         self.reference = ref
+        self.targets = targets
         self.threshold = float(threshold)
         self._r2 = np.einsum('ij,ij->i', ref, ref)
+
+    def neighbours(self, x: np.ndarray, k: int = NEIGHBOURS):
+        """(distance of the nearest reference input (RMS per control point, m), indices of
+        the k nearest) for one feature vector (12,)."""
+        d2 = self._r2 - 2.0 * (self.reference @ x) + float(x @ x)
+        k = min(k, len(d2))
+        idx = np.argpartition(d2, k - 1)[:k]
+        return float(np.sqrt(max(d2[idx].min(), 0.0) / 4.0)), idx
 
     def nearest(self, X: np.ndarray) -> np.ndarray:
         """Nearest-neighbour distance (RMS per control point, m) of features (12,) or
@@ -59,19 +81,26 @@ class DomainCheck:
     def calibrate(cls, X_train: np.ndarray, X_held_out: np.ndarray, seed: int = 0,
                   max_reference: int = MAX_REFERENCE,
                   quantile: float = DOMAIN_QUANTILE, margin: float = DOMAIN_MARGIN,
-                  ) -> 'DomainCheck':
-        """A reference set (at most max_reference training inputs, a random subset) and the
-        threshold from held-out inputs of the same distribution."""
+                  Y_train=None) -> 'DomainCheck':
+        """A reference set (at most max_reference training inputs, a random subset, with
+        their forces Y_train when given) and the threshold from held-out inputs of the same
+        distribution."""
         X = np.asarray(X_train, dtype=float)
+        Y = None if Y_train is None else np.asarray(Y_train, dtype=float)
         if len(X) > max_reference:
-            X = X[np.random.default_rng(seed).choice(len(X), max_reference, replace=False)]
-        dc = cls(X, 1.0)
+            sel = np.random.default_rng(seed).choice(len(X), max_reference, replace=False)
+            X = X[sel]
+            Y = None if Y is None else Y[sel]
+        dc = cls(X, 1.0, Y)
         d = dc.nearest(np.asarray(X_held_out, dtype=float))
         dc.threshold = float(margin * np.quantile(d, quantile))
         return dc
 
     def arrays(self) -> dict:
-        return dict(domain_X=self.reference.astype(np.float32))
+        a = dict(domain_X=self.reference.astype(np.float32))
+        if self.targets is not None:
+            a['domain_Y'] = self.targets.astype(np.float32)
+        return a
 
     def header(self) -> dict:
         return dict(threshold_m=self.threshold, quantile=DOMAIN_QUANTILE, margin=DOMAIN_MARGIN,
@@ -85,4 +114,4 @@ class DomainCheck:
         th = header.get('domain', {}).get('threshold_m')
         if th is None:
             raise ValueError('model has a domain reference set but no domain threshold')
-        return cls(arrays['domain_X'], float(th))
+        return cls(arrays['domain_X'], float(th), arrays.get('domain_Y'))

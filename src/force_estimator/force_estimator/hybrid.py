@@ -2,7 +2,9 @@
 uses: one `estimate(control_points)` per sample whatever the method.
 
 The learned model answers inside its training domain (microseconds); for inputs it does not
-cover (status 'out_of_domain' or 'out_of_envelope') the FAM inversion answers instead
+cover (status 'out_of_domain' or 'out_of_envelope') and for shapes that do not determine the
+axial force ('axial_unobservable': its training targets disagree there) the FAM inversion
+answers instead
 (milliseconds, no training data: it needs only the catheter's length and stiffness), with
 method 'fam_fallback' and primary the learned model's kind. Without a fallback the learned
 model's bounded, flagged estimate is returned.
@@ -22,8 +24,11 @@ from force_estimator.models import ForceModel, load_estimator
 
 __all__ = ['HybridEstimator', 'make_estimator', 'FALLBACK_STATUSES']
 
-#: statuses of a learned estimate that send the input to the fallback
-FALLBACK_STATUSES = ('out_of_domain', 'out_of_envelope')
+#: statuses of a learned estimate that send the input to the fallback: inputs the model does
+#: not cover, and inputs whose axial force the shape does not determine (the training
+#: targets of nearly identical shapes disagree there, so the model's output is arbitrary;
+#: the inversion's weak force prior gives the least-force answer and an honest covariance)
+FALLBACK_STATUSES = ('out_of_domain', 'out_of_envelope', 'axial_unobservable')
 
 
 class HybridEstimator:
@@ -81,10 +86,13 @@ def make_estimator(method: str = 'svr', model: Union[str, ForceModel, None] = No
         if cat is None:
             from force_estimator.dataset import BLAZER_EI, BLAZER_LENGTH
             cat = Catheter(length=BLAZER_LENGTH, ei=BLAZER_EI)
-        fam = FamInverseEstimator(cat, n_arcs=n_arcs, f_max=f_max)
     if method == 'fam':
-        return fam
+        return FamInverseEstimator(cat, n_arcs=n_arcs, f_max=f_max)
     m = model if isinstance(model, ForceModel) else load_estimator(model or f'blazer-{method}')
     if m.kind != method:
         raise ValueError(f'model holds a {m.kind} model, method is {method!r}')
+    if fallback:
+        # the fallback's envelope is the learned model's: nothing beyond the trained force
+        # range is published as a normal estimate
+        fam = FamInverseEstimator(cat, n_arcs=n_arcs, f_max=min(f_max, m.f_bound))
     return HybridEstimator(m, fam)

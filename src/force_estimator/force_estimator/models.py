@@ -23,8 +23,8 @@ metrics. Arrays: ``x_mean``, ``x_scale`` (12,), ``y_mean``, ``y_scale`` (2,),
 ``sv`` (n, 12), ``coef`` (n, 2), ``gamma`` (n,), ``intercept`` (2,); for mlp ``W0``,
 ``b0``, ``W1``, ``b1``, ...
 
-Format version 2 adds: ``domain_X`` (n, 12) float32, the reference training inputs of the
-domain check (force_estimator.domain), and ``obs_angles``, ``obs_magnitudes``, ``obs_cov``,
+Format version 2 adds: ``domain_X`` (n, 12) and ``domain_Y`` (n, 2) float32, the reference
+training inputs of the domain check (force_estimator.domain) and their forces, and ``obs_angles``, ``obs_magnitudes``, ``obs_cov``,
 the observability table (force_estimator.uncertainty); the header adds ``domain``
 (threshold), ``model_cov`` (2x2 N^2, the validation error covariance of the model on
 observable inputs) and ``selftest`` (inputs and the outputs the model gave for them when it
@@ -47,7 +47,9 @@ arithmetic through the layers, or the sum of the SVR's coefficients) at most
 stored outputs (a file with weights x 1e6, or 1e200, is refused).
 
 `ForceModel.estimate(cp)` returns a `force_estimator.estimate.ForceEstimate`: the bounded
-force, its covariance (the observability table at the estimate plus the model's own error),
+force, its covariance (the observability table at the estimate or at the training force of
+one of the input's 8 nearest neighbours, whichever is the least determined, plus the model's
+own error),
 the status ('out_of_domain' beyond the domain check, 'out_of_envelope' when the output was
 clipped, 'non_finite_input' / 'bad_input', else 'ok' or 'axial_unobservable') and the domain
 distance.
@@ -177,6 +179,13 @@ class ForceModel:
         self._selftest()
         self.domain = DomainCheck.from_model(a, self.header)
         self.table = (ObservabilityTable.from_arrays(a) if 'obs_cov' in a else None)
+        # the table at every reference input's training force, once (estimate() takes the
+        # least determined of its neighbours')
+        self._ref_cov = self._ref_weak = None
+        if self.table is not None and self.domain is not None \
+                and self.domain.targets is not None:
+            self._ref_cov = self.table.lookup(self.domain.targets)
+            self._ref_weak = np.linalg.eigvalsh(self._ref_cov)[:, -1]
         mc = np.asarray(self.header.get('model_cov', np.zeros((2, 2))), dtype=float)
         if mc.shape != (2, 2) or not np.isfinite(mc).all() \
                 or np.linalg.eigvalsh(0.5 * (mc + mc.T))[0] < -1e-12:
@@ -308,20 +317,38 @@ class ForceModel:
         """True where the input lies inside the training envelope (and the force in range)."""
         return self.predict(control_points, return_flags=True)[1]
 
-    def domain_distance(self, control_points) -> float:
-        """The input's distance from the training inputs (force_estimator.domain; <= 1
-        inside); files without a domain reference: 0 inside the envelope box, inf outside."""
-        x = control_points_to_features(control_points)
-        if self.domain is not None:
-            return float(self.domain.distance(x)[0])
-        return 0.0 if bool(((x >= self._lo) & (x <= self._hi)).all()) else float('inf')
+    def _domain(self, x: np.ndarray):
+        """(domain distance, indices of the k nearest reference inputs) of features x
+        (12,): the distance
+        is the larger of the nearest-neighbour distance over its threshold
+        (force_estimator.domain) and, outside the envelope box, 1 + how far outside (over the
+        box's padding); <= 1 inside. Files without a domain reference: 0 inside the box."""
+        out = np.maximum(self._lo - x, x - self._hi)
+        pad = np.maximum(ENVELOPE_MARGIN * (self._hi - self._lo) / (1 + 2 * ENVELOPE_MARGIN),
+                         ENVELOPE_MIN_PAD)
+        box = 1.0 + float(np.max(out / pad)) if (out > 0).any() else 0.0
+        if self.domain is None:
+            return box, None
+        d, idx = self.domain.neighbours(x)
+        return max(d / self.domain.threshold, box), idx
 
-    def covariance(self, force) -> np.ndarray:
-        """Covariance (2, 2) N^2 of an estimate `force`: the observability table there (the
-        shape's information about the force) plus the model's own error covariance."""
+    def domain_distance(self, control_points) -> float:
+        """The input's distance from the training inputs (<= 1 inside; see _domain)."""
+        return self._domain(control_points_to_features(control_points))[0]
+
+    def covariance(self, force, neighbours=None) -> np.ndarray:
+        """Covariance (2, 2) N^2 of an estimate `force`: the observability table (the
+        shape's information about the force) at the estimate or at the training force of one
+        of the input's nearest reference inputs (indices `neighbours`), whichever is the
+        least determined, plus the model's own error covariance."""
         if self.table is None:
             return np.eye(2) * FORCE_PRIOR ** 2
-        return self.table.lookup(force) + self.model_cov
+        C = self.table.lookup(force)
+        if neighbours is not None and self._ref_weak is not None and len(neighbours):
+            j = neighbours[int(np.argmax(self._ref_weak[neighbours]))]
+            if self._ref_weak[j] > np.linalg.eigvalsh(C)[-1]:
+                C = self._ref_cov[j]
+        return C + self.model_cov
 
     def estimate(self, control_points) -> ForceEstimate:
         """One estimate with uncertainty and status (see force_estimator.estimate).
@@ -332,11 +359,11 @@ class ForceModel:
         if bad is not None:
             return failed_estimate(bad[0], self.kind, bad[1], self.f_bound)
         x = control_points_to_features(control_points)
-        dist = self.domain_distance(x.reshape(4, 3))
+        dist, nb = self._domain(x)
         raw = self._forward1((np.clip(x, self._lo, self._hi) - self._xm) * self._xis) \
             * self._ys + self._ym
         force, clipped = bounded(raw, self.f_bound)
-        cov = self.covariance(force)
+        cov = self.covariance(force, nb)
         if not dist <= 1.0:
             status = 'out_of_domain'
             msg = (f'the control points are {dist:.3g} x the domain threshold from the '
@@ -357,8 +384,9 @@ class ForceModel:
         header = dict(self.header)
         header.update(format=FORMAT, version=FORMAT_VERSION, kind=self.kind)
         arrays = dict(self.arrays)
-        if 'domain_X' in arrays:
-            arrays['domain_X'] = arrays['domain_X'].astype(np.float32)
+        for k in ('domain_X', 'domain_Y'):
+            if k in arrays:
+                arrays[k] = arrays[k].astype(np.float32)
         np.savez(path, header=np.array(json.dumps(header, sort_keys=True)), **arrays)
         return path
 

@@ -202,16 +202,17 @@ def fit_mlp(X, Y, hidden_layer_sizes: Tuple[int, ...] = (10,), alpha: float = 1e
 
 
 def calibrate(model: ForceModel, X_train, X_val, Y_val, table=None, seed: int = 0,
-              n_selftest: int = 8, observable_std: float = None) -> dict:
+              n_selftest: int = 8, observable_std: float = None, Y_train=None) -> dict:
     """Attach what a shipped model needs besides its weights, measured on held-out data
     of the training distribution (X_val, Y_val, never trained on):
 
-    * the domain check (force_estimator.domain): reference = the training inputs, threshold
-      from the held-out inputs' nearest-neighbour distances;
+    * the domain check (force_estimator.domain): reference = the training inputs (and their
+      forces Y_train, for the neighbours' spread), threshold from the held-out inputs'
+      nearest-neighbour distances;
     * the observability table (force_estimator.uncertainty.ObservabilityTable, optional);
     * model_cov: the covariance of the held-out errors where the force is observable (the
-      table's weakest std below `observable_std`, default UNOBSERVABLE_STD), i.e. the
-      model's own error on top of what the shape cannot tell;
+      table's weakest std below `observable_std`, default UNOBSERVABLE_STD), without the 5 %
+      largest, i.e. the model's own error on top of what the shape cannot tell;
     * the self-test: n_selftest training inputs and the model's outputs for them.
 
     Modifies the model in place (arrays and header) and re-validates it by rebuilding it
@@ -222,7 +223,7 @@ def calibrate(model: ForceModel, X_train, X_val, Y_val, table=None, seed: int = 
     X_train = np.asarray(X_train, dtype=float)
     X_val = np.asarray(X_val, dtype=float)
     Y_val = np.asarray(Y_val, dtype=float)
-    dc = DomainCheck.calibrate(X_train, X_val, seed=seed)
+    dc = DomainCheck.calibrate(X_train, X_val, seed=seed, Y_train=Y_train)
     model.arrays.update(dc.arrays())
     model.header['domain'] = dc.header()
     if table is not None:
@@ -234,6 +235,11 @@ def calibrate(model: ForceModel, X_train, X_val, Y_val, table=None, seed: int = 
         use = weak < lim ** 2
     else:
         use = np.ones(len(E), bool)
+    # trimmed: the 5 % largest errors (a few inputs far from any training input) would
+    # dominate the covariance of the typical estimate
+    if use.sum() > 20:
+        n = np.hypot(*E.T)
+        use &= n <= np.quantile(n[use], 0.95)
     C = np.cov(E[use].T) if use.sum() > 2 else np.eye(2) * lim ** 2
     model.header['model_cov'] = (0.5 * (C + C.T)).tolist()
     idx = np.random.default_rng(seed).choice(len(X_train), min(n_selftest, len(X_train)),

@@ -65,22 +65,25 @@ class ObservabilityTable:
     cov: np.ndarray
 
     def lookup(self, force) -> np.ndarray:
-        """The covariance at force (2,) N, bilinear in (angle, magnitude); magnitudes
-        beyond the table use its last row."""
+        """The covariance at force (2,) N (or (k, 2) -> (k, 2, 2)), bilinear in (angle,
+        magnitude); magnitudes beyond the table use its last row."""
         f = np.asarray(force, dtype=float)
-        mag = float(np.hypot(f[0], f[1]))
+        one = f.ndim == 1
+        f = f.reshape(-1, 2)
+        mag = np.hypot(f[:, 0], f[:, 1])
         A = len(self.angles)
         step = 2.0 * np.pi / A
-        t = ((np.arctan2(f[1], f[0]) - self.angles[0]) / step) % A
-        i0 = int(np.floor(t)) % A
+        t = ((np.arctan2(f[:, 1], f[:, 0]) - self.angles[0]) / step) % A
+        i0 = np.floor(t).astype(int) % A
         i1 = (i0 + 1) % A
-        wa = t - np.floor(t)
+        wa = (t - np.floor(t))[:, None, None]
         m = self.magnitudes
-        j = int(np.clip(np.searchsorted(m, mag) - 1, 0, len(m) - 2))
-        wm = float(np.clip((mag - m[j]) / (m[j + 1] - m[j]), 0.0, 1.0))
+        j = np.clip(np.searchsorted(m, mag) - 1, 0, len(m) - 2)
+        wm = np.clip((mag - m[j]) / (m[j + 1] - m[j]), 0.0, 1.0)[:, None, None]
         c = self.cov
-        return ((1 - wa) * ((1 - wm) * c[i0, j] + wm * c[i0, j + 1])
-                + wa * ((1 - wm) * c[i1, j] + wm * c[i1, j + 1]))
+        out = ((1 - wa) * ((1 - wm) * c[i0, j] + wm * c[i0, j + 1])
+               + wa * ((1 - wm) * c[i1, j] + wm * c[i1, j + 1]))
+        return out[0] if one else out
 
     def arrays(self) -> dict:
         return dict(obs_angles=self.angles, obs_magnitudes=self.magnitudes, obs_cov=self.cov)
