@@ -29,12 +29,15 @@ def toy_table(std=0.002):
 def toy_models():
     """(X, Y, {'svr', 'mlp', 'big'} models, svr training report); trained on the first 130
     samples, calibrated (domain, model error, self-test, a flat table) on the last 30."""
+    from threadpoolctl import threadpool_limits
+
     from force_estimator.training import calibrate, fit_mlp, fit_svr
     X, Y = toy_data()
     tr, va = slice(0, 130), slice(130, None)
-    svr, rep_s = fit_svr(X[tr], Y[tr], epsilons_n=(1e-3, 4e-3), gammas=(0.02, 0.1))
-    mlp, _ = fit_mlp(X[tr], Y[tr], n_init=2, max_iter=500)
-    big, _ = fit_mlp(X[tr], Y[tr], hidden_layer_sizes=(16, 16), n_init=1, max_iter=300)
+    with threadpool_limits(limits=1):        # multi-threaded BLAS is slower when shared
+        svr, rep_s = fit_svr(X[tr], Y[tr], epsilons_n=(1e-3, 4e-3), gammas=(0.02, 0.1))
+        mlp, _ = fit_mlp(X[tr], Y[tr], n_init=2, max_iter=500)
+        big, _ = fit_mlp(X[tr], Y[tr], hidden_layer_sizes=(16, 16), n_init=1, max_iter=300)
     for m in (svr, mlp, big):
         calibrate(m, X[tr], X[va], Y[va], table=toy_table(), Y_train=Y[tr])
     return X, Y, {'svr': svr, 'mlp': mlp, 'big': big}, rep_s
