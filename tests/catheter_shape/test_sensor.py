@@ -253,3 +253,22 @@ def test_random_frames_never_raise(h, w, seed, kind):
         assert np.all(np.isfinite(obs.control_points)) and np.isfinite(obs.residual)
     else:
         assert obs.message
+
+
+@pytest.mark.parametrize('theta', [2.2, -2.5, 2.8])
+def test_the_parameter_correction_beats_the_thesis_fit_on_strong_bends(shape_helpers, theta):
+    """The sensor's default (one regularized correction round) follows a strongly bent
+    catheter more closely than the thesis's chord-length fit of the same points (measured:
+    0.04-0.06 mm vs 0.10-0.17 mm mean deviation from the true centreline)."""
+    cam = SyntheticCamera(width=1024, height=1024, mm_per_px=0.15, base_px=(300, 700), noise=4,
+                          seed=3)
+    f = cam.render(shape_helpers.arc(theta), rng=np.random.default_rng(1))
+    dev = {}
+    for ref in (None, 0):
+        kw = {} if ref is None else dict(refine=ref)
+        obs = ShapeSensor(f.psi, background=f.background, base_px=cam.base_px,
+                          **kw).process(f.image)
+        assert obs.ok
+        curve = bezier_eval(obs.control_points[:, :2], np.linspace(0, 1, 300))
+        dev[ref] = shape_helpers.dist(curve, f.centerline_m).mean()
+    assert dev[None] < 0.07e-3 and dev[None] < 0.6 * dev[0], dev
