@@ -75,3 +75,16 @@ def test_flat_field_with_a_background_sees_only_the_catheter():
     assert 0.45 < ff.contrast < 0.65          # the median over the blurred profile
     rows = np.nonzero(ff.mask[:, 200])[0]
     assert rows.min() in (139, 140, 141) and rows.max() in (158, 159, 160)
+
+
+def test_a_long_wire_elsewhere_is_not_a_second_catheter():
+    """A 6 px wire (an ECG lead, 0.4 catheter widths) away from the catheter, as large as a
+    third of it: not 'multiple_objects'; a second 15 px tube is."""
+    m = np.zeros((300, 500), np.uint8)
+    _bar(m, (20, 60), (300, 60), 15)
+    wire = m.copy()
+    _bar(wire, (20, 200), (480, 230), 5)
+    seg = catheter_component(wire, 50, 20, 15.0, base_px=(20.0, 60.0))
+    assert seg.status == 'ok' and seg.area < 5000
+    _bar(m, (20, 200), (300, 230), 15)
+    assert catheter_component(m, 50, 20, 15.0, base_px=(20.0, 60.0)).status == 'multiple_objects'

@@ -190,8 +190,8 @@ def test_bad_frames_give_a_status(cam, shape_helpers, make, status, method):
     # what each method says where it differs from the reason the frame was made for
     other = {('fixed', None, 'no_catheter'): 'too_short',       # the dark clamp alone
              ('flatfield', 'bg', 'bad_segmentation'): 'no_catheter',   # brighter than bg
-             ('flatfield', None, 'bad_segmentation'): 'tip_out_of_view'}   # the edge, border
-                                                                         # to border
+             ('flatfield', None, 'bad_segmentation'): 'bad_skeleton'}   # the edge: a thin
+                                                                      # line
     for bg in (None, cam.background):
         s = ShapeSensor(cam.psi, background=bg, base_px=cam.base_px, method=method)
         obs = s.process(frame)

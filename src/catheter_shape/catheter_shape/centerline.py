@@ -1,4 +1,5 @@
-"""Ordered centreline of a segmented catheter: skeleton -> longest geodesic path on the
+"""Ordered centreline of a segmented catheter: skeleton (without the parts where the mask is
+thinner than a catheter) -> longest geodesic path on the
 8-connected pixel graph (two Dijkstra passes, which ignores spurs) -> base/tip orientation
 -> ends restored along their tangents (a skeleton stops about half a width short of each
 end) -> light smoothing of the pixel staircase.
@@ -16,9 +17,12 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from skimage.morphology import skeletonize
 
-__all__ = ['Centerline', 'skeleton_path', 'extend_end', 'smooth_path', 'trim_thin_tip']
+__all__ = ['Centerline', 'skeleton_path', 'extend_end', 'smooth_path']
 
 _OFFS = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
+#: skeleton pixels where the mask's half-width is below this fraction of the catheter's are
+#: not the catheter
+THIN = 0.7
 
 
 @dataclass
@@ -64,7 +68,7 @@ def _path(pred: np.ndarray, start: int, end: int) -> np.ndarray:
 
 def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
                   image_shape: Optional[Tuple[int, int]] = None,
-                  min_length_px: float = 10.0) -> Centerline:
+                  min_length_px: float = 10.0, width_px: Optional[float] = None) -> Centerline:
     """Longest geodesic path of the skeleton of `mask` (uint8/bool ROI at `offset` (u0, v0)),
     in full-frame pixels, ordered base -> tip.
 
@@ -72,11 +76,30 @@ def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
     skeleton) from the pixel nearest base_px, the base the end farthest from that tip; if
     base_px lies inside the image and the path passes it well before its end (the clamp is
     part of the mask), the path is cut at the pixel nearest base_px. Not given: the base is
-    the path end nearest the image border (image_shape (H, W) needed)."""
+    the path end nearest the image border (image_shape (H, W) needed).
+
+    width_px: the catheter's width; given, runs of skeleton pixels at least a width long
+    where the mask is thinner than `THIN` of a catheter's (its mask is about 0.9 width_px
+    wide) are dropped first: a thin structure touching the catheter (a wire across it, a
+    guidewire out of its tip) cannot carry the path away from it; a short dip of a noisy
+    mask stays."""
     skel = skeletonize(mask.astype(bool))
+    if width_px is not None and skel.any():
+        m = cv2.copyMakeBorder(mask.astype(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+        dt = cv2.distanceTransform(m, cv2.DIST_L2, 3)[1:-1, 1:-1]
+        thin = skel & (dt < THIN * 0.45 * width_px)
+        if thin.any():
+            # only runs of thin skeleton at least a width long: a short dip of a noisy mask
+            # stays, a wire goes
+            n_t, lab, st, _ = cv2.connectedComponentsWithStats(thin.view(np.uint8), connectivity=8)
+            long_runs = np.flatnonzero(st[1:, cv2.CC_STAT_AREA] >= width_px) + 1
+            if long_runs.size:
+                skel &= ~np.isin(lab, long_runs)
     n = int(np.count_nonzero(skel))
     if n < 2:
-        return Centerline('bad_skeleton', skeleton_px=n, message=f'skeleton has {n} pixel(s)')
+        return Centerline('bad_skeleton', skeleton_px=n,
+                          message=f'skeleton has {n} pixel(s) where the object is as wide as '
+                                  f'a catheter')
     g, xy = _graph(skel)
     off = np.asarray(offset, dtype=float)
     xy += off
@@ -120,44 +143,6 @@ def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
     if px.shape[0] < 2:
         return Centerline('too_short', skeleton_px=n, message='path has fewer than 2 pixels')
     return Centerline('ok', pixels=px, base_cut=base_cut, skeleton_px=n)
-
-
-def trim_thin_tip(px: np.ndarray, mask: np.ndarray, offset, width_px: float,
-                  frac: float = 0.7) -> Tuple[np.ndarray, float]:
-    """Cut the tip end of an ordered skeleton path (N, 2) (full-frame pixels, integer
-    skeleton positions) where the mask (ROI at `offset`) becomes thinner than `frac` of the
-    path's median width (over the tip half; at least 0.45 width_px as the half-width): a
-    thin structure (a guidewire out of the tip, a wire touching it) continues the catheter
-    there. Returns (path, length cut in pixels)."""
-    # the distance transform of the mask around the tip-side half of the path only (speed),
-    # padded with background (a tight ROI would put no background beside a straight tube)
-    ij = np.rint(px - np.asarray(offset, dtype=float)).astype(int)
-    ij[:, 0] = np.clip(ij[:, 0], 0, mask.shape[1] - 1)
-    ij[:, 1] = np.clip(ij[:, 1], 0, mask.shape[0] - 1)
-    ij = ij[len(ij) // 2:]
-    r = int(np.ceil(width_px)) + 2
-    x0, y0 = max(int(ij[:, 0].min()) - r, 0), max(int(ij[:, 1].min()) - r, 0)
-    x1 = min(int(ij[:, 0].max()) + r + 1, mask.shape[1])
-    y1 = min(int(ij[:, 1].max()) + r + 1, mask.shape[0])
-    m = cv2.copyMakeBorder(mask[y0:y1, x0:x1].astype(np.uint8), 1, 1, 1, 1,
-                           cv2.BORDER_CONSTANT, value=0)
-    dt = cv2.distanceTransform(m, cv2.DIST_L2, 3)[1:-1, 1:-1]
-    half = dt[ij[:, 1] - y0, ij[:, 0] - x0]
-    # a long wire could be the median of the tip half: the catheter's half-width is about
-    # half its diameter at least
-    thin = half < frac * max(float(np.median(half)), 0.45 * width_px)
-    if not thin.any():
-        return px, 0.0
-    # the earliest point from which on (nearly) everything to the tip is thin
-    suffix = np.cumsum(thin[::-1])[::-1] / np.arange(len(thin), 0, -1)
-    cand = np.flatnonzero(thin & (suffix >= 0.8))
-    if cand.size == 0 or cand[0] == 0:
-        return px, 0.0
-    j = int(cand[0]) + (len(px) - len(half))          # index in the whole path
-    cut = float(np.sum(np.hypot(*np.diff(px[j - 1:], axis=0).T)))
-    if cut <= 0.75 * width_px:
-        return px, 0.0
-    return px[:j], cut
 
 
 def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:

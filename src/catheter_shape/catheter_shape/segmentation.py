@@ -81,6 +81,18 @@ def threshold_frame(gray: np.ndarray, threshold: int = 132,
     return mask, score, level
 
 
+#: a component is as thick as a catheter when its widest part is at least this fraction of
+#: the catheter's width (thinner: a wire, a rim, a line of noise)
+THICK = 0.6
+
+
+def _thickness(blob: np.ndarray) -> float:
+    """Width (pixels) of the widest part of a binary blob: twice its largest distance to
+    the background."""
+    m = cv2.copyMakeBorder(blob.astype(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    return 2.0 * float(cv2.distanceTransform(m, cv2.DIST_L2, 3).max())
+
+
 def _elongated(xs: np.ndarray, ys: np.ndarray, min_length: float) -> bool:
     """A blob of pixels (xs, ys) is at least min_length long (sqrt(12 var) along its
     principal axis, the length of a uniform bar): a piece of catheter, not a roundish blob
@@ -139,10 +151,11 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
                        max_fill: float = 0.5, base_px=None) -> Segmentation:
     """Clean a binary mask and keep the catheter: the component at the clamp pixel base_px
     (when given and inside the frame; else the largest) plus fragments within max_gap_px of
-    it that are at least 1.5 widths long (joined by the convex hull of both ends: gaps
-    from occlusion or low contrast; a roundish blob near the tip is not joined); fails
-    with 'multiple_objects' when another component of at least second_ratio of the kept
-    one's area remains (two catheters, or a piece of this one too far away), 'no_catheter'
+    it that are at least 1.5 widths long and as thick as a catheter (`THICK`; joined by the
+    convex hull of both ends: gaps from occlusion or low contrast; a roundish blob or a
+    wire near the tip is not joined); fails with 'multiple_objects' when another component
+    as thick as a catheter and of at least second_ratio of the kept one's area remains (two
+    catheters, or a piece of this one too far away), 'no_catheter'
     when the kept one is below min_area pixels, 'bad_segmentation' when more than max_fill
     of the frame is dark."""
     H, W = mask.shape
@@ -193,7 +206,10 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
         fy, fx = np.nonzero(win == k)
         my, mx = np.nonzero(np.isin(win, keep))
         joined = False
+        thick = None
         if my.size and fy.size and _elongated(fx, fy, 1.5 * width_px):
+            thick = _thickness(win == k) >= THICK * width_px
+        if thick:
             fs = max(1, fy.size // 400)
             ms = max(1, my.size // 400)
             F = np.stack([fx[::fs], fy[::fs]], 1).astype(np.float32)
@@ -211,9 +227,12 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
                 bars.append(np.rint(hull).astype(np.int32))
                 joined = True
         if not joined and a >= second_ratio * stats[main, cv2.CC_STAT_AREA]:
-            return Segmentation('multiple_objects', n_objects=2,
-                                message=f'a second dark object of {a} px beside one of '
-                                        f'{stats[main, cv2.CC_STAT_AREA]} px')
+            if thick is None:
+                thick = _thickness(labels[y:y + fh, x:x + fw] == k) >= THICK * width_px
+            if thick:           # a thin line (a wire) is not a second catheter
+                return Segmentation('multiple_objects', n_objects=2,
+                                    message=f'a second dark object of {a} px beside one of '
+                                            f'{stats[main, cv2.CC_STAT_AREA]} px')
     out = np.isin(labels, keep).astype(np.uint8) if len(keep) > 1 else \
         (labels == main).astype(np.uint8)
     for hull in bars:

@@ -12,7 +12,7 @@ import numpy as np
 from catheter_common.checks import finite, nonneg, positive
 from catheter_shape.bezier import _dist, _newton_params, _project_global, fit_bezier_detailed
 from catheter_shape.camera import BLAZER_DIAMETER, _check_psi
-from catheter_shape.centerline import extend_end, skeleton_path, smooth_path, trim_thin_tip
+from catheter_shape.centerline import extend_end, skeleton_path, smooth_path
 from catheter_shape.flatfield import flat_field, prepare_background
 from catheter_shape.plausibility import (MAX_KINK, MAX_TURNING, check_fold, inside_frame,
                                          on_border, path_length)
@@ -255,7 +255,8 @@ class ShapeSensor:
         if seg.status != 'ok':
             return fail(seg.status, seg.message, tm, t0)
         cl = skeleton_path(seg.mask, seg.offset, self.base_px, gray.shape,
-                           min_length_px=max(3.0, 0.5 * self.min_length / self._m_per_px))
+                           min_length_px=max(3.0, 0.5 * self.min_length / self._m_per_px),
+                           width_px=w_px)
         t4 = time.perf_counter()
         tm['skeleton'] = t4 - t3
         if cl.status != 'ok':
@@ -265,9 +266,6 @@ class ShapeSensor:
             return fail('bad_segmentation', f'the dark object is {width:.1f} px wide for a '
                                             f'{w_px:.1f} px catheter', tm, t0)
         half_contrast = self.method == 'flatfield' or (bg is not None and self.method == 'fixed')
-        # a thin structure continuing the tip (a guidewire out of it, a wire touching it) is
-        # not the catheter: the path ends where the mask gets thinner than 0.7 of its width
-        cl.pixels, _ = trim_thin_tip(cl.pixels, seg.mask, seg.offset, w_px)
         px, status, message = self._ends(cl, score, level, gray.shape, half_contrast)
         if status != 'ok':
             return fail(status, message, tm, t0)

@@ -30,6 +30,10 @@ style           physics (ranges drawn per frame)
 ``degraded``    attenuation or opaque, with motion blur of the catheter (3-10 px, any
                 direction), JPEG compression (quality 25-75) of 8-bit frames, or 16-bit
                 frames (12 significant bits)
+``clinical``    low-dose fluoroscopy: attenuation over anatomy with a contrast-filled vessel
+                (a dark band 2-5 mm wide) and a pacing lead, heart motion between the
+                background frame and the frame (misregistration up to 1.5 px), noise 8-14
+                grey levels, 16-bit frames in half of them, a sheath at the base
 ==============  ===============================================================================
 
 `TUNING_STYLES` are the styles the sensor's defaults were developed and tuned on;
@@ -56,11 +60,11 @@ from catheter_shape.camera import BLAZER_DIAMETER, SyntheticCamera, make_psi
 __all__ = ['STYLES', 'TUNING_STYLES', 'HELD_OUT_STYLES', 'StyledFrame', 'render_style',
            'style_params']
 
-STYLES = ('system', 'xray', 'anatomy', 'occluded', 'contrast', 'degraded')
+STYLES = ('system', 'xray', 'anatomy', 'occluded', 'contrast', 'degraded', 'clinical')
 #: styles the sensor's defaults were tuned on
 TUNING_STYLES = ('system', 'xray', 'occluded', 'contrast')
 #: styles never used for tuning (reported separately)
-HELD_OUT_STYLES = ('anatomy', 'degraded')
+HELD_OUT_STYLES = ('anatomy', 'degraded', 'clinical')
 
 _SHIFT = 4
 _SCALE = float(1 << _SHIFT)
@@ -106,7 +110,7 @@ def style_params(style: str, rng: np.random.Generator) -> dict:
              noise=_u(rng, 3, 8), blur=_u(rng, 0.5, 1.1), motion=0.0, motion_angle=0.0,
              clamp='jaw' if rng.random() < 0.5 else 'none', tissue_under=False,
              tissue_over=0.0, anatomy=False, misregister=0.0, jpeg=0, bits=8,
-             bg_frames=int(rng.choice([1, 4, 16])), black=_u(rng, 0, 6),
+             bg_frames=int(rng.choice([1, 4, 16])), black=_u(rng, 0, 6), vessel=False,
              partial=bool(rng.random() < 0.08), base_out=False)
     if style == 'system':
         p.update(model='system', noise=_u(rng, 2, 12), blur=_u(rng, 0.5, 1.2),
@@ -132,6 +136,11 @@ def style_params(style: str, rng: np.random.Generator) -> dict:
         else:                              # saturated
             p.update(transmission=_u(rng, 0.03, 0.2), exposure=_u(rng, 1.15, 1.6),
                      noise=_u(rng, 2, 10))
+    elif style == 'clinical':
+        p.update(anatomy=True, vessel=True, misregister=_u(rng, 0.3, 1.5), noise=_u(rng, 8, 14),
+                 transmission=_u(rng, 0.3, 0.55), vignetting=_u(rng, 0.2, 0.4),
+                 clamp='sheath', bits=16 if rng.random() < 0.5 else 8,
+                 bg_frames=int(rng.choice([4, 16])))
     elif style == 'degraded':
         if rng.random() < 0.3:
             p.update(model='opaque', reflectance=_u(rng, 0.08, 0.25))
@@ -238,6 +247,25 @@ def _anatomy(rng, H, W, mm_per_px) -> np.ndarray:
         w = _u(rng, 15, 30) / mm_per_px
         s = np.clip(1 - np.abs(u - c0) / w, 0, 1) ** 0.5
         T *= 1.0 - _u(rng, 0.1, 0.25) * s.astype(np.float32)
+    return T
+
+
+def _vessel(rng, H, W, mm_per_px) -> np.ndarray:
+    """Transmission (H, W) of a contrast-filled vessel (a dark tube 2-5 mm wide along a
+    smooth random curve) and a pacing lead (a 1.5 mm dark line)."""
+    T = np.ones((H, W), np.float32)
+    for width_mm, dark in ((_u(rng, 2.0, 5.0), _u(rng, 0.3, 0.55)), (1.5, _u(rng, 0.2, 0.4))):
+        m = np.zeros((H, W), np.uint8)
+        a = _u(rng, 0, 2 * np.pi)
+        pts = [np.array([_u(rng, 0, W), _u(rng, 0, H)])]
+        for _ in range(14):
+            a += rng.normal(0, 0.2)
+            pts.append(pts[-1] + 50.0 * np.array([np.cos(a), np.sin(a)]))
+        pts = np.array(pts)
+        cv2.polylines(m, [np.rint(pts * _SCALE).astype(np.int32).reshape(-1, 1, 2)], False, 255,
+                      max(1, int(round(width_mm / mm_per_px))), cv2.LINE_AA, _SHIFT)
+        k = cv2.GaussianBlur(m.astype(np.float32) / 255.0, (0, 0), 1.0)
+        T *= 1.0 - np.float32(dark) * k
     return T
 
 
@@ -420,6 +448,8 @@ def render_style(style: str, centerline_m, rng: Optional[np.random.Generator] = 
         illum = (1.0 - np.float32(p['vignetting']) * r2) * np.float32(p['exposure'])
         scene = np.exp(_smooth_noise(rng, H, W, 24, 0.04)).astype(np.float32)
         moved = None
+        if p.get('vessel'):
+            scene *= _vessel(rng, H, W, mm)
         if p['anatomy']:
             scene *= _anatomy(rng, H, W, mm)
             scene *= _wires(rng, H, W, mm, int(rng.integers(1, 3)))
