@@ -191,7 +191,7 @@ def test_bad_frames_give_a_status(cam, shape_helpers, make, status, method):
     other = {('fixed', None, 'no_catheter'): 'too_short',       # the dark clamp alone
              ('flatfield', 'bg', 'bad_segmentation'): 'no_catheter',   # brighter than bg
              ('flatfield', None, 'bad_segmentation'): 'bad_skeleton'}   # the edge: a thin
-                                                                      # line
+                                                                      # line (no catheter)
     for bg in (None, cam.background):
         s = ShapeSensor(cam.psi, background=bg, base_px=cam.base_px, method=method)
         obs = s.process(frame)

@@ -14,7 +14,7 @@ from typing import Optional, Tuple
 import cv2
 import numpy as np
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 from skimage.morphology import skeletonize
 
 __all__ = ['Centerline', 'skeleton_path', 'extend_end', 'smooth_path']
@@ -84,23 +84,28 @@ def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
     guidewire out of its tip) cannot carry the path away from it; a short dip of a noisy
     mask stays."""
     skel = skeletonize(mask.astype(bool))
-    if width_px is not None and skel.any():
-        m = cv2.copyMakeBorder(mask.astype(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
-        dt = cv2.distanceTransform(m, cv2.DIST_L2, 3)[1:-1, 1:-1]
-        thin = skel & (dt < THIN * 0.45 * width_px)
-        if thin.any():
-            # only runs of thin skeleton at least a width long: a short dip of a noisy mask
-            # stays, a wire goes
-            n_t, lab, st, _ = cv2.connectedComponentsWithStats(thin.view(np.uint8), connectivity=8)
-            long_runs = np.flatnonzero(st[1:, cv2.CC_STAT_AREA] >= width_px) + 1
-            if long_runs.size:
-                skel &= ~np.isin(lab, long_runs)
     n = int(np.count_nonzero(skel))
     if n < 2:
-        return Centerline('bad_skeleton', skeleton_px=n,
-                          message=f'skeleton has {n} pixel(s) where the object is as wide as '
-                                  f'a catheter')
+        return Centerline('bad_skeleton', skeleton_px=n, message=f'skeleton has {n} pixel(s)')
     g, xy = _graph(skel)
+    if width_px is not None:
+        # only runs of thin skeleton at least a width long: a short dip of a noisy mask
+        # stays, a wire goes (runs: connected components of the thin nodes' subgraph)
+        m = cv2.copyMakeBorder(mask.astype(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+        dt = cv2.distanceTransform(m, cv2.DIST_L2, 3)
+        ij = xy.astype(int) + 1
+        thin = dt[ij[:, 1], ij[:, 0]] < THIN * 0.45 * width_px
+        if np.count_nonzero(thin) >= width_px:          # else no run can be a width long
+            ti = np.flatnonzero(thin)
+            _, lab = connected_components(g[ti][:, ti], directed=False)
+            drop = np.zeros(n, bool)
+            drop[ti] = np.bincount(lab)[lab] >= width_px
+            if drop.any():
+                keep = np.flatnonzero(~drop)
+                if keep.size < 2:
+                    return Centerline('bad_skeleton', skeleton_px=int(keep.size),
+                                      message='no part of the object is as wide as a catheter')
+                g, xy = g[keep][:, keep], xy[keep]
     off = np.asarray(offset, dtype=float)
     xy += off
     if base_px is not None:
