@@ -234,3 +234,36 @@ def test_force_model_arrays_validation(models):
     a['env_hi'] = a['env_hi'] + 5.0
     with pytest.raises(ValueError, match='env_lo'):
         ForceModel('mlp', a, models['mlp'].header)
+
+
+def test_neighbours_forces_decide_observability_when_the_estimate_does_not(toy_models):
+    """The covariance takes the least determined of the table at the model's estimate and
+    at its nearest training inputs' forces: a model whose (wrong) estimate lands where the
+    table is confident is still flagged when the inputs around it came from axial pulls."""
+    from tests.force_estimator.conftest import toy_table
+    from force_estimator.training import calibrate
+    X, Y, models, _ = toy_models
+    m = ForceModel('mlp', dict(models['mlp'].arrays), dict(models['mlp'].header), name='toy')
+    tab = toy_table(0.002)
+    tab.cov[4] = np.eye(2) * 0.1 ** 2              # angles around 0 (pulls): unobservable
+    pulls = np.tile([0.2, 0.0], (130, 1))         # pretend every training input was a pull
+    calibrate(m, X[:130], X[130:], Y[130:], table=tab, Y_train=pulls)
+    e = m.estimate(X[7].reshape(4, 3))
+    assert abs(np.arctan2(e.force[1], e.force[0])) > 0.5          # the estimate: not a pull
+    assert np.linalg.eigvalsh(tab.lookup(e.force))[-1] < 0.03 ** 2
+    assert e.status == 'axial_unobservable' and e.max_std > 0.09
+
+
+def test_the_fallback_stays_in_the_learned_envelope():
+    """A force beyond the trained range (0.45 N): the learned model clips or refuses it, the
+    FAM fallback shares the learned envelope: nothing beyond it is published as normal."""
+    pytest.importorskip('fam_solver')
+    from fam_solver import Catheter, Loads, solve_fam
+    from catheter_shape import fit_bezier
+    h = make_estimator('svr')
+    assert h.fam.f_max <= h.model.f_bound
+    c = solve_fam(Catheter(length=L, ei=6e-5), Loads(tip_force=(-0.1, 0.44)), n_arcs=24
+                  ).centerline(200)
+    e = h.estimate(fit_bezier(np.c_[c, np.zeros(len(c))]))
+    _check(e, h.model.f_bound)
+    assert not e.normal or np.hypot(*e.force) <= h.model.f_bound
