@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from force_estimator import NORMAL, STATUSES, ForceModel, load_estimator
-from force_estimator.estimate import UNOBSERVABLE_STD, failed_estimate
+from force_estimator.estimate import DOMAIN_UNKNOWN, UNOBSERVABLE_STD, failed_estimate
 from force_estimator.hybrid import HybridEstimator, make_estimator
 
 L = 0.065
@@ -32,6 +32,8 @@ def fam():
 def _check(e, f_bound):
     """The estimate object's invariants."""
     assert e.status in STATUSES
+    assert e.message_status in ('ok', 'unobservable_axial', 'out_of_domain', 'non_finite_input')
+    assert (e.message_status in ('ok', 'unobservable_axial')) == e.normal
     assert e.force.shape == (2,) and np.all(np.isfinite(e.force))
     assert np.hypot(*e.force) <= f_bound * (1 + 1e-9)
     C = e.covariance
@@ -39,8 +41,8 @@ def _check(e, f_bound):
     assert np.linalg.eigvalsh(C)[0] >= -1e-15
     assert e.normal == (e.status in NORMAL)
     if e.normal:
-        assert e.domain_distance <= 1.0
-    assert not np.isnan(e.domain_distance)
+        assert e.domain_distance == 0.0
+    assert np.isfinite(e.domain_distance) and e.domain_distance >= 0.0
 
 
 # --- the defects of issue 10, item 4 -----------------------------------------------------------
@@ -76,7 +78,7 @@ def test_training_inputs_are_normal_estimates(toy_models, kind):
         _check(e, m.f_bound)
     assert sum(e.normal for e in es) >= 0.9 * len(es)
     assert all(e.method == kind and e.primary == kind for e in es)
-    assert np.mean([e.domain_distance for e in es]) < 0.5
+    assert all(e.domain_distance == 0.0 for e in es if e.normal)
 
 
 def test_non_finite_and_wrongly_shaped_input(models):
@@ -85,7 +87,7 @@ def test_non_finite_and_wrongly_shaped_input(models):
     x[1, 0] = np.nan
     e = m.estimate(x)
     assert e.status == 'non_finite_input' and not e.normal and np.all(e.force == 0)
-    assert e.domain_distance == float('inf')
+    assert e.domain_distance == DOMAIN_UNKNOWN
     with pytest.raises(ValueError, match='control_points'):
         m.estimate(np.zeros((3, 3)))
     with pytest.raises(ValueError, match='control_points'):

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ['ForceEstimate', 'STATUSES', 'NORMAL', 'METHODS', 'UNOBSERVABLE_STD',
-           'failed_estimate']
+           'DOMAIN_UNKNOWN', 'MESSAGE_STATUS', 'failed_estimate', 'domain_distance']
 
 #: every status an estimate can carry:
 #: ok - in the training domain (learned) / the shape fits (fam), force observable;
@@ -40,6 +40,27 @@ METHODS = ('svr', 'mlp', 'fam', 'fam_fallback')
 #: std (N) of the weakest direction above which an estimate is 'axial_unobservable':
 #: 10 % of the 0.3 N full scale (the clinical error limit)
 UNOBSERVABLE_STD = 0.03
+#: the status of catheter_interfaces/TipForceEstimate (by the lower-case name of its
+#: constant) for each status here: the message's codes are coarser, the reason is in
+#: `message`
+MESSAGE_STATUS = {'ok': 'ok', 'axial_unobservable': 'unobservable_axial',
+                  'out_of_domain': 'out_of_domain', 'out_of_envelope': 'out_of_domain',
+                  'no_fit': 'out_of_domain', 'not_converged': 'out_of_domain',
+                  'non_finite_input': 'non_finite_input', 'bad_input': 'out_of_domain'}
+#: the domain distance of an input that cannot be placed at all (non-finite, absurd, of zero
+#: length): finite, so that it fits a message field, and far beyond any real distance
+DOMAIN_UNKNOWN = 1e6
+
+
+def domain_distance(ratio: float) -> float:
+    """The published domain distance from a method's ratio (input measure over its
+    threshold, <= 1 inside): 0 inside the domain, else how far beyond its edge in units of
+    the threshold (ratio - 1); DOMAIN_UNKNOWN when the ratio is not finite. The convention of
+    catheter_interfaces/TipForceEstimate.domain_distance (>= 0, 0 inside)."""
+    r = float(ratio)
+    if not np.isfinite(r):
+        return DOMAIN_UNKNOWN
+    return min(max(0.0, r - 1.0), DOMAIN_UNKNOWN)
 
 
 @dataclass
@@ -50,10 +71,11 @@ class ForceEstimate:
     covariance: (2, 2) N^2; finite, symmetric, positive semi-definite.
     status: one of STATUSES; message: why, in words.
     method: 'svr', 'mlp', 'fam' or 'fam_fallback'; primary: the configured method.
-    domain_distance: how far the input lies from what the method covers (1 = the edge):
-        learned models, nearest-neighbour distance to the training inputs over its
-        calibrated threshold; FAM inversion, fit residual over max_residual; inf for bad
-        or non-finite input.
+    domain_distance: how far the input lies beyond what the method covers, >= 0 and finite
+        (`domain_distance()`): 0 inside; beyond, (ratio - 1) with ratio, for the learned
+        models, the nearest-neighbour distance to the training inputs over its calibrated
+        threshold (or 1 + how far outside the envelope box), for the FAM inversion, the fit
+        residual over max_residual; DOMAIN_UNKNOWN (1e6) for bad or non-finite input.
     """
     force: np.ndarray
     covariance: np.ndarray
@@ -68,6 +90,11 @@ class ForceEstimate:
     def normal(self) -> bool:
         """True when the estimate may be published as a normal estimate."""
         return self.status in NORMAL
+
+    @property
+    def message_status(self) -> str:
+        """The TipForceEstimate status name for this estimate (see MESSAGE_STATUS)."""
+        return MESSAGE_STATUS[self.status]
 
     @property
     def std(self) -> np.ndarray:
@@ -96,7 +123,7 @@ def failed_estimate(status: str, method: str, message: str, f_max: float,
     var = (0.5 * f_max) ** 2
     return ForceEstimate(force=np.zeros(2), covariance=np.eye(2) * var, status=status,
                          method=method, primary=primary or method,
-                         domain_distance=float('inf'), message=message)
+                         domain_distance=DOMAIN_UNKNOWN, message=message)
 
 
 def bounded(force: np.ndarray, f_max: float):

@@ -74,7 +74,8 @@ from typing import Optional
 
 import numpy as np
 
-from force_estimator.estimate import ForceEstimate, bounded, classify, failed_estimate
+from force_estimator.estimate import (DOMAIN_UNKNOWN, ForceEstimate, bounded, classify,
+                                      domain_distance, failed_estimate)
 from force_estimator.inputs import control_points_to_features
 from force_estimator.inputs import check_control_points
 from force_estimator.uncertainty import (ALIGN_SIGMA, FORCE_PRIOR, SHAPE_NOISE,
@@ -387,7 +388,7 @@ class FamInverseEstimator:
         except ValueError as exc:
             r = failed_estimate('bad_input', 'fam', str(exc), self.f_max)
             out = FamInverseResult(force=r.force, covariance=r.covariance, status='bad_input',
-                                   method='fam', primary='fam', domain_distance=np.inf,
+                                   method='fam', primary='fam', domain_distance=DOMAIN_UNKNOWN,
                                    message=str(exc))
             self.last_result = out
             return out
@@ -447,7 +448,7 @@ class FamInverseEstimator:
                                               f'{self.f_max:g} N (scaled back)')
         else:
             status, msg = classify(cov), ''
-        dist = float(res / self.max_residual) if np.isfinite(res) else float('inf')
+        dist = domain_distance(res / self.max_residual if np.isfinite(res) else np.inf)
         return FamInverseResult(force=force, covariance=cov, status=status, method='fam',
                                 primary='fam', domain_distance=dist, message=msg,
                                 residual=res, iterations=it, solves=solves,

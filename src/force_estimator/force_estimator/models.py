@@ -65,7 +65,8 @@ from typing import Dict, Optional, Tuple
 import numpy as np
 
 from force_estimator.domain import DomainCheck
-from force_estimator.estimate import ForceEstimate, bounded, classify, failed_estimate
+from force_estimator.estimate import (ForceEstimate, bounded, classify, domain_distance,
+                                      failed_estimate)
 from force_estimator.inputs import (MAX_COORD, N_FEATURES, check_control_points,
                                     control_points_to_features)
 from force_estimator.uncertainty import FORCE_PRIOR, ObservabilityTable
@@ -333,8 +334,9 @@ class ForceModel:
         return max(d / self.domain.threshold, box), idx
 
     def domain_distance(self, control_points) -> float:
-        """The input's distance from the training inputs (<= 1 inside; see _domain)."""
-        return self._domain(control_points_to_features(control_points))[0]
+        """The input's distance beyond the training domain (0 inside; see _domain and
+        force_estimator.estimate.domain_distance)."""
+        return domain_distance(self._domain(control_points_to_features(control_points))[0])
 
     def covariance(self, force, neighbours=None) -> np.ndarray:
         """Covariance (2, 2) N^2 of an estimate `force`: the observability table (the
@@ -359,14 +361,14 @@ class ForceModel:
         if bad is not None:
             return failed_estimate(bad[0], self.kind, bad[1], self.f_bound)
         x = control_points_to_features(control_points)
-        dist, nb = self._domain(x)
+        ratio, nb = self._domain(x)
         raw = self._forward1((np.clip(x, self._lo, self._hi) - self._xm) * self._xis) \
             * self._ys + self._ym
         force, clipped = bounded(raw, self.f_bound)
         cov = self.covariance(force, nb)
-        if not dist <= 1.0:
+        if not ratio <= 1.0:
             status = 'out_of_domain'
-            msg = (f'the control points are {dist:.3g} x the domain threshold from the '
+            msg = (f'the control points are {ratio:.3g} x the domain threshold from the '
                    f'training inputs')
         elif clipped:
             status, msg = 'out_of_envelope', (f'the model gave |f| = {np.hypot(*raw):.3g} N '
@@ -374,7 +376,8 @@ class ForceModel:
         else:
             status, msg = classify(cov), ''
         return ForceEstimate(force=force, covariance=cov, status=status, method=self.kind,
-                             primary=self.kind, domain_distance=dist, message=msg)
+                             primary=self.kind, domain_distance=domain_distance(ratio),
+                             message=msg)
 
     def save(self, path: str) -> str:
         """Write the model as .npz (arrays + JSON header; no pickle). Returns the path."""
