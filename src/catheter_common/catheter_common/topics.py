@@ -19,8 +19,10 @@ FRAME_CAMERA = 'camera_optical_frame'
 CAMERA_IMAGE = '/camera/image_raw'             # sensor_msgs/Image, mono8, 30 Hz
 CONTROL_POINTS = '/catheter/control_points'    # geometry_msgs/PoseArray, 4 poses base->tip
 TIP_LOAD = '/catheter/tip_load'                # geometry_msgs/WrenchStamped (input of fam_solver)
-SHAPE = '/catheter/shape'                      # nav_msgs/Path: centreline MEASURED in the image (shape_node)
-FAM_SHAPE = '/catheter/fam/shape'              # nav_msgs/Path: centreline MODELLED by FAM from the tip load (fam_solver_node)
+#: nav_msgs/Path: the centreline MEASURED in the image (shape_node)
+SHAPE = '/catheter/shape'
+#: nav_msgs/Path: the centreline MODELLED by FAM from the tip load (fam_solver_node)
+FAM_SHAPE = '/catheter/fam/shape'
 FAM_SHAPE_MARKER = '/catheter/fam/shape_marker'  # visualization_msgs/Marker of FAM_SHAPE
 #: former name of FAM_SHAPE_MARKER (kept until every user says FAM_SHAPE_MARKER)
 SHAPE_MARKER = FAM_SHAPE_MARKER

@@ -150,7 +150,8 @@ def debug_overlay(frame: np.ndarray, obs, psi: np.ndarray) -> np.ndarray:
             cv2.circle(img, (int(round(q[0])), int(round(q[1]))), 4, (0, 220, 220), 1, cv2.LINE_AA)
         cv2.circle(img, tuple(int(round(x)) for x in obs.base_px), 5, (255, 0, 0), 2)
         cv2.circle(img, tuple(int(round(x)) for x in obs.tip_px), 5, (255, 0, 255), 2)
-        txt = f'ok  residual {obs.residual * 1e3:.3f} mm  {obs.timings.get("total", 0) * 1e3:.1f} ms'
+        txt = (f'ok  residual {obs.residual * 1e3:.3f} mm  '
+               f'{obs.timings.get("total", 0) * 1e3:.1f} ms')
     else:
         txt = f'{obs.status}: {obs.message}'[:80]
     cv2.putText(img, txt, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 255, 255), 1, cv2.LINE_AA)
