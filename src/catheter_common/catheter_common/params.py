@@ -20,6 +20,7 @@ from it. `NodeParams`:
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from typing import Any, Callable, Dict, Iterable, Optional, Sequence, Tuple
@@ -243,6 +244,7 @@ def seal(node) -> int:
         desc = node.describe_parameter(name)
         if desc.read_only:
             continue
+        desc = copy.deepcopy(desc)       # (describe_parameter returns the node's own object)
         desc.read_only = True
         node.set_descriptor(name, desc)
         n += 1
