@@ -73,6 +73,11 @@ class ForceSourceNode(Node):
         self.diag.count('estimates')
 
     def _on_state(self, msg: JointState):
+        for field in ('position', 'velocity', 'effort'):
+            values = getattr(msg, field)
+            if not all(math.isfinite(v) for v in values):
+                self.diag.bad_input('joint_state', f'non-finite {field}')
+                return
         out = JointState()
         out.header = msg.header
         out.name = list(msg.name)

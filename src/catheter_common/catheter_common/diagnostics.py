@@ -117,7 +117,11 @@ class Diagnostics:
         self._logged[kind] = [t, 0]
         log = self._node.get_logger()
         msg = text + (f' ({held} more since the last report)' if held else '')
-        (log.error if level >= ERROR else log.warning)(msg)
+        # two call sites: rclpy refuses two severities from one line of code
+        if level >= ERROR:
+            log.error(msg)
+        else:
+            log.warning(msg)
 
     def active(self) -> Dict[str, Tuple[int, str]]:
         """The conditions active now: name -> (level, message)."""

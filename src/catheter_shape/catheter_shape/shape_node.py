@@ -224,6 +224,7 @@ class ShapeNode(Node):
             self.sensor, self._psi = self._build_sensor(values, strict=True)
         if 'period' in changes:
             self._timer.timer_period_ns = int(round(values['period'] * 1e9))
+            self._timer.reset()          # the new period counts from now
         if 'path_poses' in changes:
             self._path_max = values['path_poses']
 
@@ -249,7 +250,11 @@ class ShapeNode(Node):
             self.diag.count('idle')         # nobody listens: skip the heavy work
             return
         self.sensor.keep_mask = want_debug
-        obs = self.sensor.process(frame)
+        try:
+            obs = self.sensor.process(frame)
+        except (ValueError, cv2.error) as exc:    # the sensor should say 'bad_input' itself
+            self.diag.bad_input('image', f'the shape sensor failed on it: {exc!r}'[:300])
+            return
         self._last_obs = obs
         self.diag.count('processed')
         stamp = msg.header.stamp

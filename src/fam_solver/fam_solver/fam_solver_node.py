@@ -12,7 +12,8 @@ are relative (the node's namespace applies).
 
 Parameters (all apply at run time: the last load is solved again with them within 0.1 s):
 length [m], ei [N m^2], n_arcs, arc_model, spacing (graded|uniform arc lengths), follower,
-path_points, line_width [m]. Diagnostics: solves, non_converged, unstable, bad_messages,
+path_points, line_width [m], max_force [N], max_moment [N m] (bigger loads are refused as bad
+messages: they are no catheter's and take the solver long). Diagnostics: solves, non_converged, unstable, bad_messages,
 last solve time; WARN after a solve that did not converge or is unstable, and after bad
 messages. The physics lives in ``fam_solver.fam``; this module only converts.
 """
@@ -26,7 +27,7 @@ from rclpy.node import Node
 from visualization_msgs.msg import Marker
 
 from catheter_common import topics as T
-from catheter_common.diagnostics import WARN, Diagnostics
+from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_DEFAULT
 from catheter_common.ros_node import run_node, wall_time
@@ -49,6 +50,9 @@ PARAMS = table(
           dynamic=True),
     Param('path_points', 50, 'poses in the published Path', 2, 10000, dynamic=True),
     Param('line_width', 0.0023, 'marker line width [m] (7 Fr)', 1e-5, 0.1, dynamic=True),
+    Param('max_force', 10.0, 'largest tip force accepted, N (a bigger load is refused as a bad '
+          'message)', 1e-6, 1e4, dynamic=True),
+    Param('max_moment', 0.1, 'largest tip moment accepted, N m', 1e-9, 100.0, dynamic=True),
 )
 
 
@@ -85,6 +89,8 @@ class FamSolverNode(Node):
         self.follower = v['follower']
         self.path_points = v['path_points']
         self.line_width = v['line_width']
+        self.max_force = v['max_force']
+        self.max_moment = v['max_moment']
 
     def _apply_params(self, changes, values) -> None:
         self._set_values(values)
@@ -108,6 +114,11 @@ class FamSolverNode(Node):
         except ValueError as exc:
             self.diag.bad_input('tip_load', str(exc))
             return
+        if math.hypot(f.x, f.y) > self.max_force or abs(t.z) > self.max_moment:
+            self.diag.bad_input('tip_load', f'force ({f.x:.3g}, {f.y:.3g}) N / moment {t.z:.3g} '
+                                f'N m beyond max_force {self.max_force:g} N / max_moment '
+                                f'{self.max_moment:g} N m')
+            return
         if msg.header.frame_id and msg.header.frame_id != T.FRAME_CATHETER_BASE:
             self.diag.log_limited('frame', f'tip load in frame {msg.header.frame_id!r}, '
                                   f'treated as {T.FRAME_CATHETER_BASE!r}')
@@ -123,9 +134,15 @@ class FamSolverNode(Node):
         stamp, loads = self._pending
         self._pending = None
         t0 = wall_time()
-        shape = solve_fam(self.cat, loads, n_arcs=self.n_arcs, arc_model=self.arc_model,
-                          initial=self._last_shape if self.arc_model != 'bezier' else None,
-                          spacing=self.spacing)
+        try:
+            shape = solve_fam(self.cat, loads, n_arcs=self.n_arcs, arc_model=self.arc_model,
+                              initial=self._last_shape if self.arc_model != 'bezier' else None,
+                              spacing=self.spacing)
+        except ValueError as exc:       # the solver refused (or failed on) this load
+            self.diag.count('solve_errors')
+            self.diag.event('solve_error', ERROR, f'FAM failed on {loads}: {exc!r}')
+            self.diag.log_limited('solve_error', f'FAM failed on {loads}: {exc!r}', ERROR)
+            return
         dt = wall_time() - t0
         self.diag.count('solves')
         self.diag.set('last_solve_ms', dt * 1e3)

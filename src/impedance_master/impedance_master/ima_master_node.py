@@ -139,6 +139,7 @@ class ImaMasterNode(Node):
 
     def _on_impedance(self, msg: JointState) -> None:
         if self.mode == 'dfr':
+            self.diag.count('models_ignored_mode')
             return
         values = list(msg.position)
         if values == self._last_values and list(msg.name) == self._last_names:
@@ -162,6 +163,7 @@ class ImaMasterNode(Node):
 
     def _on_force(self, msg: WrenchStamped) -> None:
         if self.mode != 'dfr':
+            self.diag.count('forces_ignored_mode')
             return
         f = msg.wrench.force.x
         if not math.isfinite(f):

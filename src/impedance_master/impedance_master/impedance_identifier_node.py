@@ -2,7 +2,8 @@
 environment from the slave's joint states and publishes the model.
 
 Subscribes  slave/joint_state  sensor_msgs/JointState: position[0] insertion m, velocity[0]
-                               m/s (optional: differentiated if absent), effort[0] measured
+                               m/s (the thesis identifier differentiates x when it is absent;
+                               the default one refuses such a message), effort[0] measured
                                insertion force N. QOS_FAST.
 Publishes   slave/impedance    sensor_msgs/JointState used as stamped named float64 values:
                                name = Impedance.to_fields() names (first 'm', 'c', 'k',
@@ -97,15 +98,25 @@ class ImpedanceIdentifierNode(Node):
         if 'publish_rate' in changes:
             self.publish_rate = values['publish_rate']
             self.timer.timer_period_ns = int(round(1e9 / self.publish_rate))
+            self.timer.reset()          # the new period counts from now
 
     def _on_state(self, msg: JointState) -> None:
         try:
             x = first('position', msg.position)
             f = first('effort', msg.effort)
             xd = first('velocity', msg.velocity) if len(msg.velocity) else None
-            out = self.ident.update(x, xd, None, f)
+            if xd is None and self.kind != 'thesis':
+                raise ValueError('velocity is empty (the default identifier needs it)')
         except ValueError as exc:
             self.diag.bad_input('joint_state', str(exc))
+            return
+        try:
+            out = self.ident.update(x, xd, None, f)
+        except ValueError as exc:           # the identifier failed on a finite sample
+            self.diag.count('update_errors')
+            self.diag.event('update_error', ERROR, f'identification failed: {exc!r}')
+            self.diag.log_limited('update_error', f'identification failed on x={x!r} xd={xd!r} '
+                                  f'f={f!r}: {exc!r}', ERROR)
             return
         self.diag.count('samples')
         if out is not None:

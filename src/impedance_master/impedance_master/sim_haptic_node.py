@@ -44,6 +44,9 @@ from sim_slave.sim_slave_node import link_config, link_params
 #: force at the operator's hand (re-exported for the tests and tools that import it here)
 MASTER_HAND_FORCE = T.MASTER_HAND_FORCE
 JOINT_NAMES = ['insertion', 'rotation']
+#: N, the largest desired force the simulated device accepts (its motor saturates far below;
+#: a bigger value is a renderer fault and is refused, the last force is kept)
+MAX_DESIRED_FORCE = 100.0
 
 PARAMS = table(
     Param('rate', 1000.0, 'device and publishing rate, Hz', 10.0, 10000.0),
@@ -124,8 +127,9 @@ class SimHapticNode(Node):
 
     def _on_rendered(self, msg: WrenchStamped) -> None:
         f = msg.wrench.force.x
-        if not math.isfinite(f):
-            self.diag.bad_input('rendered_force', f'non-finite force.x {f!r}')
+        if not math.isfinite(f) or abs(f) > MAX_DESIRED_FORCE:
+            self.diag.bad_input('rendered_force', f'force.x {f!r} is not a finite force within '
+                                f'+-{MAX_DESIRED_FORCE:g} N: the last one is kept')
             return
         self.f_rendered = f
         self.diag.count('rendered_forces')
@@ -146,11 +150,15 @@ class SimHapticNode(Node):
         if len(msg.name) != len(msg.position):
             self.diag.bad_input('impedance', 'name and position lengths differ')
             return
+        if not all(math.isfinite(v) for v in msg.position):
+            self.diag.bad_input('impedance', 'non-finite values')
+            return
         self._send(self.link_imp, msg, 'impedance')
 
     def _on_slave_force(self, msg: WrenchStamped) -> None:
-        if not math.isfinite(msg.wrench.force.x):
-            self.diag.bad_input('slave_force', 'non-finite force.x')
+        f, t = msg.wrench.force, msg.wrench.torque
+        if not all(math.isfinite(v) for v in (f.x, f.y, f.z, t.x, t.y, t.z)):
+            self.diag.bad_input('slave_force', 'non-finite force or torque')
             return
         self._send(self.link_force, msg, 'force')
 

@@ -27,7 +27,7 @@ from sensor_msgs.msg import Image, JointState
 
 from catheter_common import topics as T
 from catheter_common.checks import first
-from catheter_common.diagnostics import WARN, Diagnostics
+from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.images import array_to_image
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST, QOS_SENSOR
@@ -104,6 +104,7 @@ class CameraNode(Node):
     def _apply_params(self, changes, values) -> None:
         if 'rate' in changes:
             self.timer.timer_period_ns = int(round(1e9 / values['rate']))
+            self.timer.reset()          # the new period counts from now
 
     def _on_state(self, msg: JointState) -> None:
         try:
@@ -114,6 +115,7 @@ class CameraNode(Node):
             self.diag.bad_input('joint_state', str(exc))
             return
         self.x, self.xd = x, xd
+        self.diag.count('joint_states')
 
     def _tick(self) -> None:
         want_image = self.pub_image.get_subscription_count() > 0
@@ -121,17 +123,20 @@ class CameraNode(Node):
         if not (want_image or want_truth):
             return
         stamp = self.get_clock().now().to_msg()
+        try:
+            frame = self.camera.frame(self.x, self.xd) if want_image else None
+            force = frame.tip_force if want_image else self.camera.tip_force(self.x, self.xd)
+        except (ArithmeticError, ValueError) as exc:     # a state the camera cannot draw
+            self.diag.count('frame_errors')
+            self.diag.event('frame_error', ERROR, f'no frame for x={self.x!r} m: {exc!r}')
+            return
         if want_image:
-            frame = self.camera.frame(self.x, self.xd)
-            force = frame.tip_force
             if not frame.converged:
                 self.diag.count('fam_not_converged')
                 self.diag.event('fam_not_converged', WARN, 'FAM did not converge: the frame '
                                 'shows its best iterate')
             self.pub_image.publish(array_to_image(frame.image, stamp, T.FRAME_CAMERA))
             self.diag.count('frames')
-        else:
-            force = self.camera.tip_force(self.x, self.xd)
         w = WrenchStamped()
         w.header.stamp = stamp
         w.header.frame_id = T.FRAME_CATHETER_BASE

@@ -1,0 +1,8 @@
+"""tests/fuzz: the strategies and the harness importable by the tests of this folder."""
+import pathlib
+import sys
+
+HERE = pathlib.Path(__file__).resolve().parent
+for p in (HERE, HERE.parent / 'nodes'):
+    if str(p) not in sys.path:
+        sys.path.insert(0, str(p))
