@@ -112,7 +112,9 @@ FUZZ_NODES = {
     'fam_solver_node': FuzzNode('fam_solver_node', {
         T.TIP_LOAD: Input(_wrench(0.5), ('loads_received',)),
     }, tick_ns=100_000_000, param_values={'n_arcs': st.integers(1, 48),
-                                          'path_points': st.integers(2, 200)}, cost=3.0),
+                                          'path_points': st.integers(2, 200),
+                                          'max_force': st.floats(1e-3, 1.0),
+                                          'max_moment': st.floats(1e-6, 0.01)}, cost=3.0),
     'force_source_node': FuzzNode('force_source_node', {
         T.TIP_WRENCH: Input(_wrench(0.5), ('estimates', 'bad_wrench')),
         T.SLAVE_JOINT_STATE: Input(_js(0.05), ('replaced', 'load_cell_fallback',
@@ -301,7 +303,7 @@ class Rig:
         _, inside = self.node.estimator.predict(cp, return_flags=True)
         if not inside:
             self.tally.over_limit += 1
-            self.tally.note(f'estimate published for control points outside the envelope')
+            self.tally.note('estimate published for control points outside the envelope')
 
 
 def expand(key: str, pool_seed, n: int, params) -> list:

@@ -7,8 +7,9 @@ Drawing every float of every message through hypothesis costs 1-2 ms a message; 
 needs thousands per topic. So hypothesis draws a *pool* of values (plausible and nasty) and
 a seed, and a builder per message type makes each message from them (its lengths, which
 pool values go where, encodings and sizes; a seeded share of plausible values, so that some
-batches are mostly clean and reach deep into the nodes) with a `random.Random(seed)`: the messages are a
-function of what hypothesis drew (it still shrinks the pool and the seed), at ~30 us each.
+batches are mostly clean and reach deep into the nodes) with a `random.Random(seed)`: the
+messages are a function of what hypothesis drew (it still shrinks the pool and the seed),
+at ~30 us each.
 `messages(builder)` is the strategy of single messages built this way.
 """
 from __future__ import annotations

@@ -31,7 +31,8 @@ MIN_PER_TOPIC = 1000
 def test_fuzz_node(ros, key):
     rig = Rig(ros, key)
 
-    @settings(max_examples=max(1, int(EXAMPLES / FUZZ_NODES[key].cost)), deadline=None, database=None,
+    @settings(max_examples=max(1, int(EXAMPLES / FUZZ_NODES[key].cost)), deadline=None,
+              database=None,
               suppress_health_check=list(HealthCheck))
     @given(events(key))
     def run(evs):

@@ -253,6 +253,7 @@ class ShapeNode(Node):
         try:
             obs = self.sensor.process(frame)
         except (ValueError, cv2.error) as exc:    # the sensor should say 'bad_input' itself
+            self.diag.count('sensor_errors')
             self.diag.bad_input('image', f'the shape sensor failed on it: {exc!r}'[:300])
             return
         self._last_obs = obs

@@ -50,9 +50,10 @@ PARAMS = table(
           dynamic=True),
     Param('path_points', 50, 'poses in the published Path', 2, 10000, dynamic=True),
     Param('line_width', 0.0023, 'marker line width [m] (7 Fr)', 1e-5, 0.1, dynamic=True),
-    Param('max_force', 10.0, 'largest tip force accepted, N (a bigger load is refused as a bad '
-          'message)', 1e-6, 1e4, dynamic=True),
-    Param('max_moment', 0.1, 'largest tip moment accepted, N m', 1e-9, 100.0, dynamic=True),
+    Param('max_force', 1.0, 'largest tip force accepted, N (a bigger load is refused as a bad '
+          'message; the thesis range is 0-0.3 N)', 1e-6, 1e4, dynamic=True),
+    Param('max_moment', 0.01, 'largest tip moment accepted, N m (0.003 N m bends the Blazer '
+          'into a half circle)', 1e-9, 100.0, dynamic=True),
 )
 
 
