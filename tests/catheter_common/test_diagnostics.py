@@ -96,3 +96,13 @@ def test_published_status_has_level_message_counters_and_conditions(ros):
     st = d.status()
     assert st.level == DiagnosticStatus.OK and st.message == 'ok'
     assert not any(x.key.startswith('condition.') for x in st.values)
+
+
+def test_log_limited_logs_warnings_and_errors_of_one_kind(ros):
+    """rclpy refuses two severities from one line of code ('Logger severity cannot be changed
+    between calls'): found by the node fuzz."""
+    c = SimClockNode(ros, 'diag_sev')
+    d = Diagnostics(c.node, log_period=0.0)
+    d.log_limited('k', 'a warning', WARN)
+    d.log_limited('k', 'an error', ERROR)
+    d.log_limited('k', 'a warning again', WARN)

@@ -20,6 +20,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common import topics as T
+from catheter_common.checks import all_finite, finite
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST, QOS_SENSOR
@@ -65,19 +66,22 @@ class ForceSourceNode(Node):
     def _on_wrench(self, msg: WrenchStamped):
         f = msg.wrench.force
         value = {'magnitude': math.hypot(f.x, f.y), 'x': f.x, 'y': f.y}[self.component]
-        if not math.isfinite(value):
-            self.diag.bad_input('wrench', f'non-finite tip force {value}')
+        try:
+            value = finite(f'tip force ({self.component})', value)
+        except ValueError as exc:
+            self.diag.bad_input('wrench', str(exc))
             return
         self.force = self.sign * value
         self.force_t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         self.diag.count('estimates')
 
     def _on_state(self, msg: JointState):
-        for field in ('position', 'velocity', 'effort'):
-            values = getattr(msg, field)
-            if not all(math.isfinite(v) for v in values):
-                self.diag.bad_input('joint_state', f'non-finite {field}')
-                return
+        try:
+            for field in ('position', 'velocity', 'effort'):
+                all_finite(field, getattr(msg, field))
+        except ValueError as exc:
+            self.diag.bad_input('joint_state', str(exc))
+            return
         out = JointState()
         out.header = msg.header
         out.name = list(msg.name)

@@ -57,3 +57,9 @@ def first(name: str, values, default=None) -> float:
             raise ValueError(f'{name} is empty')
         return default
     return finite(f'{name}[0]', values[0])
+
+
+def all_finite(name: str, values) -> None:
+    """ValueError naming the first entry of `values` that is not a finite number."""
+    for i, v in enumerate(values):
+        finite(f'{name}[{i}]', v)

@@ -28,11 +28,13 @@ FAM_SHAPE_MARKER = '/catheter/fam/shape_marker'  # visualization_msgs/Marker of 
 SHAPE_MARKER = FAM_SHAPE_MARKER
 TIP_WRENCH = '/catheter/tip_wrench'            # geometry_msgs/WrenchStamped (estimated tip force)
 SHAPE_DEBUG_IMAGE = '/catheter/debug_image'    # sensor_msgs/Image overlay (only while subscribed)
-SLAVE_JOINT_STATE = '/slave/joint_state'       # sensor_msgs/JointState (insertion m, rotation rad; effort N)
+#: sensor_msgs/JointState (insertion m, rotation rad; effort N)
+SLAVE_JOINT_STATE = '/slave/joint_state'
 #: /slave/joint_state with the insertion effort taken from the image-based tip force
 #: (force_source_node; the identifier's input when a scenario says force_source: image)
 SLAVE_JOINT_STATE_IMAGE = '/slave/joint_state_image'
-SLAVE_IMPEDANCE = '/slave/impedance'           # sensor_msgs/JointState used as stamped named float64 values
+#: sensor_msgs/JointState used as stamped named float64 values
+SLAVE_IMPEDANCE = '/slave/impedance'
 SLAVE_FORCE = '/slave/force'                   # geometry_msgs/WrenchStamped
 MASTER_COMMAND = '/master/command'             # sensor_msgs/JointState
 MASTER_RENDERED_FORCE = '/master/rendered_force'  # geometry_msgs/WrenchStamped
@@ -41,8 +43,10 @@ MASTER_RENDERED_FORCE = '/master/rendered_force'  # geometry_msgs/WrenchStamped
 # delivered on these master-local topics, which the renderer consumes.
 MASTER_LINK_IMPEDANCE = '/master/link/impedance'  # /slave/impedance as delivered at the master
 MASTER_LINK_FORCE = '/master/link/force'          # /slave/force as delivered at the master
-MASTER_HAND_FORCE = '/master/hand_force'        # geometry_msgs/WrenchStamped: force at the operator's hand
-CAMERA_TIP_FORCE_TRUTH = '/camera/tip_force_truth'  # geometry_msgs/WrenchStamped: tip force the sim camera drew
+#: geometry_msgs/WrenchStamped: force at the operator's hand
+MASTER_HAND_FORCE = '/master/hand_force'
+#: geometry_msgs/WrenchStamped: tip force the sim camera drew
+CAMERA_TIP_FORCE_TRUTH = '/camera/tip_force_truth'
 DIAGNOSTICS = '/diagnostics'                   # diagnostic_msgs/DiagnosticArray
 CLOCK = '/clock'                               # rosgraph_msgs/Clock
 

@@ -13,9 +13,10 @@ are relative (the node's namespace applies).
 Parameters (all apply at run time: the last load is solved again with them within 0.1 s):
 length [m], ei [N m^2], n_arcs, arc_model, spacing (graded|uniform arc lengths), follower,
 path_points, line_width [m], max_force [N], max_moment [N m] (bigger loads are refused as bad
-messages: they are no catheter's and take the solver long). Diagnostics: solves, non_converged, unstable, bad_messages,
-last solve time; WARN after a solve that did not converge or is unstable, and after bad
-messages. The physics lives in ``fam_solver.fam``; this module only converts.
+messages: they are no catheter's and take the solver long). Diagnostics: solves,
+non_converged, unstable, bad_messages, solve_errors, last solve time; WARN after a solve
+that did not converge or is unstable, and after bad messages; ERROR after a solver failure.
+The physics lives in ``fam_solver.fam``; this module only converts.
 """
 from __future__ import annotations
 

@@ -33,7 +33,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common import topics as T
-from catheter_common.checks import first
+from catheter_common.checks import finite, first
 from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
@@ -165,9 +165,10 @@ class ImaMasterNode(Node):
         if self.mode != 'dfr':
             self.diag.count('forces_ignored_mode')
             return
-        f = msg.wrench.force.x
-        if not math.isfinite(f):
-            self.diag.bad_input('force', f'non-finite force.x {f!r}')
+        try:
+            f = finite('force.x', msg.wrench.force.x)
+        except ValueError as exc:
+            self.diag.bad_input('force', str(exc))
             return
         self.renderer.set_force(f)
         self._t_feedback = self._now_ns()

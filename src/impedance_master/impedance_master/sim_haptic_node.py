@@ -32,6 +32,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common import topics as T
+from catheter_common.checks import all_finite
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
@@ -150,15 +151,19 @@ class SimHapticNode(Node):
         if len(msg.name) != len(msg.position):
             self.diag.bad_input('impedance', 'name and position lengths differ')
             return
-        if not all(math.isfinite(v) for v in msg.position):
-            self.diag.bad_input('impedance', 'non-finite values')
+        try:
+            all_finite('position', msg.position)
+        except ValueError as exc:
+            self.diag.bad_input('impedance', str(exc))
             return
         self._send(self.link_imp, msg, 'impedance')
 
     def _on_slave_force(self, msg: WrenchStamped) -> None:
         f, t = msg.wrench.force, msg.wrench.torque
-        if not all(math.isfinite(v) for v in (f.x, f.y, f.z, t.x, t.y, t.z)):
-            self.diag.bad_input('slave_force', 'non-finite force or torque')
+        try:
+            all_finite('wrench (force xyz, torque xyz)', (f.x, f.y, f.z, t.x, t.y, t.z))
+        except ValueError as exc:
+            self.diag.bad_input('slave_force', str(exc))
             return
         self._send(self.link_force, msg, 'force')
 

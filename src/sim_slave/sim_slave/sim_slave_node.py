@@ -31,7 +31,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common import topics as T
-from catheter_common.checks import finite
+from catheter_common.checks import finite, first
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
@@ -173,9 +173,7 @@ class SimSlaveNode(Node):
             return
         pos = msg.position
         try:
-            if len(pos) < 1:
-                raise ValueError('position is empty (expected [insertion m, rotation rad])')
-            x = finite('position[0]', pos[0])
+            x = first('position ([insertion m, rotation rad])', pos)
             rot = finite('position[1]', pos[1]) if len(pos) > 1 else None
         except ValueError as exc:
             self.diag.count('bad_commands')
