@@ -54,6 +54,15 @@ def test_lockstep_run_records_every_message(tmp_path, make_scenario, test_regist
     assert force_times == [k * 1_000_000 for k in range(1, 301)]
 
 
+def test_lockstep_delivers_to_callbacks_that_take_message_info(tmp_path, make_scenario,
+                                                               test_registry):
+    res = ScenarioRunner(make_scenario(outputs=['/test/info_relayed', '/test/relayed']),
+                         bag=str(tmp_path / 'info.mcap'), registry=test_registry,
+                         progress=False).run()
+    assert res.status == 'complete', res.reason
+    assert res.published['/test/info_relayed'] == res.published['/test/relayed'] == 300
+
+
 def test_two_runs_with_one_seed_record_identical_streams(tmp_path, make_scenario,
                                                           test_registry):
     a, b, c = (tmp_path / f'{n}.mcap' for n in 'abc')

@@ -142,3 +142,14 @@ def test_help_lists_every_parameter_with_range_and_mode():
         assert f'  {s.name} (' in text and s.description in text
     assert '[0, 2]' in text and '{a | b}' in text and '(2 values)' in text
     assert 'runtime' in text and 'start only' in text
+
+
+def test_plain_declare_refuses_an_unknown_choice_and_is_read_only(ros):
+    import rclpy
+    node = ros.add(rclpy.create_node('params_plain', context=ros.context, parameter_overrides=[
+        Parameter('mode', value='z')]))
+    with pytest.raises(ValueError, match=r"parameter mode='z' is not one of \['a', 'b'\]"):
+        declare(node, 'mode', 'a', 'a choice', choices=('a', 'b'))
+    assert declare(node, 'level', 3, 'an int', 1, 5) == 3
+    assert node.describe_parameter('level').read_only
+    assert node.describe_parameter('level').integer_range[0].to_value == 5

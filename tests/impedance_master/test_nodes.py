@@ -223,3 +223,18 @@ def test_sim_haptic_node_runs_in_lockstep_with_a_clock(ros):
     stamp_ns = last.sec * 10 ** 9 + last.nanosec
     assert t_ns - 5_000_000 <= stamp_ns <= t_ns            # simulated, not wall time
     assert 0.30 - 0.03 <= node.t_last <= 0.32 + 0.001
+
+
+def test_identifier_node_never_overwrites_a_state_file_it_could_not_load(ros, tmp_path):
+    """Issue 10 item 5: a rejected state file was logged as ignored, then overwritten at
+    shutdown with the new, empty state. It is kept; the new state goes beside it."""
+    path = tmp_path / 'ident.json'
+    path.write_text('[1, 2, 3]')                       # a JSON list, not a state
+    node = ImpedanceIdentifierNode(context=ros.context, parameter_overrides=params(
+        state_file=str(path)))
+    assert node.model is None
+    node.ident.update(0.03, 0.01, 0.0, 0.2)
+    node.close()
+    assert path.read_text() == '[1, 2, 3]'
+    assert (tmp_path / 'ident.json.new').exists()
+    node.destroy_node()

@@ -194,9 +194,7 @@ class NodeParams:
             except ValueError as exc:
                 return _fail(str(exc))
             if value != self.values[prm.name]:
-                if not spec.dynamic:
-                    return _fail(f'parameter {prm.name} cannot change at run time (read-only)')
-                changes[prm.name] = value
+                changes[prm.name] = value      # (rclpy refuses read-only ones before this)
         if not changes:
             return SetParametersResult(successful=True)
         new = dict(self.values)
