@@ -48,8 +48,8 @@ def test_identifier_node_publishes_named_models_and_survives_bad_messages(ros):
     bad.position = [float('nan')]
     bad.effort = [0.1]
     for n, m in enumerate((bad, JointState())):   # one at a time: depth-1 best effort
-        assert ros.spin_until(lambda: (pub.publish(m), node.diag.get('bad_messages') > n)[1],
-                              5.0)
+        assert ros.spin_until(lambda m=m, n=n: (pub.publish(m),
+                                                node.diag.get('bad_messages') > n)[1], 5.0)
     k = [0]
 
     def feed():
