@@ -28,8 +28,6 @@ def test_registry():
     return {
         'talker': NodeSpec('talker', _mod(n.TalkerNode), (), ('/test/force',)),
         'relay': NodeSpec('relay', _mod(n.RelayNode), ('/test/force',), ('/test/relayed',)),
-        'info_relay': NodeSpec('info_relay', _mod(n.InfoRelayNode), ('/test/force',),
-                               ('/test/info_relayed',)),
         'fake_camera': NodeSpec('fake_camera', _mod(n.FakeCameraNode), (), ('/test/image',)),
         'unused': NodeSpec('unused', _mod(n.UnusedNode), (), ('/test/unused',)),
         'failing': NodeSpec('failing', _mod(n.FailingNode), (), ('/test/failing',)),
