@@ -1,8 +1,6 @@
 """The project's nodes as the tests of tests/nodes and tests/fuzz build them: name -> class,
 and a factory that adds a node to a RosHarness with parameter overrides."""
 import importlib
-import pathlib
-import sys
 
 from rclpy.parameter import Parameter
 
@@ -29,8 +27,6 @@ def node_class(name):
     return importlib.import_module(NODE_MODULES[name]).NODE_CLASS
 
 
-NODE_CLASSES = {name: None for name in NODE_MODULES}
-
 
 def make_node(ros, name, namespace=None, light=True, **params):
     """Build node `name` in the harness's context (added to its executor)."""
@@ -41,8 +37,3 @@ def make_node(ros, name, namespace=None, light=True, **params):
     if namespace:
         kw['namespace'] = namespace
     return ros.add(node_class(name)(**kw))
-
-
-HERE = pathlib.Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))

@@ -14,7 +14,7 @@ from catheter_bringup.rclpy_adapter import intercept_publish
 from catheter_common import topics as T
 from catheter_common.qos import QOS_FAST, QOS_SENSOR
 
-from node_cases import NODE_CLASSES, make_node
+from node_cases import NODE_MODULES, make_node
 
 pytestmark = pytest.mark.ros
 
@@ -29,7 +29,7 @@ def capture(pub):
     return out
 
 
-@pytest.mark.parametrize('name', sorted(NODE_CLASSES))
+@pytest.mark.parametrize('name', sorted(NODE_MODULES))
 def test_every_declared_parameter_is_applied_or_read_only(ros, name):
     node = make_node(ros, name)
     dynamic = {p.name for p in node.PARAMS if p.dynamic}
