@@ -218,6 +218,8 @@ class Rig:
         bad_before = d.get('bad_messages')
         self.last_input[topic] = msg
         self.tally.sent[topic] = self.tally.sent.get(topic, 0) + 1
+        if topic == T.CONTROL_POINTS:
+            self._watch_estimator()
         try:
             self.subs[full].callback(msg)
         except Exception as exc:  # noqa: BLE001 - a crash is what the fuzz looks for
@@ -302,12 +304,28 @@ class Rig:
             self.tally.over_limit += 1
             self.tally.note(f'rendered {f} N over the limit {self.node.limit} N')
 
+    def _watch_estimator(self) -> None:
+        """Record the envelope flag of each estimate the node asks for (the estimator may
+        have been replaced by a parameter change; FAM inversion warm-starts from its last
+        result, so asking it again would neither give the node's answer nor leave it as it
+        was)."""
+        est = self.node.estimator
+        if getattr(est, '_fuzz_watched', False):
+            return
+        orig = est.predict
+
+        def predict(cp, return_flags=False):
+            out = orig(cp, return_flags=return_flags)
+            if return_flags:
+                self._last_flag = bool(out[1])
+            return out
+        est.predict = predict
+        est._fuzz_watched = True
+
     def _check_estimate(self, msg) -> None:
-        """A published estimate is one the estimator flags as inside its envelope."""
-        import numpy as np
-        cp_msg = self.last_input.get(T.CONTROL_POINTS)
-        cp = np.array([[p.position.x, p.position.y, p.position.z] for p in cp_msg.poses])
-        _, inside = self.node.estimator.predict(cp, return_flags=True)
+        """A published estimate is one the estimator flagged as inside its envelope."""
+        inside = getattr(self, '_last_flag', False)
+        self._last_flag = False
         if not inside:
             self.tally.over_limit += 1
             self.tally.note('estimate published for control points outside the envelope')

@@ -51,7 +51,7 @@ def test_fuzz_messages_over_dds(ros, key):
             assert sum(node.diag.get(k) for k in keys) == before + 1
             if rng.random() < 0.3:
                 ros.spin_for(0.01)              # let timers run (renderers, sim nodes, camera)
-    if key == 'force_estimator_node':                # a plausible shape: an estimate
+    if spec.name == 'force_estimator_node':          # a plausible shape: an estimate
         from geometry_msgs.msg import Point, Pose, PoseArray
         from healthy import _fam_control_points
         msg = PoseArray()
