@@ -104,6 +104,24 @@ def main(argv=None):
     per_topic = 5000 if a.quick else a.per_topic
     keys = [k for k in a.nodes.split(',') if k]
     rows, core, speed = [], [], []
+    # LAPACK writes its complaints about NaN arguments ("On entry to DLASCL ...") to the
+    # process's stdout: keep them out of the tables while the nodes run
+    sys.stdout.flush()
+    saved_stdout = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    try:
+        _run_all(keys, per_topic, rows, core, speed)
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved_stdout, 1)
+        os.close(devnull)
+        os.close(saved_stdout)
+    _print_tables(per_topic, rows, core, speed)
+    return 0
+
+
+def _run_all(keys, per_topic, rows, core, speed) -> None:
     for key in keys:
         ros = RosHarness()
         try:
@@ -120,10 +138,13 @@ def main(argv=None):
             ref = build_only_rate(key)
             speed.append((key, sent / wall, ref))
             if t.examples:
-                print(f'# {key}: first violations: {t.examples}', flush=True)
-            print(f'# {key}: {sent} messages in {wall:.1f} s', flush=True)
+                print(f'# {key}: first violations: {t.examples}', file=sys.stderr, flush=True)
+            print(f'# {key}: {sent} messages in {wall:.1f} s', file=sys.stderr, flush=True)
         finally:
             ros.close()
+
+
+def _print_tables(per_topic, rows, core, speed) -> None:
     print(f'\nNode fuzz: >= {per_topic} messages per input topic (fam_estimator_node, the '
           f'force estimator in method fam: {min(per_topic, BENCH_PER_TOPIC["fam_estimator_node"])}'
           '), invariants checked at every output (targets: non-finite 0, over limit 0, '
@@ -146,7 +167,6 @@ def main(argv=None):
     print(f'{"node":<{w}}{"through node":>14}{"build only":>14}{"ratio":>8}')
     for key, ours, ref in speed:
         print(f'{key:<{w}}{ours:>14.0f}{ref:>14.0f}{ours / ref:>8.2f}')
-    return 0
 
 
 if __name__ == '__main__':
