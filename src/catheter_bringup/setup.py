@@ -1,3 +1,5 @@
+import glob
+
 from setuptools import find_packages, setup
 
 package_name = 'catheter_bringup'
@@ -9,6 +11,9 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        # scenarios and the launch file, found through ament_index_python (scenario.config_dir)
+        ('share/' + package_name + '/config', sorted(glob.glob('config/*.yaml'))),
+        ('share/' + package_name + '/launch', sorted(glob.glob('launch/*.launch.py'))),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -21,6 +26,8 @@ setup(
             'run_scenario = catheter_bringup.run_scenario:main',
             'recorder_node = catheter_bringup.recorder_node:main',
             'force_source_node = catheter_bringup.force_source_node:main',
+            'recover_bag = catheter_bringup.bagfile:main',
+            'catheter_topic = catheter_bringup.topic_tool:main',
         ],
     },
 )

@@ -1,3 +1,5 @@
+import glob
+
 from setuptools import find_packages, setup
 
 package_name = 'force_estimator'
@@ -11,6 +13,9 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        # the shipped models also in share/ (ament_index_python), besides the package data
+        ('share/' + package_name + '/models',
+         sorted(glob.glob(package_name + '/models/*.npz'))),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

@@ -10,6 +10,9 @@ Prints three tables:
     solve_elastica (rtol 1e-12) and median solve time; the reference solver at looser
     tolerances; scipy.integrate.solve_bvp; cases: the thesis flexure (40 mm, EI 7.5e-4 N m^2,
     tip forces and moments) and the Blazer II-XP (65 mm, EI 6e-5 N m^2, 0-0.3 N at 0..pi);
+    then the performance-cliff checks (issue 15): per arc model and spacing, the slowest
+    case's CPU time over the median at each N (target <= 3) and whether the median grows
+    with N; the same for tip forces with tip moments (Blazer, moments +-F L/4);
  2. stress: a seeded random sweep of 10 000 load cases (near zero, huge, compressive,
     follower, point forces): non-converged / NaN counts, worst error on a subsample;
  3. batch throughput against a loop of single solves (both models, both spacings).
@@ -31,7 +34,7 @@ sys.path.insert(0, str(ROOT / 'src' / 'fam_solver'))
 
 from scipy.integrate import solve_bvp  # noqa: E402
 
-from fam_solver import Catheter, Loads, solve_elastica, solve_fam, solve_fam_batch  # noqa: E402
+from fam_solver import Catheter, Loads, Status, solve_elastica, solve_fam, solve_fam_batch  # noqa: E402
 from fam_solver.fam import DEFAULT_ARC_MODEL, DEFAULT_SPACING  # noqa: E402
 
 QUICK = '--quick' in sys.argv
@@ -46,6 +49,10 @@ MODELS = ('clothoid', 'exact', 'bezier')
 #: % L: below this the comparison measures the reference, not the FAM (solve_elastica at
 #: rtol 1e-12 is accurate to ~1e-12 L; clothoid arcs get there by N ~ 1000)
 FLOOR = 2e-10
+#: cliff checks: the slowest case at most this many times the median at the same N
+CLIFF_RATIO = 3.0
+#: per-case CPU times [ms] from table 1: (case set, model, spacing, N) -> (cases,)
+CASE_CPU = {}
 
 
 def thesis_cases():
@@ -67,7 +74,8 @@ def blazer_cases():
 
 
 def timed(fn, repeat):
-    """Median wall and CPU time [s] over `repeat` calls, and the last result."""
+    """Median wall and CPU time [s] over `repeat` calls, and the last result. The cliff
+    checks use the CPU time (the machine is shared: a wall time includes the other jobs)."""
     walls, cpus = [], []
     res = None
     for _ in range(repeat):
@@ -125,8 +133,8 @@ def table1():
         print(f'{name}: {len(cases)} cases, load parameter (|F| L^2 + |M| L)/EI up to {max(alphas):.1f}; '
               f'reference median {t_ref[name] * 1e3:.1f} ms')
     print()
-    hdr = (f'| case set | model | spacing | N | max err %L | mean err %L | order | median wall ms '
-           f'| median cpu ms | vs target 0.2 ms | vs thesis C++ 3 ms | converged |')
+    hdr = ('| case set | model | spacing | N | max err %L | mean err %L | order | median wall ms '
+           '| median cpu ms | vs target 0.2 ms | vs thesis C++ 3 ms | converged |')
     print(hdr)
     print('|' + '---|' * 12)
     summary = {}
@@ -137,7 +145,7 @@ def table1():
                 for n in NS:
                     if QUICK and n > 500:
                         continue
-                    rep = 15 if n <= 48 else (3 if n <= 1000 else 1)
+                    rep = 9 if n <= 48 else (3 if n <= 1000 else 1)
                     errs, walls, cpus, conv = [], [], [], 0
                     for ld, ref in zip(cases, refs[name]):
                         w, c, sh = timed(lambda: solve_fam(cat, ld, n_arcs=n, arc_model=model,
@@ -146,6 +154,7 @@ def table1():
                         walls.append(w)
                         cpus.append(c)
                         conv += sh.converged
+                    CASE_CPU[(name, model, spacing, n)] = np.array(cpus) * 1e3
                     mw, mc = float(np.median(walls)) * 1e3, float(np.median(cpus)) * 1e3
                     # observed order between this N and the previous one (2 = second order)
                     order = (math.log(errs_by_n[-1] / max(errs)) / math.log(n / ns[-1])
@@ -235,6 +244,75 @@ def table1():
     print()
 
 
+def cliff_report(title, times, ns, labels):
+    """Print the cliff checks for one (case set, model, spacing): times[n] = per-case CPU ms."""
+    meds = [float(np.median(times[n])) for n in ns]
+    ratios = [float(np.max(times[n]) / np.median(times[n])) for n in ns]
+    worst = [labels[int(np.argmax(times[n]))] for n in ns]
+    # the largest drop of the median from any smaller N (0 when non-decreasing)
+    drop, where = 0.0, ''
+    for j in range(1, len(ns)):
+        k = int(np.argmax(meds[:j]))
+        d = 1.0 - meds[j] / meds[k]
+        if d > drop:
+            drop, where = d, f' (N = {ns[k]} -> {ns[j]})'
+    cells = ' | '.join(f'{m:.3f} / {r:.2f}' for m, r in zip(meds, ratios))
+    ok_ratio = max(ratios) <= CLIFF_RATIO
+    print(f'| {title} | {cells} | {max(ratios):.2f} at N = {ns[int(np.argmax(ratios))]} '
+          f'({worst[int(np.argmax(ratios))]}) {"ok" if ok_ratio else "OVER " + str(CLIFF_RATIO)} | '
+          f'{"yes" if drop == 0.0 else "no"}; largest drop {drop * 100:.1f} %{where} |')
+    return ok_ratio, drop
+
+
+def table_cliffs():
+    print(f'### Performance cliffs (issue 15): per N, median CPU ms over the cases / slowest case '
+          f'over that median (target <= {CLIFF_RATIO:g}); is the median non-decreasing in N')
+    ns = [n for n in NS if not (QUICK and n > 500)]
+    print('| case set, model, spacing | ' + ' | '.join(f'N = {n}' for n in ns) +
+          ' | max slowest/median | median non-decreasing (largest drop) |')
+    print('|---|' + '---|' * (len(ns) + 2))
+    sets = [('thesis 40 mm', thesis_cases()), ('Blazer 65 mm', blazer_cases())]
+    drops = []
+    for name, cases in sets:
+        labels = [f'case {i}' for i in range(len(cases))]
+        for model in MODELS:
+            for spacing in ('uniform', 'graded'):
+                times = {n: CASE_CPU[(name, model, spacing, n)] for n in ns}
+                drops.append(cliff_report(f'{name}, {model}, {spacing}', times, ns, labels))
+    print(f'all within {CLIFF_RATIO:g}x of the median: '
+          f'{"yes" if all(ok for ok, _ in drops) else "NO"}; largest drop of a median with N: '
+          f'{max(d for _, d in drops) * 100:.1f} % (CPU-time medians of 9 runs per case; drops of '
+          f'a few % between N = 1..12, where the time hardly depends on N, are measurement noise)')
+    print()
+    # tip forces with tip moments (the case that used to leave the fast path)
+    cat = BLAZER
+    cases, labels = [], []
+    for F in (0.1, 0.2, 0.3):
+        for b in (math.pi / 4, math.pi / 2, 3 * math.pi / 4):
+            for sgn in (-1, 1):
+                m = sgn * 0.25 * F * cat.length
+                cases.append(Loads(tip_force=(F * math.cos(b), F * math.sin(b)), tip_moment=m))
+                labels.append(f'{F} N at {math.degrees(b):.0f} deg, {m * 1e3:+.2f} mN m')
+    print('### Tip force with tip moment (Blazer 0.1-0.3 N at 45/90/135 deg, moments +-F L/4; '
+          'N = 12, 24, 48, 100)')
+    ns2 = [12, 24, 48, 100]
+    print('| model, spacing | ' + ' | '.join(f'N = {n}' for n in ns2) +
+          ' | max slowest/median | median non-decreasing (largest drop) |')
+    print('|---|' + '---|' * (len(ns2) + 2))
+    for model in ('clothoid', 'exact'):
+        for spacing in ('uniform', 'graded'):
+            times = {}
+            for n in ns2:
+                times[n] = np.array([timed(lambda: solve_fam(cat, ld, n_arcs=n, arc_model=model,
+                                                             spacing=spacing), 5)[1]
+                                     for ld in cases]) * 1e3
+            cliff_report(f'Blazer force + moment, {model}, {spacing}', times, ns2, labels)
+    st = [solve_fam(cat, ld, n_arcs=12).status.name for ld in cases]
+    print('status of the 18 cases (clothoid, N = 12): ' +
+          ', '.join(f'{k} {st.count(k)}' for k in sorted(set(st))))
+    print()
+
+
 def table1b():
     print('### thesis Study II: 504 mm catheter, three point forces (0.463 N at s=0.165, '
           '-0.065 N at 0.577, 0.007 N at 0.968)')
@@ -312,14 +390,17 @@ def stress_table(cases, sub, refs, spacing, model):
     t0 = time.perf_counter()
     shapes = []
     for k, ld in cases:
+        c0 = time.process_time()
         sh = solve_fam(cat, ld, n_arcs=12, spacing=spacing, arc_model=model)
+        cpu = time.process_time() - c0
         shapes.append(sh)
-        s = stats.setdefault(k, dict(n=0, nonconv=0, nan=0, unstable=0, snap=0, maxit=0))
+        s = stats.setdefault(k, dict(n=0, nonconv=0, nan=0, unstable=0, snap=0, maxit=0, t=[]))
+        s['t'].append(cpu * 1e3)
         s['n'] += 1
         s['nonconv'] += not sh.converged
         s['nan'] += not (np.all(np.isfinite(sh.arc_angles)) and np.all(np.isfinite(sh.tip)))
         s['unstable'] += not sh.stable
-        s['snap'] += 'snap' in sh.warning
+        s['snap'] += sh.status == Status.SNAP_THROUGH
         s['maxit'] = max(s['maxit'], sh.iterations)
     wall = time.perf_counter() - t0
     # reference comparison on a subsample of stable, converged cases
@@ -335,13 +416,18 @@ def stress_table(cases, sub, refs, spacing, model):
         if e > worst.get(k, (-1, None))[0]:
             worst[k] = (e, ld.load_parameter(cat))
     print(f'{count} cases in {wall:.1f} s wall ({wall / count * 1e3:.2f} ms per solve incl. continuation fallbacks)')
-    print('| kind | cases | non-converged | NaN | flagged unstable | snap-through | max iterations | worst tip error %L (subsample) | at load parameter | mean tip error %L (subsample) |')
-    print('|---|---|---|---|---|---|---|---|---|---|')
+    med_all = float(np.median(np.concatenate([s['t'] for s in stats.values()])))
+    print(f'CPU time per solve: median {med_all:.3f} ms over all kinds; per kind the median, and how many '
+          f'solves took over {CLIFF_RATIO:g}x the overall median')
+    print('| kind | cases | non-converged | NaN | flagged unstable | snap-through | max iterations | worst tip error %L (subsample) | at load parameter | mean tip error %L (subsample) | median cpu ms | over 3x median |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|---|')
     tot = dict(n=0, nonconv=0, nan=0, unstable=0, snap=0)
     for k, s in stats.items():
         e, a = worst.get(k, (float('nan'), float('nan')))
         me = float(np.mean(errs[k])) if errs.get(k) else float('nan')
-        print(f'| {k} | {s["n"]} | {s["nonconv"]} | {s["nan"]} | {s["unstable"]} | {s["snap"]} | {s["maxit"]} | {e:.3f} | {a:.1f} | {me:.4f} |')
+        t = np.array(s['t'])
+        print(f'| {k} | {s["n"]} | {s["nonconv"]} | {s["nan"]} | {s["unstable"]} | {s["snap"]} | {s["maxit"]} | '
+              f'{e:.3f} | {a:.1f} | {me:.4f} | {np.median(t):.3f} | {int(np.sum(t > CLIFF_RATIO * med_all))} |')
         for key in tot:
             tot[key] += s[key]
     print(f'| total | {tot["n"]} | {tot["nonconv"]} (target 0) | {tot["nan"]} (target 0) | {tot["unstable"]} | {tot["snap"]} | | | | |')
@@ -381,6 +467,7 @@ def table3():
 if __name__ == '__main__':
     t = time.perf_counter()
     table1()
+    table_cliffs()
     table1b()
     table2()
     table3()

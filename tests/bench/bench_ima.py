@@ -33,7 +33,7 @@ from impedance_master.experiment import (EXPERIMENT_II_OUTAGES, ExperimentConfig
 from impedance_master.identification import (SlidingWindowIdentifier,  # noqa: E402
                                              make_identifier)
 
-MODES = ('ima', 'ima_thesis', 'dfr')
+MODES = ('ima', 'ima_thesis', 'dfr')      # the generalisation protocol adds 'anchored'
 LABEL = {'ima': 'IMA default', 'ima_thesis': 'IMA thesis', 'dfr': 'DFR'}
 THESIS = {  # thesis Ch. 4 (Experiment II unless noted), N
     ('ima', 'normal'): 0.052, ('ima', 'outage'): 0.041, ('ima', 'max'): 0.074,
@@ -170,8 +170,10 @@ def visited(res_by_label, delay=0.2, margin=1e-3):
 
 
 def sweep(seeds, delays, losses):
+    """The delay x loss table; returns {(delay, loss): {mode: (normal, outage)}} mean MAE."""
     print('\n## Delay x loss sweep (Experiment II motion, outages at 4 s and 8 s; mean MAE / '
           'worst max over seeds, N)')
+    table = {}
     print(f'{"delay ms":>8} {"loss %":>6} | ' + ' | '.join(
         f'{LABEL[m]:^27}' for m in MODES) + ' | IMA/DFR MAE normal, outage')
     print(f'{"":>8} {"":>6} | ' + ' | '.join(f'{"normal":^13} {"outage":^13}' for _ in MODES)
@@ -187,6 +189,7 @@ def sweep(seeds, delays, losses):
                 o = agg(res[m], 'outage')
                 vals[m] = (n, o)
                 cells.append(f'{n[0]:.3f}/{n[2]:.3f} {o[0]:.3f}/{o[2]:.3f}')
+            table[(d, lo)] = {m: (vals[m][0][0], vals[m][1][0]) for m in MODES}
             rn = vals['ima'][0][0] / vals['dfr'][0][0]
             ro = vals['ima'][1][0] / vals['dfr'][1][0]
             worse += (rn >= 1) + (ro >= 1)
@@ -194,6 +197,35 @@ def sweep(seeds, delays, losses):
                   + f' | {rn:.2f}, {ro:.2f}')
     print(f'cells where the default IMA is not below DFR: {worse} '
           f'(of {2 * len(delays) * len(losses)})')
+    return table
+
+
+def sweep_figure(table, path):
+    """MAE against delay, one line per mode and loss, normal and outage panels (PNG)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    delays = sorted({d for d, _ in table})
+    losses = sorted({lo for _, lo in table})
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=False)
+    styles = {'ima': '-', 'ima_thesis': ':', 'dfr': '--'}
+    for ax, k, title in ((axes[0], 0, 'normal intervals'), (axes[1], 1, 'outage intervals')):
+        for m in MODES:
+            for j, lo in enumerate(losses):
+                ys = [table[(d, lo)][m][k] for d in delays]
+                ax.plot([d * 1e3 for d in delays], ys, styles[m], marker='o', ms=3,
+                        color=f'C{j}', label=f'{LABEL[m]}, loss {lo * 100:.0f} %')
+        ax.set_xlabel('one-way delay (ms)')
+        ax.set_ylabel('MAE (N)')
+        ax.set_yscale('log')
+        ax.set_title(f'Experiment II, {title}')
+        ax.grid(True, which='both', alpha=0.3)
+    axes[1].legend(fontsize=7, ncol=1, loc='upper left', bbox_to_anchor=(1.02, 1.0))
+    fig.tight_layout()
+    pathlib.Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    print(f'(figure: {path})')
 
 
 def timing():
@@ -287,9 +319,10 @@ def main(argv=None):
     visited([('IMA default (cold)', res2['ima']), ('IMA thesis (cold)', res2['ima_thesis']),
              ('DFR', res2['dfr']), ('IMA default (after Exp. I)', res2w['ima'])])
     if a.quick:
-        sweep(seeds, (0.0, 0.2, 1.0), (0.0, 0.3))
+        table = sweep(seeds, (0.0, 0.2, 1.0), (0.0, 0.3))
     else:
-        sweep(seeds, (0.0, 0.05, 0.2, 0.5, 1.0), (0.0, 0.1, 0.3))
+        table = sweep(seeds, (0.0, 0.05, 0.2, 0.5, 1.0), (0.0, 0.1, 0.3))
+    sweep_figure(table, ROOT / 'out' / 'bench' / 'ima_delay_loss.png')
     timing()
     print(f'\n(total {time.perf_counter() - t_start:.0f} s)')
 

@@ -34,7 +34,6 @@ def test_message_definition_has_dependencies_once_in_rosbag2_layout():
 
 
 def test_rosbags_and_mcap_ros2_read_what_was_written(tmp_path):
-    from geometry_msgs.msg import WrenchStamped
     from sensor_msgs.msg import Image
     path = tmp_path / 'run.mcap'
     rec = McapRecorder(path)
@@ -118,3 +117,30 @@ def test_every_written_message_comes_back_in_time_order(tmp_path_factory, items)
             for m in read_ros2_messages(str(path))]
     assert sorted(back, key=lambda x: x[1]) == back
     assert sorted(back) == sorted(items)
+
+
+def test_recorder_cuts_estimated_size_padding_and_refuses_short_payloads(tmp_path):
+    """rclpy's serialize_message pads some messages (the rmw's size estimate); the file holds
+    each message's exact bytes, which the strict rosbags reader accepts."""
+    from sensor_msgs.msg import JointState
+    from catheter_bringup.cdr import cdr_end
+    msg = JointState(name=['m', 'c', 'k', 'offset', 'valid'], position=[0.0, 1.5, 2.0, 0.1, 1.0])
+    data = serialize_message(msg)
+    assert len(data) > cdr_end(data, JointState)
+    path = tmp_path / 'exact.mcap'
+    rec = McapRecorder(path)
+    rec.add_topic('/slave/impedance', 'sensor_msgs/msg/JointState')
+    rec.write('/slave/impedance', data, 1)
+    with pytest.raises(ValueError, match='data'):
+        rec.write('/slave/impedance', data[:cdr_end(data, JointState) - 1], 2)
+    with pytest.raises(ValueError, match='data'):
+        rec.write('/slave/impedance', b'not cdr at all', 3)
+    rec.close()
+    assert rec.counts['/slave/impedance'] == 1
+    from rosbags.highlevel import AnyReader
+    with AnyReader([pathlib.Path(path)]) as reader:
+        (conn,) = reader.connections
+        ((_, t, raw),) = list(reader.messages())
+        assert len(raw) == cdr_end(data, JointState)
+        back = reader.deserialize(raw, conn.msgtype)
+    assert list(back.name) == list(msg.name) and list(back.position) == list(msg.position)

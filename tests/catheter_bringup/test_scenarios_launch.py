@@ -1,22 +1,36 @@
-"""Every scenario in ros_ws/config loads; ros_ws/launch/scenario.launch.py starts exactly the
-runner's node instances (run against stand-ins for `launch`/`launch_ros`, not on PyPI)."""
+"""Every scenario of catheter_bringup's config/ loads; launch/scenario.launch.py starts exactly
+the runner's node instances (run against stand-ins for `launch`/`launch_ros`, not on PyPI);
+both are found through the ament index (installed to share/catheter_bringup)."""
 import pathlib
 import runpy
 import sys
 import types
 
 import pytest
+import yaml
 
 from catheter_bringup.make_launch import launch_entries
 from catheter_bringup.scenario import config_dir, load_scenario, resolve_nodes
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-NAMES = sorted(p.stem for p in (ROOT / 'ros_ws' / 'config').glob('*.yaml'))
+PKG = ROOT / 'src' / 'catheter_bringup'
+NAMES = sorted(p.stem for p in (PKG / 'config').glob('*.yaml'))
 
 
-def test_the_expected_scenarios_exist():
-    assert config_dir() == ROOT / 'ros_ws' / 'config'
+def test_the_expected_scenarios_exist_and_are_installed():
+    from ament_index_python.packages import get_package_share_directory
+    share = pathlib.Path(get_package_share_directory('catheter_bringup'))
+    assert config_dir() == share / 'config'
+    assert sorted(p.stem for p in config_dir().glob('*.yaml')) == NAMES
+    assert (share / 'launch' / 'scenario.launch.py').exists()
     assert {'experiment_ii', 'experiment_i', 'experiment_ii_dfr', 'smoke'} <= set(NAMES)
+
+
+def test_config_dir_falls_back_to_the_source_tree_when_not_installed(monkeypatch):
+    from catheter_bringup import scenario
+    monkeypatch.setattr(scenario, 'share_dir', lambda: None)
+    assert scenario.config_dir() == PKG / 'config'
+    assert load_scenario('smoke')['source'] == str(PKG / 'config' / 'smoke.yaml')
 
 
 class _Recorder:
@@ -48,7 +62,7 @@ def test_scenario_loads_and_the_launch_file_starts_its_nodes(name, monkeypatch):
     nodes, _ = resolve_nodes(sc)
     for mod_name, mod in _fake_launch_modules(name).items():
         monkeypatch.setitem(sys.modules, mod_name, mod)
-    ns = runpy.run_path(str(ROOT / 'ros_ws' / 'launch' / 'scenario.launch.py'))
+    ns = runpy.run_path(str(PKG / 'launch' / 'scenario.launch.py'))
     desc = ns['generate_launch_description']()
     declare, opaque = desc.args[0]
     assert declare.args[0] == 'scenario'
@@ -63,6 +77,7 @@ def test_scenario_loads_and_the_launch_file_starts_its_nodes(name, monkeypatch):
             assert kw['parameters'][0][key] == value
         assert dict(kw.get('remappings', [])) == dict(inst.remap)
     assert started['recorder_node']['parameters'][0]['path'] == f'bags/{name}.mcap'
+    assert started['recorder_node']['parameters'][0]['scenario'] == sc['source']
     assert launch_entries(sc) == [{k: v for k, v in n.kwargs.items() if k != 'output'} for n in launched]
 
 
@@ -77,3 +92,35 @@ def test_default_scenario_is_experiment_ii_as_in_the_thesis():
     # experiment I needs no camera pipeline: it is not started
     names_i = {i.name for i in resolve_nodes(load_scenario('experiment_i'))[0]}
     assert not names_i & {'shape_node', 'force_estimator_node', 'camera_node'}
+
+
+@pytest.mark.ros
+def test_recorder_node_records_the_scenario_it_is_given(ros, tmp_path):
+    """A launched run's recorder writes the scenario (real time) into the run metadata, so
+    analyze knows the link delay and outages without assuming them."""
+    from rclpy.parameter import Parameter
+    from geometry_msgs.msg import WrenchStamped
+    from catheter_bringup.analyze import analyze
+    from catheter_bringup.recorder import RUN_START_METADATA, read_run_metadata
+    from catheter_bringup.recorder_node import RecorderNode
+    bag = tmp_path / 'launched.mcap'
+    node = RecorderNode(context=ros.context, parameter_overrides=[
+        Parameter('path', value=str(bag)), Parameter('scenario', value='experiment_ii'),
+        Parameter('topics', value=['/slave/force']), Parameter('discovery_period', value=0.1)])
+    ros.add(node)
+    pub = ros.node('talker').create_publisher(WrenchStamped, '/slave/force', 10)
+    assert ros.spin_until(lambda: '/slave/force' in node.sink.subs, 10.0)
+    for _ in range(5):
+        pub.publish(WrenchStamped())
+    assert ros.spin_until(lambda: node.recorder.total >= 5, 10.0)
+    node.close()
+    meta = read_run_metadata(bag)
+    assert meta['scenario'] == 'experiment_ii' and meta['mode'] == 'realtime'
+    sc = yaml.safe_load(meta['scenario_yaml'])
+    assert sc['link']['delay'] == 0.2 and sc['mode'] == 'realtime'
+    res = analyze(bag)
+    assert 'warnings' not in res and res['delay_s'] == 0.2
+    from mcap.reader import make_reader
+    with open(bag, 'rb') as f:
+        names = [m.name for m in make_reader(f).iter_metadata()]
+    assert names == [RUN_START_METADATA, 'catheter_run']

@@ -7,7 +7,7 @@ from hypothesis import assume, given, settings, strategies as st
 from scipy.integrate import quad
 
 from fam_solver import Catheter, Loads, solve_elastica, solve_fam, solve_fam_batch
-from fam_solver import fam as core
+from fam_solver import equations, linsolve, problem
 from fam_solver.arcs import rate_funcs, rate_offset
 
 BLAZER = Catheter(length=0.065, ei=6e-5)
@@ -65,13 +65,13 @@ def test_fast_path_solution_solves_the_general_residual():
     for ld in (Loads(tip_force=(0.1, 0.25), tip_moment=2e-4), Loads(tip_force=(-0.2, 0.05)),
                Loads(tip_force=(0.05, 0.3), follower=True)):
         sh = solve_fam(BLAZER, ld, n_arcs=12)
-        prob = core._build_problem(BLAZER, 12, np.array([complex(*ld.tip_force)]), ld.follower,
+        prob = problem.build_problem(BLAZER, 12, np.array([complex(*ld.tip_force)]), ld.follower,
                                    np.array([ld.tip_moment]), [], clothoid=True)
         loads, m = prob.loads(1.0)
-        r, _, _ = core._evaluate(sh.arc_angles[None], prob.l, prob.w, loads, m, jac=False,
+        r, _, _ = equations.evaluate(sh.arc_angles[None], prob.l, prob.w, loads, m, jac=False,
                                  clothoid=True)
         assert np.max(np.abs(r)) < 1e-12
-        rho = core._problem_rates(prob, sh.arc_angles[None])[0]
+        rho = problem.problem_rates(prob, sh.arc_angles[None])[0]
         np.testing.assert_allclose(rho, sh.arc_rates, atol=1e-14)
 
 
@@ -139,7 +139,7 @@ def test_one_and_two_arcs_under_huge_loads_converge():
     for n in (1, 2):
         for beta in (0.5, np.pi / 2, 2.5):
             sh = solve_fam(UNIT, Loads(tip_force=(30 * np.cos(beta), 30 * np.sin(beta))), n_arcs=n)
-            assert sh.converged and np.all(np.abs(sh.arc_rates) <= core.RHO_MAX)
+            assert sh.converged and np.all(np.abs(sh.arc_rates) <= equations.RHO_MAX)
 
 
 @given(fx=st.floats(-20, 20), fy=st.floats(-20, 20), m=st.floats(-5, 5))
@@ -179,19 +179,19 @@ def test_general_jacobian_matches_finite_differences(tip, pfs, follower):
     central differences of the clothoid residual for a tip force; with point forces inside
     arcs the offsets' effect on those forces is left out (0.04 % measured)."""
     n = 7
-    prob = core._make_problem(n, 1.0, 1.0, np.array([tip]), follower, np.array([0.3]),
+    prob = problem.make_problem(n, 1.0, 1.0, np.array([tip]), follower, np.array([0.3]),
                               [(s, np.array([F])) for s, F in pfs], clothoid=True)
     loads, m = prob.loads(1.0)
     phi = np.random.default_rng(1).normal(0, 0.3, (1, n))
-    _, fac, _ = core._evaluate(phi, prob.l, prob.w, loads, m, clothoid=True)
-    J = core._dense_jacobian(prob.w, fac)[0]
+    _, fac, _ = equations.evaluate(phi, prob.l, prob.w, loads, m, clothoid=True)
+    J = linsolve.dense_jacobian(prob.w, fac)[0]
     Jn = np.zeros((n, n))
     h = 1e-7
     for j in range(n):
         p, q = phi.copy(), phi.copy()
         p[0, j] += h
         q[0, j] -= h
-        Jn[:, j] = (core._evaluate(p, prob.l, prob.w, loads, m, jac=False, clothoid=True)[0][0]
-                    - core._evaluate(q, prob.l, prob.w, loads, m, jac=False, clothoid=True)[0][0]) / (2 * h)
+        Jn[:, j] = (equations.evaluate(p, prob.l, prob.w, loads, m, jac=False, clothoid=True)[0][0]
+                    - equations.evaluate(q, prob.l, prob.w, loads, m, jac=False, clothoid=True)[0][0]) / (2 * h)
     tol = 1e-3 if pfs else 1e-7
     assert np.abs(J - Jn).max() < tol * np.abs(Jn - np.eye(n)).max()

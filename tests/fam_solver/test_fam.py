@@ -4,7 +4,7 @@ import pytest
 from hypothesis import assume, given, settings, strategies as st
 
 from fam_solver import Catheter, Loads, solve_elastica, solve_fam, solve_fam_batch
-from fam_solver import fam as core
+from fam_solver import equations, linsolve, problem
 
 CAT = Catheter(length=0.04, ei=7.5e-4)        # thesis flexure
 BLAZER = Catheter(length=0.065, ei=6e-5)
@@ -122,22 +122,22 @@ def test_compression_past_buckling_stays_straight_and_is_flagged():
 def test_jacobian_matches_finite_differences():
     rng = np.random.default_rng(3)
     for follower in (False, True):
-        prob = core._make_problem(7, 1.0, 1.0, np.array([2.0 - 3.0j]), follower, np.array([0.7]),
+        prob = problem.make_problem(7, 1.0, 1.0, np.array([2.0 - 3.0j]), follower, np.array([0.7]),
                                   [(0.3, np.array([1.0 + 2.0j])), (5 / 7, np.array([-1.0 + 0.5j]))])
         loads, m = prob.loads(1.0)
         phi = rng.normal(0, 0.6, (1, 7))
-        r, fac, _ = core._evaluate(phi, prob.l, prob.w, loads, m)
-        J = core._dense_jacobian(prob.w, fac)[0]
+        r, fac, _ = equations.evaluate(phi, prob.l, prob.w, loads, m)
+        J = linsolve.dense_jacobian(prob.w, fac)[0]
         h = 1e-7
         Jn = np.empty((7, 7))
         for j in range(7):
             p = phi.copy()
             p[0, j] += h
-            Jn[:, j] = (core._evaluate(p, prob.l, prob.w, loads, m, jac=False)[0][0] - r[0]) / h
+            Jn[:, j] = (equations.evaluate(p, prob.l, prob.w, loads, m, jac=False)[0][0] - r[0]) / h
         assert np.max(np.abs(J - Jn)) < 1e-5
         # and the O(N) structured solve agrees with the dense one
         rhs = rng.normal(size=(1, 7))
-        x = core._structured_solve(prob.w, fac, rhs)
+        x = linsolve.structured_solve(prob.w, fac, rhs)
         assert np.allclose(J @ x[0], rhs[0], atol=1e-10)
 
 

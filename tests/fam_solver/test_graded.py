@@ -8,7 +8,7 @@ from hypothesis import given, settings, strategies as st
 
 from fam_solver import Catheter, Loads, solve_elastica
 from fam_solver import solve_fam as _solve_fam, solve_fam_batch as _solve_fam_batch
-from fam_solver import fam as core
+from fam_solver import equations, linsolve, mesh, problem
 
 BLAZER = Catheter(length=0.065, ei=6e-5)
 UNIT = Catheter(1.0, 1.0)
@@ -83,7 +83,7 @@ def test_mesh_follows_the_curvature_change():
     frac = sh.arc_lengths / BLAZER.length
     assert frac[0] == frac.max() and frac[0] > 1.5 * frac.min() and 2 <= np.argmin(frac) <= 8
     # bounded grading: the floor keeps every arc within sqrt(1 + f^2)/f of the longest
-    assert frac.max() / frac.min() <= np.hypot(1.0, core.GRADE_FLOOR) / core.GRADE_FLOOR * (1 + 1e-9)
+    assert frac.max() / frac.min() <= np.hypot(1.0, mesh.GRADE_FLOOR) / mesh.GRADE_FLOOR * (1 + 1e-9)
 
 
 def test_pure_moment_and_zero_load_keep_equal_arcs():
@@ -142,9 +142,9 @@ def test_fast_path_grading_equals_the_batched_one():
     for follower in (False, True):
         phi = rng.normal(0, 0.3, 12)
         F = complex(*rng.normal(0, 1, 2))
-        f1, s1 = core._fast_grade(phi, F, follower)
-        f2 = core.graded_fractions(phi[None], np.array([F]), follower)
-        s2 = core._remap(phi[None], f2)
+        f1, s1 = mesh.fast_grade(phi, F, follower)
+        f2 = mesh.graded_fractions(phi[None], np.array([F]), follower)
+        s2 = mesh.remap(phi[None], f2)
         assert np.allclose(f1, f2[0], atol=1e-15) and np.allclose(s1, s2[0], atol=1e-14)
 
 
@@ -153,9 +153,9 @@ def test_remap_keeps_the_tangent_angle_curve():
     phi = rng.normal(0, 0.5, (3, 8))
     new = rng.uniform(0.2, 1.0, (3, 8))
     new /= new.sum(axis=1, keepdims=True)
-    p2 = core._remap(phi, new)
+    p2 = mesh.remap(phi, new)
     assert np.allclose(p2.sum(axis=1), phi.sum(axis=1), atol=1e-14)
-    back = core._remap(p2, np.full((3, 8), 1 / 8), new)       # equal arcs' ends are nodes of p2's curve?
+    back = mesh.remap(p2, np.full((3, 8), 1 / 8), new)       # equal arcs' ends are nodes of p2's curve?
     # theta is piecewise linear on the old arcs; sampling it at the new nodes and back at the
     # old nodes reproduces the old nodes exactly only where they coincide: check the ends
     assert np.allclose(back.sum(axis=1), phi.sum(axis=1), atol=1e-14)
@@ -166,22 +166,22 @@ def test_jacobian_with_unequal_arcs_per_case():
     frac = rng.uniform(0.3, 1.0, (2, 7))
     frac /= frac.sum(axis=1, keepdims=True)
     for follower in (False, True):
-        prob = core._make_problem(7, 1.0, 1.0, np.array([2.0 - 3.0j, -1.0 + 1.0j]), follower,
+        prob = problem.make_problem(7, 1.0, 1.0, np.array([2.0 - 3.0j, -1.0 + 1.0j]), follower,
                                   np.array([0.7, -0.2]), [], frac)
         loads, m = prob.loads(1.0)
         phi = rng.normal(0, 0.6, (2, 7))
-        r, fac, _ = core._evaluate(phi, prob.l, prob.w, loads, m)
-        J = core._dense_jacobian(prob.w, fac)
+        r, fac, _ = equations.evaluate(phi, prob.l, prob.w, loads, m)
+        J = linsolve.dense_jacobian(prob.w, fac)
         h = 1e-7
         for b in range(2):
             Jn = np.empty((7, 7))
             for j in range(7):
                 p = phi.copy()
                 p[b, j] += h
-                Jn[:, j] = (core._evaluate(p, prob.l, prob.w, loads, m, jac=False)[0][b] - r[b]) / h
+                Jn[:, j] = (equations.evaluate(p, prob.l, prob.w, loads, m, jac=False)[0][b] - r[b]) / h
             assert np.max(np.abs(J[b] - Jn)) < 1e-5
         rhs = rng.normal(size=(2, 7))
-        x = core._structured_solve(prob.w, fac, rhs)
+        x = linsolve.structured_solve(prob.w, fac, rhs)
         assert np.allclose(np.einsum('bij,bj->bi', J, x), rhs, atol=1e-10)
 
 
@@ -192,13 +192,13 @@ def test_jacobian_with_unequal_arcs_per_case():
 def test_graded_fractions_properties(phi, fx, fy, follower, k):
     phi = np.array([phi])
     F = np.array([complex(fx, fy)])
-    f = core.graded_fractions(phi, F, follower)
+    f = mesh.graded_fractions(phi, F, follower)
     assert f.shape == phi.shape and np.all(np.isfinite(f)) and np.all(f > 0)
     assert abs(f.sum() - 1.0) < 1e-12
-    assert f.max() / f.min() <= np.hypot(1.0, core.GRADE_FLOOR) / core.GRADE_FLOOR * (1 + 1e-9)
+    assert f.max() / f.min() <= np.hypot(1.0, mesh.GRADE_FLOOR) / mesh.GRADE_FLOOR * (1 + 1e-9)
     # scale-free in the force, mirror-symmetric
-    assert np.allclose(core.graded_fractions(phi, k * F, follower), f, atol=1e-12)
-    assert np.allclose(core.graded_fractions(-phi, np.conj(F), follower), f, atol=1e-12)
+    assert np.allclose(mesh.graded_fractions(phi, k * F, follower), f, atol=1e-12)
+    assert np.allclose(mesh.graded_fractions(-phi, np.conj(F), follower), f, atol=1e-12)
 
 
 def test_bad_spacing_is_refused():
@@ -213,15 +213,15 @@ def test_graded_fractions_tiny_curvature_change_does_not_underflow():
     changed with the force scale; the monitor is normalised by max|kappa'| first."""
     phi = np.array([[0.0, 2.8002983266425355e-161]])
     F = np.array([1.0 + 0.0j])
-    a = core.graded_fractions(phi, F)
-    assert np.allclose(core.graded_fractions(phi, 0.5 * F), a, atol=1e-15)
-    assert np.allclose(core._fast_grade(phi[0], 0.5, False)[0], a[0], atol=1e-15)
+    a = mesh.graded_fractions(phi, F)
+    assert np.allclose(mesh.graded_fractions(phi, 0.5 * F), a, atol=1e-15)
+    assert np.allclose(mesh.fast_grade(phi[0], 0.5, False)[0], a[0], atol=1e-15)
 
 
 def test_graded_fractions_denormal_force_keeps_its_direction():
     """Regression (found by hypothesis): 5e-324j N lost its direction in t x F, so the mesh
     changed with the force scale; the forces are normalised first."""
     phi = np.array([[1.5, 0.0]])
-    ref = core.graded_fractions(phi, np.array([1j]))
+    ref = mesh.graded_fractions(phi, np.array([1j]))
     for F in (1e-323j, 5e-324j, 1e300j):
-        np.testing.assert_allclose(core.graded_fractions(phi, np.array([F])), ref, atol=1e-15)
+        np.testing.assert_allclose(mesh.graded_fractions(phi, np.array([F])), ref, atol=1e-15)

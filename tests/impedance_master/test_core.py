@@ -272,6 +272,8 @@ def test_default_identifier_holds_at_rest():
     x, xd, xdd, f = drive(truth, OperatorTrajectory(duration=5.0, seed=1))
     for s in zip(x, xd, xdd, f):
         imp = ident.update(*s)
+    for _ in range(40):        # the last moving samples leave the input median (2 samples)
+        imp = ident.update(x[-1], 0.0, 0.0, f[-1])
     before = imp.to_fields()
     for _ in range(3000):
         imp = ident.update(x[-1], 0.0, 0.0, f[-1] + 0.3)   # at rest, even with a new load
@@ -287,8 +289,12 @@ def test_dfr_holds_the_last_force_and_clamps():
     assert dfr.desired_force() == 0.3 and dfr.desired_force(0.1, 0.2, 0.3) == 0.3
     dfr.set_force(-7.0)
     assert dfr.desired_force() == -2.0 and dfr.n_clamped == 1
+    # not a number: a programming error; a non-finite or absurd force: refused and counted,
+    # the last force stays (the haptic path never raises on data)
     with pytest.raises(ValueError, match='f'):
-        dfr.set_force(float('nan'))
+        dfr.set_force('0.3')
+    assert dfr.set_force(float('nan')) is False and dfr.set_force(1e6) is False
+    assert dfr.n_refused == 2 and dfr.desired_force() == -2.0
 
 
 def test_ima_renders_the_model_on_the_local_trajectory():
@@ -315,9 +321,9 @@ def test_ima_first_model_blends_in_without_a_step_and_output_is_clamped():
     assert max(abs(b - a) for a, b in zip([0.0] + out, out)) < 0.03 * abs(target)
     assert out[-1] == pytest.approx(target, rel=1e-3)   # 8 blend time constants later
     strong = ImaRenderer(blend_time=0.0)
-    strong.set_impedance(Impedance(0.0, 0.0, 1000.0, 0.0))
-    assert strong.desired_force(0.05, 0.0, 0.0) == 2.0
-    assert strong.desired_force(-0.05, 0.0, 0.0) == -2.0 and strong.n_clamped == 2
+    strong.set_impedance(Impedance(0.0, 0.0, 40.0, 0.0))     # 4 N at 0.1 m, in the envelope
+    assert strong.desired_force(0.1, 0.0, 0.0) == 2.0
+    assert strong.desired_force(-0.06, 0.0, 0.0) == -2.0 and strong.n_clamped == 2
 
 
 @settings(max_examples=30, deadline=None)
@@ -465,7 +471,9 @@ def test_default_identifier_reports_the_linear_part_in_m_c_k_offset():
     visited = slice(2, 11)            # nodes at 10..50 mm (the script spans 8..56 mm)
     # 3 noise sigmas: the static prior is deliberately local (weak smoothness), so next to
     # the stroke's end (50 mm) S follows the data more than a global spring prior would
-    assert max(np.abs(imp.F[visited])) < 0.01 and max(np.abs(imp.S[visited])) < 0.015
+    # (the same 3-sigma bound on F: with the presliding-length selection the slow bank may
+    # be selected here and take up up to 13 mN of the static prior's bias at 50 mm)
+    assert max(np.abs(imp.F[visited])) < 0.015 and max(np.abs(imp.S[visited])) < 0.015
     # force() is the same model as before the split (the same 3-sigma bound: at 50 mm the
     # local static table is 0.010-0.011 N off this global spring)
     for xx, v in ((0.01, 0.02), (0.03, -0.01), (0.05, 0.0)):

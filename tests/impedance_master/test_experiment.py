@@ -113,3 +113,37 @@ def test_runs_are_deterministic_for_a_seed():
         assert np.array_equal(a.series[key], b.series[key])
     c = run_experiment(cfg, seed=5)
     assert not np.array_equal(a.series['x_hand'], c.series['x_hand'])
+
+
+def test_vessel_and_operator_are_selected_by_name():
+    with pytest.raises(ValueError, match='vessel must be one of'):
+        ExperimentConfig(vessel='aorta')
+    with pytest.raises(ValueError, match='unknown vessel parameter'):
+        ExperimentConfig(vessel='soft', vessel_params={'colour': 1.0})
+    with pytest.raises(ValueError, match='operator must be one of'):
+        ExperimentConfig(operator='robot')
+    cfg = ExperimentConfig(vessel='soft', vessel_params={'noise_std': 0.0}, operator='human',
+                           duration=3.0, outages=())
+    assert cfg.vessel_params == (('noise_std', 0.0),)       # a dict is stored as pairs
+    r = run_experiment(cfg)
+    s = r.series
+    # noise-free sensor: the slave's measured force is its true force; the reference in a
+    # normal interval is the soft vessel's force (not the phantom's)
+    assert np.array_equal(s['f_slave_meas'], s['f_slave_true'])
+    assert r.metrics['reference_check']['mae'] < 0.01
+    assert np.all(np.isfinite(s['f_hand']))
+    human = run_experiment(ExperimentConfig(vessel='phantom', operator='human', duration=3.0,
+                                            outages=()))
+    assert not np.array_equal(human.series['reference'], s['reference'])
+
+
+def test_the_generalisation_criterion_is_the_issues():
+    from impedance_master.generalisation import CaseResult, beats_dfr, cases
+    dfr = CaseResult(normal=0.1, outage=0.2, all=0.12, max=0.5)
+    assert beats_dfr(CaseResult(0.09, 0.09, 0.09, 0.49), dfr)
+    assert not beats_dfr(CaseResult(0.1, 0.09, 0.09, 0.49), dfr)       # normal not below
+    assert not beats_dfr(CaseResult(0.09, 0.1, 0.09, 0.49), dfr)       # outage not < half
+    assert not beats_dfr(CaseResult(0.09, 0.09, 0.09, 0.5), dfr)       # max not below
+    held = cases([0, 1])
+    assert ('phantom', 'minjerk', 0) not in held and ('phantom', 'sines', 1) in held
+    assert len(cases([0], include_tuning=True)) == len(held) // 2 + 1

@@ -1,6 +1,7 @@
-"""The workspace as a ROS 2 user sees it: colcon finds every package as ament_python,
-and every built executable starts, appears in the ROS graph under its node name (the
-executable's name) and exits cleanly on SIGINT."""
+"""The workspace as a ROS 2 user sees it: colcon finds every package with its build type
+(the Python packages ament_python, catheter_interfaces ament_cmake), and every built
+executable starts, appears in the ROS graph under its node name (the executable's name) and
+exits cleanly on SIGINT."""
 import ast
 import os
 import pathlib
@@ -11,7 +12,9 @@ import time
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-PACKAGES = sorted(p.name for p in (ROOT / 'src').iterdir() if (p / 'package.xml').exists())
+PACKAGES = sorted(p.name for p in (ROOT / 'src').iterdir() if (p / 'setup.py').exists())
+CMAKE_PACKAGES = sorted(p.name for p in (ROOT / 'src').iterdir()
+                        if (p / 'CMakeLists.txt').exists() and (p / 'package.xml').exists())
 DESIGN_PACKAGES = {'fam_solver', 'catheter_shape', 'force_estimator', 'sim_slave',
                    'impedance_master', 'catheter_bringup'}
 
@@ -33,7 +36,7 @@ def test_design_packages_exist():
     assert DESIGN_PACKAGES <= set(PACKAGES)
 
 
-def test_colcon_list_sees_ament_python_packages():
+def test_colcon_list_sees_every_package_with_its_build_type():
     env = dict(os.environ)
     out = subprocess.run(['colcon', 'list'], cwd=ROOT / 'ros_ws', env=env,
                          capture_output=True, text=True, timeout=120, check=True).stdout
@@ -42,10 +45,24 @@ def test_colcon_list_sees_ament_python_packages():
         parts = line.split()
         if len(parts) >= 3:
             rows[parts[0]] = parts[2].strip('()')
-    assert set(rows) == set(PACKAGES), out
+    assert CMAKE_PACKAGES == ['catheter_interfaces']
+    assert set(rows) == set(PACKAGES) | set(CMAKE_PACKAGES), out
     for pkg, kind in rows.items():
-        assert kind == 'ros.ament_python', f'{pkg} is {kind}: invalid package.xml?'
+        want = 'ros.ament_cmake' if pkg in CMAKE_PACKAGES else 'ros.ament_python'
+        assert kind == want, f'{pkg} is {kind}: invalid package.xml?'
 
+
+def test_colcon_builds_the_interfaces_before_the_python_packages():
+    """Every Python package depends (directly or through catheter_common) on
+    catheter_interfaces, so colcon builds the messages first."""
+    out = subprocess.run(['colcon', 'list', '--topological-order', '--names-only'],
+                         cwd=ROOT / 'ros_ws', capture_output=True, text=True, timeout=120,
+                         check=True).stdout.split()
+    assert out[0] == 'catheter_interfaces', out
+    deps = subprocess.run(['colcon', 'list', '--names-only', '--packages-above',
+                           'catheter_interfaces'], cwd=ROOT / 'ros_ws', capture_output=True,
+                          text=True, timeout=120, check=True).stdout.split()
+    assert set(deps) == set(PACKAGES) | {'catheter_interfaces'}
 
 @pytest.mark.parametrize('pkg', PACKAGES)
 def test_declared_executables_are_built(pkg):
@@ -54,12 +71,25 @@ def test_declared_executables_are_built(pkg):
     assert sorted(console_scripts(pkg)) == built
 
 
+#: command-line tools (not nodes): they answer --help and start nothing
+TOOLS = {'recover_bag', 'catheter_topic'}
+
+
 def _executables():
     out = []
     for pkg in PACKAGES:
         for exe in console_scripts(pkg):
-            out.append((pkg, exe))
+            if exe not in TOOLS:
+                out.append((pkg, exe))
     return out
+
+
+@pytest.mark.parametrize('exe', sorted(TOOLS))
+def test_tools_are_installed_and_answer_help(exe):
+    path = ROOT / 'ros_ws' / 'install' / 'catheter_bringup' / 'lib' / 'catheter_bringup' / exe
+    assert exe in console_scripts('catheter_bringup')
+    res = subprocess.run([str(path), '--help'], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0 and res.stdout.startswith(f'usage: {exe}'), res.stderr
 
 
 @pytest.mark.ros

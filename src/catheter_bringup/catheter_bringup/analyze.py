@@ -26,88 +26,20 @@ import json
 import math
 import pathlib
 import sys
-from typing import Dict, Iterable, List, Optional
+from typing import Dict, Optional
 
 import numpy as np
-import yaml
 
 from catheter_bringup import metrics as M
-from catheter_bringup.recorder import read_run_metadata
+from catheter_bringup.bagfile import check_bag, cli_errors
+from catheter_bringup.recording import Recording, load  # noqa: F401 (Recording re-exported)
+from catheter_common import topics as T
 
-RENDERED = '/master/rendered_force'
-HAND_FORCE = '/master/hand_force'         # catheter_common.topics.MASTER_HAND_FORCE
-SLAVE_FORCE = '/slave/force'
-TIP_WRENCH = '/catheter/tip_wrench'
-IMPEDANCE = '/master/link/impedance'
-MASTER_COMMAND = '/master/command'
-SLAVE_IMPEDANCE = '/slave/impedance'
-
-
-def _stamp(msg) -> Optional[float]:
-    h = getattr(msg, 'header', None)
-    if h is None:
-        return None
-    return h.stamp.sec + h.stamp.nanosec * 1e-9
-
-
-def _values(msg):
-    """A few numbers per message for the analysis (None when the type has none of interest)."""
-    if hasattr(msg, 'wrench'):
-        f = msg.wrench.force
-        return (f.x, f.y, f.z)
-    if hasattr(msg, 'position') and hasattr(msg, 'name') and hasattr(msg, 'effort'):
-        vals = {}
-        for i, n in enumerate(msg.name):
-            vals[n] = (msg.position[i] if i < len(msg.position) else math.nan,
-                       msg.velocity[i] if i < len(msg.velocity) else math.nan,
-                       msg.effort[i] if i < len(msg.effort) else math.nan)
-        return vals
-    return None
-
-
-class Recording:
-    """A recording loaded into arrays: per topic log times, header stamps (s), values."""
-
-    def __init__(self, path, topics: Optional[Iterable[str]] = None, decode: bool = True):
-        from mcap.reader import make_reader
-        from mcap_ros2.decoder import DecoderFactory
-        self.path = str(path)
-        self.meta = read_run_metadata(path)
-        sc = self.meta.get('scenario_yaml')
-        self.scenario = yaml.safe_load(sc) if sc else {}
-        self.log: Dict[str, List[float]] = {}
-        self.stamp: Dict[str, List[float]] = {}
-        self.values: Dict[str, list] = {}
-        self.types: Dict[str, str] = {}
-        want = set(topics) if topics else None
-        with open(self.path, 'rb') as f:
-            reader = make_reader(f, decoder_factories=[DecoderFactory()])
-            for schema, channel, message, msg in reader.iter_decoded_messages(
-                    topics=list(want) if want else None, log_time_order=True):
-                topic = channel.topic
-                self.types.setdefault(topic, schema.name)
-                self.log.setdefault(topic, []).append(message.log_time * 1e-9)
-                s = _stamp(msg)
-                self.stamp.setdefault(topic, []).append(math.nan if s is None else s)
-                if decode:
-                    self.values.setdefault(topic, []).append(_values(msg))
-
-    @property
-    def topics(self) -> List[str]:
-        return sorted(self.log)
-
-    def t(self, topic) -> np.ndarray:
-        return np.asarray(self.log.get(topic, []), dtype=float)
-
-    def stamps(self, topic) -> np.ndarray:
-        return np.asarray(self.stamp.get(topic, []), dtype=float)
-
-    def force(self, topic, axis: int = 0) -> np.ndarray:
-        return np.asarray([v[axis] for v in self.values.get(topic, [])], dtype=float)
-
-    def named(self, topic, name, field: int = 0) -> np.ndarray:
-        return np.asarray([v.get(name, (math.nan,) * 3)[field] if isinstance(v, dict)
-                           else math.nan for v in self.values.get(topic, [])], dtype=float)
+RENDERED = T.MASTER_RENDERED_FORCE
+HAND_FORCE = T.MASTER_HAND_FORCE
+SLAVE_FORCE = T.SLAVE_FORCE
+TIP_WRENCH = T.TIP_WRENCH
+MASTER_COMMAND = T.MASTER_COMMAND
 
 
 def renderer_streams(scenario: dict, topics) -> Dict[str, str]:
@@ -151,7 +83,7 @@ def topic_owners(scenario: dict, ran) -> Dict[str, str]:
 def _t0(rec: Recording) -> float:
     """Start of the experiment clock: the first message of the slave (its timer's first tick),
     else the first message of the run."""
-    for topic in (SLAVE_FORCE, '/slave/joint_state'):
+    for topic in (SLAVE_FORCE, T.SLAVE_JOINT_STATE):
         if rec.log.get(topic):
             return rec.log[topic][0]
     allt = [v[0] for v in rec.log.values() if v]
@@ -175,7 +107,16 @@ def twin_vessel(scenario: dict):
 
 
 def _master_reference(rec: Recording, sc: dict, t0: float, delay: float):
-    """(t rel. to t0, reference N) along the recorded master motion, or None."""
+    """(t rel. to t0, reference N) along the recorded master motion, or None (computed once
+    per recording, delay and start: the twin vessel is a Python loop over the samples)."""
+    key = (t0, delay)
+    cache = rec.__dict__.setdefault('_twin_cache', {})
+    if key not in cache:
+        cache[key] = _compute_master_reference(rec, sc, t0, delay)
+    return cache[key]
+
+
+def _compute_master_reference(rec: Recording, sc: dict, t0: float, delay: float):
     from impedance_master.metrics import twin_reference
     vals = rec.values.get(MASTER_COMMAND) or []
     if not vals:
@@ -193,17 +134,45 @@ def _master_reference(rec: Recording, sc: dict, t0: float, delay: float):
     return tc, twin_reference(tc, x, xd, delay, params, seed)
 
 
-def analyze(path, skip: Optional[float] = None) -> dict:
+def run_link(scenario: dict, delay: Optional[float] = None, outages=None):
+    """(delay s, outages [(start, length)], warnings) of a run: given values first, else the
+    recorded scenario's ``link``, else assumed (0 s, none) with a warning saying so."""
+    warnings = []
+    link = (scenario or {}).get('link')
+    if delay is None:
+        if isinstance(link, dict) and 'delay' in link:
+            delay = float(link['delay'])
+        else:
+            delay = 0.0
+            warnings.append('no link delay in the recording\'s metadata (no recorded scenario): '
+                            'assuming 0 ms; give --delay')
+    if outages is None:
+        if isinstance(link, dict) and 'outages' in link:
+            outages = link['outages'] or []
+        else:
+            outages = []
+            warnings.append('no link outages in the recording\'s metadata (no recorded '
+                            'scenario): assuming none; give --outages')
+    return float(delay), [tuple(float(v) for v in o) for o in outages], warnings
+
+
+def analyze(path, skip: Optional[float] = None, delay: Optional[float] = None,
+            outages=None, progress=None, rec: Optional[Recording] = None) -> dict:
     """All metrics of one recording as a JSON-able dict (see the module docstring).
 
     ``skip``: start-up seconds left out of the force metrics (default: the scenario's
-    ``metrics.skip``, else the experiment's 1.5 s + 2 delay)."""
+    ``metrics.skip``, else the experiment's 1.5 s + 2 delay). ``delay`` (s) and ``outages``
+    ([(start, length)] s) override the recorded scenario's link; when neither is given nor
+    recorded they are assumed (0, none) and ``warnings`` in the result says so.
+    ``progress``: a callable(str) told what is being done (the analysis of a 12 s run takes
+    seconds); ``rec``: the recording already loaded (`Recording(path)`), e.g. to plot it too."""
     from impedance_master.metrics import default_eval_start, tracking_metrics
-    rec = Recording(path)
+    say = progress or (lambda _msg: None)
+    if rec is None:
+        say('reading the recording')
+        rec = load(path)
     sc = rec.scenario or {}
-    link = sc.get('link') or {}
-    delay = float(link.get('delay', 0.0))
-    outages = [tuple(o) for o in link.get('outages', [])]
+    delay, outages, warnings = run_link(sc, delay, outages)
     if skip is None:
         given = (sc.get('metrics') or {}).get('skip')
         skip = float(given) if given is not None else default_eval_start(delay)
@@ -214,6 +183,9 @@ def analyze(path, skip: Optional[float] = None) -> dict:
            'delay_s': delay, 'outages': [list(o) for o in outages],
            'sim_time_reached_s': float(rec.meta.get('sim_time_reached_s', 'nan')),
            'force_tracking': {}, 'estimation': {}, 'streams': {}}
+    if warnings:
+        out['warnings'] = warnings
+    say('the reference force (twin vessel along the master\'s motion)')
     twin = _master_reference(rec, sc, t0, delay)
     out['reference'] = 'twin' if twin is not None else 'slave_force'
     if twin is not None:
@@ -224,9 +196,7 @@ def analyze(path, skip: Optional[float] = None) -> dict:
         for label, topic in streams.items():
             tf, ff = rec.t(topic), rec.force(topic)
             # secondary: the slave's force at t + delay, in the same intervals
-            shifted = [(a + delay, b + delay) for a, b in outages] if twin is not None \
-                else outages
-            vs_slave = (M.force_tracking(tf, ff, ts, fs, delay, shifted, t0=t0, skip=skip)
+            vs_slave = (M.force_tracking(tf, ff, ts, fs, delay, outages, t0=t0, skip=skip)
                         if ts.size else None)
             if twin is not None:
                 tc, ref = twin
@@ -241,6 +211,7 @@ def analyze(path, skip: Optional[float] = None) -> dict:
         if fs.size:
             out['slave_force_max'] = float(np.max(np.abs(fs)))
     if rec.log.get(TIP_WRENCH):
+        say('the image-based force estimate')
         truth = (sc.get('metrics') or {}).get('truth_topic')
         ref_topic = truth if truth and rec.log.get(truth) else SLAVE_FORCE
         if rec.log.get(ref_topic):
@@ -261,6 +232,7 @@ def analyze(path, skip: Optional[float] = None) -> dict:
             est['reference'] = ref_topic
             est['reference_is_truth'] = ref_topic != SLAVE_FORCE
             out['estimation'] = est
+    say('rates and latencies per stream')
     owner = topic_owners(sc, json.loads(rec.meta.get('nodes', '[]') or '[]'))
     for topic in rec.topics:
         st = rec.stamps(topic)
@@ -281,7 +253,8 @@ def format_report(res: dict) -> str:
     lines = [f"run {res['scenario']} ({res['mode']}, {res['status']}"
              f"{': ' + res['reason'] if res.get('reason') else ''}), link delay "
              f"{res['delay_s'] * 1e3:.0f} ms, outages {res['outages']}, "
-             f"simulated {res['sim_time_reached_s']:.2f} s", '']
+             f"simulated {res['sim_time_reached_s']:.2f} s"]
+    lines += [f'WARNING: {w}' for w in res.get('warnings', [])] + ['']
     ft = res.get('force_tracking') or {}
     if ft:
         twin = res.get('reference') == 'twin'
@@ -363,21 +336,46 @@ def _jsonable(x):
     return x
 
 
+def _outages_arg(text: str):
+    """'4,1,8,1' -> [(4.0, 1.0), (8.0, 1.0)] (start, length pairs, s); '' -> []."""
+    vals = [float(v) for v in text.split(',') if v.strip()]
+    if len(vals) % 2:
+        raise argparse.ArgumentTypeError('outages: start,length pairs, e.g. 4,1,8,1')
+    return [(vals[i], vals[i + 1]) for i in range(0, len(vals), 2)]
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog='analyze', description=__doc__.split('\n\n')[0])
     p.add_argument('bag', help='an .mcap recording')
     p.add_argument('--json', default=None, help='write the metrics to this JSON file')
     p.add_argument('--skip', type=float, default=None,
-                   help="start-up seconds left out (default: the scenario's metrics.skip or 0.5)")
+                   help="start-up seconds left out (default: the scenario's metrics.skip, "
+                        'else 1.5 s + 2 delay)')
+    p.add_argument('--delay', type=float, default=None,
+                   help="link delay, s (default: the recorded scenario's)")
+    p.add_argument('--outages', type=_outages_arg, default=None,
+                   help="link outages as start,length pairs in s, e.g. 4,1,8,1 (default: "
+                        "the recorded scenario's)")
     p.add_argument('--quiet', action='store_true')
     a = p.parse_args(argv)
-    res = analyze(a.bag, skip=a.skip)
-    if not a.quiet:
-        print(format_report(res))
-    if a.json:
-        with open(a.json, 'w') as f:
-            json.dump(_jsonable(res), f, indent=1, sort_keys=True)
-    return 0
+
+    def body():
+        check_bag(a.bag)
+        res = analyze(a.bag, skip=a.skip, delay=a.delay, outages=a.outages,
+                      progress=None if a.quiet else _progress)
+        for w in res.get('warnings', []):
+            print(f'analyze: warning: {w}', file=sys.stderr)
+        if not a.quiet:
+            print(format_report(res))
+        if a.json:
+            with open(a.json, 'w') as f:
+                json.dump(_jsonable(res), f, indent=1, sort_keys=True)
+        return 0
+    return cli_errors('analyze', body)
+
+
+def _progress(msg: str) -> None:
+    print(f'[analyze] {msg}', file=sys.stderr, flush=True)
 
 
 if __name__ == '__main__':

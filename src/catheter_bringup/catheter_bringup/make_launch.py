@@ -1,10 +1,10 @@
 """What a ROS 2 launch of a scenario starts, computed from the scenario YAML, so launched and
 launchless runs use the same nodes, parameters and remappings.
 
-`ros_ws/launch/scenario.launch.py` (for a full ROS 2 install with `launch` and `launch_ros`)
-calls `launch_entries` at launch time:
+The package's `launch/scenario.launch.py` (installed to share/catheter_bringup/launch; for a
+ROS 2 install with `launch` and `launch_ros`) calls `launch_entries` at launch time:
 
-    ros2 launch ros_ws/launch/scenario.launch.py scenario:=experiment_ii
+    ros2 launch catheter_bringup scenario.launch.py scenario:=experiment_ii
 
 It starts the scenario's node instances (the nodes it needs, as the runner resolves them) as
 separate processes in real time, with their parameters and remaps, plus ``recorder_node``
@@ -40,6 +40,7 @@ def launch_entries(scenario: dict) -> List[Dict]:
     out.append({'package': 'catheter_bringup', 'executable': 'recorder_node',
                 'name': 'recorder_node',
                 'parameters': [{'path': f"bags/{scenario['name']}.mcap",
+                                'scenario': scenario.get('source') or scenario['name'],
                                 'exclude': list(rec['exclude']) or [''],
                                 'topics': list(rec.get('only') or []) or ['']}]})
     return out
@@ -47,7 +48,7 @@ def launch_entries(scenario: dict) -> List[Dict]:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(prog='make_launch', description=__doc__.split('\n\n')[0])
-    ap.add_argument('scenario', help='a scenario name of ros_ws/config/')
+    ap.add_argument('scenario', help="a scenario name of catheter_bringup's config/ or a YAML path")
     a = ap.parse_args(argv)
     pprint.pprint(launch_entries(load_scenario(a.scenario)), width=100, sort_dicts=True)
     return 0

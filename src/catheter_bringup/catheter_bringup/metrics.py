@@ -1,12 +1,18 @@
-"""Run metrics (no rclpy, numpy only): force tracking in normal and outage intervals, estimate
-errors against a truth signal, rates, periods and latencies. Times in s, forces in N.
+"""Run metrics (no rclpy, numpy only): force tracking against the slave's force, alignment of
+streams, rates, periods and latencies. Times in s, forces in N.
+
+The error statistics and the outage windows are `impedance_master.metrics`' (ONE convention
+for the pure experiment and the graph's analysis: outage = [start + delay, start + length +
+2 delay) on the master's clock); this module adds what only recordings need.
 """
 from __future__ import annotations
 
 import math
-from typing import Dict, Iterable, List, Optional, Sequence, Tuple
+from typing import Dict, Iterable, Optional, Sequence, Tuple
 
 import numpy as np
+
+from impedance_master.metrics import error_stats, outage_mask  # noqa: F401 (re-exported)
 
 #: The thesis's figures (Chapter 4, Experiment II: 200 ms delay, 1 s outages at 4 s and 8 s;
 #: Chapter 2: ex-vivo tip force estimation), printed beside this project's.
@@ -48,26 +54,6 @@ def align(t_ref: Sequence[float], t_sig: Sequence[float], sig: Sequence[float],
     return out
 
 
-def in_intervals(t: np.ndarray, intervals: Iterable[Tuple[float, float]]) -> np.ndarray:
-    """Boolean mask: t inside any [start, start + length] interval."""
-    t = np.asarray(t, dtype=float)
-    m = np.zeros(t.shape, dtype=bool)
-    for a, length in intervals:
-        m |= (t >= a) & (t <= a + length)
-    return m
-
-
-def error_stats(err: np.ndarray) -> Dict[str, float]:
-    """MAE, RMSE, max |e| and sample count of the finite entries of ``err`` (NaN if none)."""
-    e = np.asarray(err, dtype=float)
-    e = e[np.isfinite(e)]
-    if e.size == 0:
-        return {'mae': float('nan'), 'rmse': float('nan'), 'max': float('nan'), 'n': 0}
-    a = np.abs(e)
-    return {'mae': float(a.mean()), 'rmse': float(np.sqrt((e * e).mean())),
-            'max': float(a.max()), 'n': int(e.size)}
-
-
 def force_tracking(t_master: Sequence[float], f_master: Sequence[float],
                    t_slave: Sequence[float], f_slave: Sequence[float], delay: float,
                    outages: Iterable[Tuple[float, float]] = (), t0: float = 0.0,
@@ -75,9 +61,11 @@ def force_tracking(t_master: Sequence[float], f_master: Sequence[float],
     """Error of the force rendered at the master against the slave's force for the same motion.
 
     The slave executes the master's motion of time t at t + delay (one-way command delay), so
-    the rendered force f_master(t) is compared with f_slave(t + delay). Intervals: ``outages``
-    ([start, length] in s after ``t0``) and the rest ('normal'); the first ``skip`` seconds are
-    left out (start-up). Returns {'all'|'normal'|'outage': error_stats}.
+    the rendered force f_master(t) is compared with f_slave(t + delay). Intervals: for each link
+    outage ``(start, length)`` (s after ``t0``) the window [start + delay, start + length +
+    2 delay) in which the master's feedback is missing or stale (`outage_mask`, the
+    experiment's convention), and the rest ('normal'); the first ``skip`` seconds are left out
+    (start-up). Returns {'all'|'normal'|'outage': error_stats}.
     """
     tm = _arr('t_master', t_master)
     fm = _arr('f_master', f_master)
@@ -87,7 +75,7 @@ def force_tracking(t_master: Sequence[float], f_master: Sequence[float],
     err = fm - fs
     rel = tm - t0
     keep = rel >= skip
-    out_m = in_intervals(rel, outages)
+    out_m = outage_mask(rel, outages, delay)
     return {'all': error_stats(err[keep]), 'normal': error_stats(err[keep & ~out_m]),
             'outage': error_stats(err[keep & out_m])}
 

@@ -5,12 +5,18 @@ Layout of the file (what `ros2 bag`, `rosbags` and `mcap_ros2` expect):
 - profile ``ros2``; one schema per message type, named like ``geometry_msgs/msg/WrenchStamped``,
   encoding ``ros2msg``: the installed ``.msg`` text of the type followed, for every type it depends
   on (depth first, each once), by a line of 80 ``=``, ``MSG: pkg/Type`` and that type's text;
-- one channel per topic, message encoding ``cdr`` (the bytes of
-  ``rclpy.serialization.serialize_message`` or a raw subscription), with the offered QoS as
-  rosbag2 writes it (``offered_qos_profiles`` YAML, version 9 field names) in its metadata;
+- one channel per topic, message encoding ``cdr``: each message's CDR payload with its TRUE
+  length (`catheter_bringup.cdr`: rclpy's ``serialize_message`` returns the rmw's estimated
+  size, with trailing garbage for messages with sequences, which strict readers reject; the
+  recorder cuts every payload at its end, so raw-subscription bytes and serialize_message
+  bytes are recorded alike), with the offered QoS as rosbag2 writes it
+  (``offered_qos_profiles`` YAML, version 9 field names) in its metadata;
 - zstd compressed chunks, a summary with statistics and indexes;
-- a metadata record ``catheter_run`` written at close: ``status`` (complete | interrupted | failed),
-  ``reason``, ``last_log_time_ns``, ``messages`` (count), per-topic counts and what the caller adds.
+- a metadata record ``catheter_run_start`` written when the run starts (`McapRecorder.start`:
+  the scenario, mode, seed ... so a killed run's file still says what it was; see
+  `catheter_bringup.bagfile.recover`), and ``catheter_run`` written at close: ``status``
+  (complete | interrupted | failed), ``reason``, ``last_log_time_ns``, ``messages`` (count),
+  per-topic counts and what the caller adds.
 
 Times are integers in nanoseconds (the node clock, i.e. sim time in lockstep runs).
 """
@@ -25,12 +31,15 @@ from typing import Dict, List, Mapping, Optional
 
 from mcap.writer import CompressionType, Writer
 
+from catheter_bringup.cdr import cdr_end, message_class
+
 SEPARATOR = '=' * 80
 BUILTIN_TYPES = {
     'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16', 'int32',
     'uint32', 'int64', 'uint64', 'string', 'wstring',
 }
 RUN_METADATA = 'catheter_run'
+RUN_START_METADATA = 'catheter_run_start'
 
 _DEFAULT_QOS = {'history': 'keep_last', 'depth': 10, 'reliability': 'reliable',
                 'durability': 'volatile'}
@@ -162,6 +171,7 @@ class McapRecorder:
         self._schemas: Dict[str, int] = {}
         self._channels: Dict[str, int] = {}
         self._types: Dict[str, str] = {}
+        self._classes: Dict[str, type] = {}
         self._seq: Dict[str, int] = {}
         self.counts: Dict[str, int] = {}
         self.bytes = 0
@@ -182,6 +192,7 @@ class McapRecorder:
                 return self._channels[topic]
             if self.closed:
                 raise ValueError('recorder is closed')
+            cls = message_class(type_name)
             if type_name not in self._schemas:
                 self._schemas[type_name] = self._w.register_schema(
                     name=type_name, encoding='ros2msg',
@@ -191,6 +202,7 @@ class McapRecorder:
                                            schema_id=self._schemas[type_name], metadata=meta)
             self._channels[topic] = cid
             self._types[topic] = type_name
+            self._classes[topic] = cls
             self._seq[topic] = 0
             self.counts[topic] = 0
             return cid
@@ -200,12 +212,18 @@ class McapRecorder:
 
     def write(self, topic: str, data: bytes, log_time_ns: int,
               publish_time_ns: Optional[int] = None) -> None:
-        """Append one CDR-serialised message of a registered topic at ``log_time_ns`` (int, ns)."""
+        """Append one CDR-serialised message of a registered topic at ``log_time_ns`` (int, ns).
+
+        ``data``: the CDR payload (encapsulation header first); bytes beyond the message's
+        end (rclpy's estimated-size padding) are cut off; a payload too short for its type,
+        or not CDR, is refused (ValueError naming ``data``)."""
         if topic not in self._channels:
             raise ValueError(f'topic {topic!r} was not registered with add_topic')
         log_time_ns = int(log_time_ns)
         if log_time_ns < 0:
             raise ValueError(f'log_time_ns must be >= 0, got {log_time_ns}')
+        end = cdr_end(data, self._classes[topic])
+        data = bytes(data[:end])
         with self._lock:
             if self.closed:
                 return
@@ -213,13 +231,25 @@ class McapRecorder:
             self._seq[topic] = seq + 1
             self._w.add_message(channel_id=self._channels[topic], log_time=log_time_ns,
                                 publish_time=log_time_ns if publish_time_ns is None
-                                else int(publish_time_ns), sequence=seq, data=bytes(data))
+                                else int(publish_time_ns), sequence=seq, data=data)
             self.counts[topic] += 1
             self.bytes += len(data)
             if self.first_time_ns is None:
                 self.first_time_ns = log_time_ns
             self.last_time_ns = log_time_ns if self.last_time_ns is None \
                 else max(self.last_time_ns, log_time_ns)
+
+    def start(self, info: Mapping[str, object]) -> None:
+        """Write the ``catheter_run_start`` metadata record now (values as in `close`'s
+        ``extra``) and flush it to the file, so a run killed before `close` still carries it."""
+        meta = {'status': 'running'}
+        for k, v in info.items():
+            meta[str(k)] = v if isinstance(v, str) else json.dumps(v, sort_keys=True)
+        with self._lock:
+            if self.closed:
+                raise ValueError('recorder is closed')
+            self._w.add_metadata(RUN_START_METADATA, meta)
+            self._file.flush()
 
     @property
     def total(self) -> int:

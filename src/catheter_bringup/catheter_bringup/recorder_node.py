@@ -1,8 +1,11 @@
 """`recorder_node`: records every topic of the graph (or a chosen list) into one MCAP file.
 
 Parameters: ``path`` (output .mcap; default bags/recording_<date>.mcap under the workspace),
-``topics`` (record only these; empty = all), ``exclude`` (never these), ``discovery_period`` (s).
-On shutdown (Ctrl-C / SIGTERM) the file is closed with its summary and a ``catheter_run`` record.
+``topics`` (record only these; empty = all), ``exclude`` (never these), ``discovery_period`` (s),
+``scenario`` (the scenario being run, a name or YAML path: the launch file passes it; its YAML,
+with ``mode: realtime``, goes into the recording's run metadata at the start and at the end, so
+`analyze` knows the link delay and outages). On shutdown (Ctrl-C / SIGTERM) the file is
+closed with its summary and a ``catheter_run`` record.
 """
 from __future__ import annotations
 
@@ -33,10 +36,21 @@ class RecorderNode(Node):
                           'topics never recorded')
         period = declare(self, 'discovery_period', 0.5,
                          'period of the graph scan for new topics, s', 0.05, 10.0)
+        scenario = declare(self, 'scenario', '',
+                           'scenario being run (name or YAML path; empty: none), recorded '
+                           'as the run metadata', read_only=True)
+        self.run_info = {}
+        if scenario:
+            from catheter_bringup.scenario import load_scenario, run_start_info
+            sc = load_scenario(scenario)
+            sc['mode'] = 'realtime'          # launched nodes run on the system clock
+            self.run_info = run_start_info(sc, [])
         if not path:
             stamp = datetime.datetime.now().strftime('%Y%m%d_%H%M%S')  # file name only
             path = str(default_bag_dir() / f'recording_{stamp}.mcap')
         self.recorder = McapRecorder(path)
+        if self.run_info:
+            self.recorder.start(self.run_info)
         only = [t for t in topics if t]
         self.sink = RecordingSink(self, self.recorder, exclude=exclude, only=only or None)
         self.diag = Diagnostics(self)
@@ -53,7 +67,8 @@ class RecorderNode(Node):
 
     def close(self):
         if not self.recorder.closed:
-            self.recorder.close('complete', 'recorder_node shut down')
+            extra = {k: v for k, v in self.run_info.items() if k != 'nodes'}
+            self.recorder.close('complete', 'recorder_node shut down', extra=extra)
             self.get_logger().info(
                 f'closed {self.recorder.path}: {self.recorder.total} messages')
 

@@ -15,7 +15,9 @@ import sys
 import time
 from typing import Iterable, Optional
 
+from catheter_bringup.bagfile import check_bag, cli_errors
 from catheter_bringup.recorder import read_run_metadata
+from catheter_common import topics as T
 
 
 def _qos_from_metadata(meta: dict):
@@ -55,6 +57,7 @@ def replay(path, rate: float = 1.0, topics: Optional[Iterable[str]] = None,
 
     from catheter_bringup.ros_recording import message_class
 
+    check_bag(path)
     if not rate > 0:
         raise ValueError(f'rate must be > 0, got {rate!r}')
     if not start >= 0:
@@ -64,16 +67,13 @@ def replay(path, rate: float = 1.0, topics: Optional[Iterable[str]] = None,
         node = rclpy.create_node('replay', context=context)
     pubs = {}
     published = {}
-    clock_pub = node.create_publisher(Clock, '/clock', QoSProfile(depth=10)) if clock else None
+    clock_pub = node.create_publisher(Clock, T.CLOCK, QoSProfile(depth=10)) if clock else None
     want = set(topics) if topics else None
     t_wall0 = time.perf_counter()
     try:
         while True:
             with open(path, 'rb') as f:
                 reader = make_reader(f)
-                summary = reader.get_summary()
-                chans = summary.channels if summary else {}
-                schemas = summary.schemas if summary else {}
                 first = None
                 start_wall = time.perf_counter()
                 last_clock = None
@@ -129,21 +129,25 @@ def main(argv=None):
     ap.add_argument('--loop', action='store_true')
     ap.add_argument('--start', type=float, default=0.0, help='skip the first S seconds')
     a = ap.parse_args(remove_ros_args(['replay'] + args)[1:])
-    meta = read_run_metadata(a.bag)
-    rclpy.init(args=['replay'] + args)
-    try:
-        print(f"replaying {a.bag} ({meta.get('scenario', '?')}, {meta.get('messages', '?')} "
-              f"messages) at {a.rate:g}x", flush=True)
-        res = replay(a.bag, rate=a.rate, topics=a.topics, clock=not a.no_clock,
-                     loop=a.loop, start=a.start)
-        n = sum(res['published'].values())
-        print(f"published {n} messages on {len(res['published'])} topics in "
-              f"{res['wall_time']:.2f} s", flush=True)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        rclpy.try_shutdown()
-    return 0
+
+    def body():
+        check_bag(a.bag)
+        meta = read_run_metadata(a.bag)
+        rclpy.init(args=['replay'] + args)
+        try:
+            print(f"replaying {a.bag} ({meta.get('scenario', '?')}, {meta.get('messages', '?')} "
+                  f"messages) at {a.rate:g}x", flush=True)
+            res = replay(a.bag, rate=a.rate, topics=a.topics, clock=not a.no_clock,
+                         loop=a.loop, start=a.start)
+            n = sum(res['published'].values())
+            print(f"published {n} messages on {len(res['published'])} topics in "
+                  f"{res['wall_time']:.2f} s", flush=True)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            rclpy.try_shutdown()
+        return 0
+    return cli_errors('replay', body)
 
 
 if __name__ == '__main__':

@@ -6,29 +6,22 @@ node clock's time (sim time in lockstep runs).
 """
 from __future__ import annotations
 
-import importlib
 from typing import Dict, Iterable, List, Optional
 
 from rclpy.node import Node
 from rclpy.qos import (QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile,
                        QoSReliabilityPolicy)
 
+from catheter_bringup.cdr import exact_cdr, message_class, type_name_of  # noqa: F401
 from catheter_bringup.recorder import McapRecorder
 
 
-def message_class(type_name: str):
-    """'geometry_msgs/msg/WrenchStamped' -> the Python message class."""
-    parts = type_name.split('/')
-    if len(parts) != 3:
-        raise ValueError(f'type_name must look like "pkg/msg/Type", got {type_name!r}')
-    mod = importlib.import_module(f'{parts[0]}.{parts[1]}')
-    return getattr(mod, parts[2])
-
-
-def type_name_of(msg_or_class) -> str:
-    cls = msg_or_class if isinstance(msg_or_class, type) else type(msg_or_class)
-    pkg = cls.__module__.split('.')[0]
-    return f'{pkg}/msg/{cls.__name__}'
+def exact_bytes(msg) -> bytes:
+    """The CDR payload of ``msg`` with its true length: what a DDS subscriber receives and
+    what strict readers (rosbags) accept. ``rclpy.serialization.serialize_message`` alone
+    returns the rmw's estimated size, with trailing garbage for messages with sequences."""
+    from rclpy.serialization import serialize_message
+    return exact_cdr(serialize_message(msg), type(msg))
 
 
 def qos_to_dict(qos: QoSProfile) -> dict:

@@ -1,11 +1,16 @@
-"""`run_scenario`: run a scenario of ros_ws/config/ (launchless, one process) and record it.
+"""`run_scenario`: run a scenario (launchless, one process) and record it.
 
-    run_scenario [SCENARIO] [--mode lockstep|realtime] [--duration S] [--bag PATH] [--no-record]
-                 [--quiet] [--ros-args ...]
+    run_scenario [SCENARIO] [--mode lockstep|realtime] [--duration S] [--set KEY=VALUE ...]
+                 [--dds] [--name NAME] [--bag PATH] [--no-record] [--quiet] [--ros-args ...]
 
-Without arguments it runs the default scenario (experiment_ii) in lockstep. The runner's own
-node is named ``run_scenario``. Exit code 0 when the run completed or was stopped with Ctrl-C,
-1 when a node failed.
+Without arguments it runs the default scenario (experiment_ii) in lockstep. ``--set`` changes
+any scenario field (`catheter_bringup.overrides`: ``--set link.delay=0.5``); the run, its bag
+and its outputs are then named after the change (``experiment_ii__link.delay-0.5``), never
+after the default run unless ``--name`` says so. ``--dds`` publishes every message of a
+lockstep run on DDS too (scenario field ``dds: true``), so tools outside the process (the
+`catheter_topic` tool, rviz, Foxglove) see the run. The runner's own node is named
+``run_scenario``. Exit code 0 when the run completed or was stopped with Ctrl-C or SIGTERM,
+1 when a node failed, 2 when the scenario or an override is invalid.
 """
 from __future__ import annotations
 
@@ -19,16 +24,42 @@ DEFAULT_SCENARIO = 'experiment_ii'
 def build_parser():
     p = argparse.ArgumentParser(prog='run_scenario', description=__doc__.split('\n\n')[0])
     p.add_argument('scenario', nargs='?', default=DEFAULT_SCENARIO,
-                   help='name in ros_ws/config/ or path to a YAML file')
-    p.add_argument('--mode', choices=('lockstep', 'realtime'), default=None)
-    p.add_argument('--duration', type=float, default=None, help='override, s')
+                   help="name in catheter_bringup's config/ or path to a YAML file")
+    add_run_arguments(p)
     p.add_argument('--bag', default=None,
-                   help='output .mcap (default bags/<scenario>_<date>_<time>.mcap)')
+                   help='output .mcap (default bags/<run name>_<date>_<time>.mcap)')
     p.add_argument('--no-record', action='store_true')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     p.add_argument('--only', default=None,
                    help='comma-separated node instances: start only these (a worker process)')
     return p
+
+
+def add_run_arguments(p) -> None:
+    """The options that say what runs (shared with the main command)."""
+    p.add_argument('--mode', choices=('lockstep', 'realtime'), default=None)
+    p.add_argument('--duration', type=float, default=None, help='override, s')
+    p.add_argument('--set', dest='overrides', action='append', default=[], metavar='KEY=VALUE',
+                   help='override a scenario field, e.g. --set link.delay=0.5 (repeatable)')
+    p.add_argument('--dds', action='store_true',
+                   help='also publish every message on DDS (for tools outside this process)')
+    p.add_argument('--name', default=None,
+                   help='name of the run and its outputs (default: the scenario\'s, plus '
+                        'the overrides)')
+
+
+def prepare_scenario(opts):
+    """(scenario dict, why it is named so) from the parsed options; ValueError if invalid."""
+    from catheter_bringup.overrides import apply_overrides, run_name
+    from catheter_bringup.scenario import load_scenario
+    sc = load_scenario(opts.scenario)
+    items = list(opts.overrides)
+    if opts.dds:
+        items.append('dds=true')
+    name, why = run_name(sc, opts.overrides, opts.name)
+    sc = apply_overrides(sc, items)
+    sc['name'] = name
+    return sc, why
 
 
 def summarize(res) -> str:
@@ -46,6 +77,15 @@ def summarize(res) -> str:
         lines.append(f'  recorded {total} messages on {len(res.recorded)} topics -> {res.bag} '
                      f'(lost: {lost})')
     return '\n'.join(lines)
+
+
+def record_run_start(runner) -> None:
+    """Write what the run is into its recording before the first step (``catheter_run_start``),
+    so the file of a run killed with SIGKILL still says it (recover_bag carries it over)."""
+    from catheter_bringup.scenario import run_start_info
+    rec = getattr(runner, 'recorder', None)
+    if rec is not None and not rec.closed:
+        rec.start(run_start_info(runner.scenario, runner.nodes))
 
 
 def install_stop_handlers(runner) -> dict:
@@ -76,8 +116,13 @@ def main(args=None):
     import os
     import pathlib
     from catheter_bringup.runner import ScenarioRunner
-    from catheter_bringup.scenario import load_scenario
-    sc = load_scenario(opts.scenario)
+    try:
+        sc, why = prepare_scenario(opts)
+    except ValueError as exc:
+        print(f'run_scenario: {exc}', file=sys.stderr)
+        return 2
+    if not opts.quiet:
+        print(f"run {sc['name']} ({why})", flush=True)
     bag = opts.bag
     if bag is None and not opts.no_record:
         root = pathlib.Path(os.environ.get('CATHETER_WS_ROOT', pathlib.Path.cwd()))
@@ -89,6 +134,7 @@ def main(args=None):
                             only=opts.only.split(',') if opts.only else None)
     install_stop_handlers(runner)
     runner.setup()
+    record_run_start(runner)
     res = runner.run()
     print(summarize(res), flush=True)
     return 1 if res.status == 'failed' else 0

@@ -1,6 +1,6 @@
 """Scenarios (no nodes, no executor; topic names from catheter_common.topics): the YAML files in
-ros_ws/config/, the node registry and the resolution
-of which nodes a scene needs.
+the package's config/ (installed to share/catheter_bringup/config), the node registry and the
+resolution of which nodes a scene needs.
 
 A scenario file::
 
@@ -15,7 +15,10 @@ A scenario file::
     outputs: [/master/rendered_force, /slave/force]   # what the scene consumes
     lockstep_transport: local # local: in-process bus (fast, deterministic) | dds: via DDS
     realtime_transport: local # the same choice for real-time runs
-    dds: false                # local bus: also publish every message on DDS (outside viewers)
+    dds: false                # local bus: also publish every message on DDS (outside viewers;
+                              # run_scenario --dds)
+    strict: false             # a node that fails to start fails the run (else it is left out)
+    realtime_processes: 2     # real time: 2 = the image pipeline in a worker process, 1 = none
     record: {exclude: [/clock]}   # and/or only: [topics] (everything else is not recorded)
     nodes:                    # parameters per node instance (and optional registry fields)
       ima_master_node: {params: {mode: ima}}
@@ -31,7 +34,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import os
 import pathlib
 from typing import Dict, List, Mapping, Optional, Tuple
 
@@ -102,12 +104,31 @@ class NodeInstance:
     always: bool = False
 
 
+PACKAGE = 'catheter_bringup'
+
+
+def share_dir() -> Optional[pathlib.Path]:
+    """share/catheter_bringup of the installed package (ament index), or None when the package
+    is not installed (run from the source tree)."""
+    try:
+        from ament_index_python.packages import (PackageNotFoundError,
+                                                 get_package_share_directory)
+    except ImportError:                 # pragma: no cover - ament_index_python is a dependency
+        return None
+    try:
+        return pathlib.Path(get_package_share_directory(PACKAGE))
+    except (PackageNotFoundError, ValueError):
+        return None
+
+
 def config_dir() -> pathlib.Path:
-    """ros_ws/config of this checkout (or $CATHETER_WS_ROOT/ros_ws/config)."""
-    root = os.environ.get('CATHETER_WS_ROOT')
-    if root:
-        return pathlib.Path(root) / 'ros_ws' / 'config'
-    return pathlib.Path(__file__).resolve().parents[3] / 'ros_ws' / 'config'
+    """The scenario folder: share/catheter_bringup/config of the installed package (found
+    through ament_index_python, so a plain `colcon build` works), or config/ of the source
+    tree when the package is not installed."""
+    share = share_dir()
+    if share is not None and (share / 'config').is_dir():
+        return share / 'config'
+    return pathlib.Path(__file__).resolve().parents[1] / 'config'
 
 
 def _num(d: Mapping, key: str, default, lo=None, hi=None, where='scenario'):
@@ -120,7 +141,7 @@ def _num(d: Mapping, key: str, default, lo=None, hi=None, where='scenario'):
 
 
 def load_scenario(name_or_path) -> dict:
-    """Load and validate a scenario: a path to a YAML file or a name in ros_ws/config/.
+    """Load and validate a scenario: a path to a YAML file or a name in `config_dir()`.
 
     Returns a plain dict with defaults filled in (see the module docstring for the fields).
     """
@@ -193,9 +214,28 @@ def validate_scenario(data: Mapping) -> dict:
     if s['realtime_transport'] not in ('local', 'dds'):
         raise ValueError("scenario.realtime_transport must be 'local' or 'dds', "
                          f"got {s['realtime_transport']!r}")
+    for key in ('dds', 'strict'):
+        s.setdefault(key, False)
+        if not isinstance(s[key], bool):
+            raise ValueError(f'scenario.{key} must be true or false, got {s[key]!r}')
+    s['realtime_processes'] = _num(s, 'realtime_processes', 2, 1, 2)
+    s.setdefault('description', '')
     s.setdefault('global_params', {})
     s.setdefault('metrics', {})
     return s
+
+
+def scenario_text(scenario: Mapping) -> str:
+    """The scenario as YAML (what recordings store as ``scenario_yaml``; ``source`` left out)."""
+    return yaml.safe_dump({k: v for k, v in scenario.items() if k != 'source'}, sort_keys=True)
+
+
+def run_start_info(scenario: Mapping, nodes) -> Dict[str, object]:
+    """What a recording says about its run when the run starts (`McapRecorder.start`): enough
+    for analyze and recover_bag when the run is killed before it can close the file."""
+    return {'scenario': scenario['name'], 'mode': scenario['mode'], 'seed': scenario['seed'],
+            'duration_s': scenario['duration'], 'nodes': sorted(nodes),
+            'scenario_yaml': scenario_text(scenario)}
 
 
 def common_params(scenario: Mapping) -> Dict[str, object]:

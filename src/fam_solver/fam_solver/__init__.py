@@ -10,15 +10,17 @@ Public API (DESIGN section 5)::
     solve_fam(cat, loads, n_arcs=12, arc_model='exact', spacing='graded')   # circular arcs
     # defaults: arc_model='clothoid' (fourth order), spacing='uniform'
 
-The algorithm modules (``arcs``, ``model``, ``fam``, ``bezier``, ``elastica``) are free of
-rclpy; ``fam_solver_node`` is the thin ROS 2 node.
+    shape.status            # Status.CONVERGED / NOT_CONVERGED / UNSTABLE / SNAP_THROUGH
+
+The algorithm modules (everything but ``fam_solver_node``, see ``fam`` for the map) are free
+of rclpy; ``fam_solver_node`` is the thin ROS 2 node.
 """
 from .model import BatchShape, Catheter, Loads, Shape
-from .fam import (ARC_MODELS, DEFAULT_ARC_MODEL, DEFAULT_SPACING, SPACINGS, graded_fractions,
-                  solve_fam, solve_fam_batch)
+from .fam import (ARC_MODELS, DEFAULT_ARC_MODEL, DEFAULT_SPACING, SPACINGS, Status,
+                  graded_fractions, solve_fam, solve_fam_batch)
 from .elastica import solve_elastica
 from .arcs import bezier_lambda
 
 __all__ = ['Catheter', 'Loads', 'Shape', 'BatchShape', 'solve_fam', 'solve_fam_batch',
            'solve_elastica', 'bezier_lambda', 'ARC_MODELS', 'DEFAULT_ARC_MODEL', 'SPACINGS',
-           'DEFAULT_SPACING', 'graded_fractions']
+           'DEFAULT_SPACING', 'graded_fractions', 'Status']

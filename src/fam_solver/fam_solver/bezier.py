@@ -27,11 +27,15 @@ Bezier and circle share their ends and end tangents (they differ inside the arc 
 """
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from .arcs import arc_funcs, bezier_lambda
+from .problem import Problem, repeat_problem
 
 N_GAUSS = 8
+_GAUSS = np.polynomial.legendre.leggauss(N_GAUSS)
 
 
 def _lambda_and_derivative(phi):
@@ -45,13 +49,13 @@ def _lambda_and_derivative(phi):
 
 
 class BezierModel:
-    """Residuals of the Bezier arc model for a given _Problem (loads fixed per case)."""
+    """Residuals of the Bezier arc model for a given Problem (loads fixed per case)."""
 
-    def __init__(self, prob):
+    def __init__(self, prob: Problem):
         self.prob = prob
         taus = sorted({t for a, t, _ in prob.point_forces if t < 1.0})
         edges = [0.0] + taus + [1.0]
-        xg, wg = np.polynomial.legendre.leggauss(N_GAUSS)
+        xg, wg = _GAUSS
         ts, ws = [], []
         for a, b in zip(edges[:-1], edges[1:]):
             ts.append(a + (b - a) * (xg + 1) / 2)
@@ -106,7 +110,6 @@ class BezierModel:
         dMq = np.zeros_like(Mq)
         tip_rot = None
         Einv = np.conj(E)
-        idx = np.arange(N)
         for ld in loads:
             F = ld.F
             if ld.follower:
@@ -141,3 +144,35 @@ class BezierModel:
         dR = dMq - EI * dkap
         Gi = (R * dR) @ self.wq
         return Gi * (l / EI) ** 2
+
+
+class BezierResidual:
+    """Bezier residual and (for N <= FD_MAX_N) its finite-difference Jacobian; beyond, Newton
+    uses the circular-arc model's analytic Jacobian (quasi-Newton: a few more iterations,
+    each far cheaper than the O(N^2) finite differences; the switch sits where the two cost
+    about the same, so the solve time does not fall from N to 2N)."""
+    FD_MAX_N = 12
+
+    def __init__(self, prob: Problem):
+        self.prob = prob
+        self.model = BezierModel(prob)
+        self._rep = None
+
+    def residual(self, phi: np.ndarray, loads, m: np.ndarray) -> np.ndarray:
+        return self.model.residual(phi, loads, m)
+
+    def jacobian(self, phi: np.ndarray, scale) -> Optional[np.ndarray]:
+        B, N = phi.shape
+        if N > self.FD_MAX_N:
+            return None
+        if self._rep is None or self._rep[0] != B:
+            rp = repeat_problem(self.prob, N + 1)
+            self._rep = (B, rp, BezierModel(rp))
+        _, rp, model = self._rep
+        h = 1e-7 * np.maximum(1.0, np.abs(phi))
+        P = np.repeat(phi, N + 1, axis=0).reshape(B, N + 1, N)
+        idx = np.arange(N)
+        P[:, idx + 1, idx] += h
+        loads, m = rp.loads(np.repeat(scale, N + 1) if np.ndim(scale) else scale)
+        R = model.residual(P.reshape(B * (N + 1), N), loads, m).reshape(B, N + 1, N)
+        return np.transpose((R[:, 1:, :] - R[:, :1, :]) / h[:, :, None], (0, 2, 1))

@@ -14,6 +14,7 @@ import numpy as np
 from catheter_common.checks import finite
 
 from .arcs import g_only, rate_funcs, rate_offset
+from .status import Status, status_codes, status_of, warning_text
 
 
 SPACINGS = ('uniform', 'graded')
@@ -124,7 +125,11 @@ class Shape:
     stable : bool -- False when the returned equilibrium is known to be unstable (a straight
         catheter under an axial compression past its buckling load: loading from zero keeps
         the straight equilibrium; it is returned and flagged, see ``warning``).
-    warning : str -- '' or a short reason (non-convergence, instability).
+    warning : str -- '' or a short reason (non-convergence, snap-through, instability).
+    snap_through : bool -- the loading path from zero has a fold; the equilibrium found
+        beyond it was returned.
+    status : Status (IntEnum, 0 = CONVERGED, see ``status.Status``; ``status.message``),
+        derived from converged, stable and snap_through.
     residual : float -- max |residual| of the solved equations (rad for FAM, N m for the rod).
     arc_model : str -- 'clothoid', 'exact', 'bezier' or 'elastica'.
     arc_rates : ndarray (n_arcs,) or None -- clothoid arcs only: rho_i = kappa1_i l_i^2, the
@@ -135,8 +140,10 @@ class Shape:
     def __init__(self, length: float, tip, tip_angle: float, arc_angles, converged: bool,
                  iterations: int, points_fn: Callable[[np.ndarray], np.ndarray],
                  angles_fn: Callable[[np.ndarray], np.ndarray], stable: bool = True,
-                 warning: str = '', residual: float = 0.0, arc_model: str = 'exact'):
+                 warning: str = '', residual: float = 0.0, arc_model: str = 'exact',
+                 snap_through: bool = False):
         self.length = float(length)
+        self.snap_through = bool(snap_through)
         self.tip = np.asarray(tip, dtype=float).reshape(2)
         self.tip_angle = float(tip_angle)
         self.arc_angles = np.asarray(arc_angles, dtype=float)
@@ -151,6 +158,11 @@ class Shape:
         self.spacing = 'uniform'
         self._arc_lengths = None
         self.arc_rates = None
+
+    @property
+    def status(self) -> Status:
+        """Outcome code (see ``status.Status``), from converged, stable and snap_through."""
+        return status_of(self.converged, self.stable, self.snap_through)
 
     @property
     def arc_lengths(self) -> np.ndarray:
@@ -183,7 +195,8 @@ class Shape:
     def __repr__(self):
         return (f'Shape(tip={self.tip.tolist()}, tip_angle={self.tip_angle:.6g}, '
                 f'n_arcs={self.arc_angles.size}, converged={self.converged}, '
-                f'iterations={self.iterations}, stable={self.stable}, model={self.arc_model!r})')
+                f'iterations={self.iterations}, stable={self.stable}, status={self.status.name}, '
+                f'model={self.arc_model!r})')
 
 
 def _locate(bounds, s):
@@ -276,12 +289,14 @@ class BatchShape:
     """Results of ``solve_fam_batch``: B load cases with N arcs each.
 
     arc_angles (B, N) rad; arc_lengths (B, N) m; tips (B, 2) m; tip_angles (B,) rad;
-    converged (B,) bool; stable (B,) bool; iterations (B,) int; residual (B,) rad;
+    converged (B,) bool; stable (B,) bool; snap_through (B,) bool; status (B,) int (codes of
+    ``status.Status``, derived from the three flags); iterations (B,) int; residual (B,) rad;
     spacing 'uniform' or 'graded' (fractions (B, N) of L per case, None: equal arcs).
     """
 
     def __init__(self, length: float, arc_angles, converged, iterations, stable, residual,
-                 arc_model: str, spacing='uniform', fractions=None, rates=None):
+                 arc_model: str, spacing='uniform', fractions=None, rates=None,
+                 snap_through=None):
         self.length = float(length)
         #: clothoid rates (B, N) (rho = kappa1 l^2 per arc) or None for circular arcs
         self.arc_rates = None if rates is None else np.asarray(rates, dtype=float)
@@ -293,6 +308,8 @@ class BatchShape:
         self.arc_model = arc_model
         self.spacing = spacing
         B, n = self.arc_angles.shape
+        self.snap_through = (np.zeros(B, dtype=bool) if snap_through is None
+                             else np.asarray(snap_through, dtype=bool))
         if fractions is None:
             frac = np.broadcast_to(uniform_fractions(n) if n else np.zeros(0), (B, n))
         else:
@@ -320,10 +337,18 @@ class BatchShape:
     def __len__(self):
         return self.arc_angles.shape[0]
 
+    @property
+    def status(self) -> np.ndarray:
+        """Outcome codes (B,) int (``status.Status`` values) from converged, stable and
+        snap_through."""
+        return status_codes(self.converged, self.stable, self.snap_through)
+
     def shape(self, b: int) -> Shape:
         """The b-th case as a Shape."""
-        return arc_shape(self.length, self.arc_angles[b], converged=bool(self.converged[b]),
-                         iterations=int(self.iterations[b]), stable=bool(self.stable[b]),
+        conv, stable, snap = bool(self.converged[b]), bool(self.stable[b]), bool(self.snap_through[b])
+        return arc_shape(self.length, self.arc_angles[b], converged=conv,
+                         iterations=int(self.iterations[b]), stable=stable, snap_through=snap,
+                         warning=warning_text(conv, stable, snap, float(self.residual[b])),
                          residual=float(self.residual[b]), arc_model=self.arc_model,
                          spacing=self.spacing, fractions=self._frac[b],
                          rates=None if self.arc_rates is None else self.arc_rates[b])

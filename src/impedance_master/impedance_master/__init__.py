@@ -13,12 +13,16 @@ Public API::
 The core modules never import rclpy; the *_node modules are the ROS 2 nodes.
 """
 from impedance_master.haptic import DeviceParams, DeviceSample, HapticDevice
-from impedance_master.identification import (HistoryIdentifier, SlidingWindowIdentifier,
-                                             make_identifier)
+from impedance_master.identification import (HistoryIdentifier, HistoryParams,
+                                             SlidingWindowIdentifier, make_identifier)
 from impedance_master.impedance import FrictionState, Impedance
-from impedance_master.operator import OperatorTrajectory, experiment_trajectory
+from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
+from impedance_master.operator import (OPERATORS, OperatorTrajectory, experiment_trajectory,
+                                       make_operator)
+from impedance_master.state_file import StateFile
 from impedance_master.rendering import DfrRenderer, ImaRenderer
 
-__all__ = ['SlidingWindowIdentifier', 'HistoryIdentifier', 'make_identifier', 'Impedance',
-           'FrictionState', 'ImaRenderer', 'DfrRenderer', 'HapticDevice', 'DeviceParams',
-           'DeviceSample', 'OperatorTrajectory', 'experiment_trajectory']
+__all__ = ['SlidingWindowIdentifier', 'HistoryIdentifier', 'HistoryParams', 'make_identifier',
+           'Impedance', 'FrictionState', 'ImaRenderer', 'DfrRenderer', 'HapticDevice',
+           'DeviceParams', 'DeviceSample', 'OperatorTrajectory', 'experiment_trajectory', 'make_operator',
+           'OPERATORS', 'ModelEnvelope', 'DEFAULT_ENVELOPE', 'StateFile']

@@ -39,10 +39,11 @@ from impedance_master.haptic import DeviceParams, HapticDevice
 from impedance_master.identification import SlidingWindowIdentifier, make_identifier
 from impedance_master.metrics import (default_eval_start, error_stats, outage_mask,
                                       tracking_metrics, twin_reference)
-from impedance_master.operator import experiment_trajectory
+from impedance_master.operator import OPERATORS, experiment_trajectory
 from impedance_master.rendering import DfrRenderer, ImaRenderer
+from sim_slave.vessels import vessel_spec
 
-MODES = ('ima', 'ima_thesis', 'dfr')
+MODES = ('ima', 'ima_thesis', 'dfr', 'anchored')
 EXPERIMENT_II_OUTAGES = ((4.0, 1.0), (8.0, 1.0))
 
 
@@ -65,7 +66,13 @@ class ExperimentConfig:
     ImaRenderer (bumpless model switch and slew limit; 0 and inf: switch at once);
     passivity: the renderer's time-domain passivity controller;
     sensor_seed: seed of the slave's force-sensor noise (None: `seed`; sim_slave_node uses
-    seed + 1, so a comparison with the ROS graph passes seed + 1 here).
+    seed + 1, so a comparison with the ROS graph passes seed + 1 here);
+    vessel: a name of `sim_slave.vessels` (default 'phantom', the project's phantom);
+    vessel_params: {field: value} overrides of that vessel (VesselParams / VesselExtras
+    fields, noise_std); sensor noise: the vessel's ``noise_std`` (phantom 0.01 N);
+    operator: the hand's motion family, a name of `operator.OPERATORS` ('minjerk', the
+    thesis's, default; 'sines'; 'human'), over the experiment's duration;
+    operator_params: {name: value} keyword parameters of that family.
     """
     experiment: str = 'II'
     mode: str = 'ima'
@@ -87,8 +94,23 @@ class ExperimentConfig:
     max_rate: float = 20.0
     passivity: bool = False
     sensor_seed: Optional[int] = None
+    vessel: str = 'phantom'
+    vessel_params: Tuple[Tuple[str, float], ...] = ()
+    operator: str = 'minjerk'
+    operator_params: Tuple[Tuple[str, object], ...] = ()
+    anchoring: str = 'none'
+    anchor_length: float = float('inf')
+    ident_params: Tuple[Tuple[str, object], ...] = ()
 
     def __post_init__(self):
+        for name in ('vessel_params', 'operator_params', 'ident_params'):
+            v = getattr(self, name)
+            if isinstance(v, dict):
+                object.__setattr__(self, name, tuple(sorted(v.items())))
+        vessel_spec(self.vessel, **dict(self.vessel_params))     # ValueError if bad
+        if self.operator not in OPERATORS:
+            raise ValueError(f'operator must be one of {tuple(OPERATORS)}, got '
+                             f'{self.operator!r}')
         if self.mode not in MODES:
             raise ValueError(f'mode must be one of {MODES}, got {self.mode!r}')
         if self.experiment not in ('I', 'II'):
@@ -126,16 +148,15 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
     """Run one closed-loop experiment (see module doc); keyword overrides patch `config`."""
     from sim_slave.link import Link, LinkConfig
     from sim_slave.robot import SlaveRobot
-    from sim_slave.sensor import ForceSensor
     from sim_slave.slave import SlaveSimulation
-    from sim_slave.vessel import VesselModel, VesselParams
 
     cfg = config or ExperimentConfig()
     if overrides:
         cfg = replace(cfg, **overrides)
     seed = cfg.seed
     dt = 1.0 / cfg.rate
-    traj = experiment_trajectory(cfg.experiment, seed=seed)
+    traj = experiment_trajectory(cfg.experiment, seed=seed, operator=cfg.operator,
+                                 **dict(cfg.operator_params))
     duration = cfg.duration or traj.duration
     n = int(round(duration * cfg.rate))
     x0 = traj.sample(0.0)[0]
@@ -144,18 +165,18 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
                           outages=tuple(cfg.outages))
     to_slave = Link(link_cfg, seed=2 * seed + 1)
     to_master = Link(link_cfg, seed=2 * seed + 2)
-    vparams = VesselParams()
+    vspec = vessel_spec(cfg.vessel, **dict(cfg.vessel_params))
     robot = SlaveRobot(rate=cfg.rate, x0=x0)
-    slave = SlaveSimulation(vessel=VesselModel(vparams, seed=seed),
-                            sensor=ForceSensor(noise_std=0.01, seed=seed if cfg.sensor_seed is None
+    slave = SlaveSimulation(vessel=vspec.build(seed),
+                            sensor=vspec.sensor(seed if cfg.sensor_seed is None
                                                 else cfg.sensor_seed), robot=robot)
     device = HapticDevice(DeviceParams(), dt=dt,
                           hand_stiffness=cfg.hand_stiffness if cfg.compliant_hand else None,
                           hand_damping=cfg.hand_damping,
                           seed=seed)
     ident = None
-    if cfg.mode == 'ima':
-        ident = make_identifier(window=1.0, rate=cfg.rate)
+    if cfg.mode in ('ima', 'anchored'):
+        ident = make_identifier(window=1.0, rate=cfg.rate, **dict(cfg.ident_params))
     elif cfg.mode == 'ima_thesis':
         ident = SlidingWindowIdentifier(window=1.0, rate=cfg.rate, offset=cfg.thesis_offset)
     if ident is not None and cfg.pretrain is not None:
@@ -164,7 +185,9 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
         renderer = DfrRenderer(limit=cfg.limit)
     else:
         renderer = ImaRenderer(limit=cfg.limit, dt=dt, blend_time=cfg.blend_time,
-                               max_rate=cfg.max_rate, passivity=cfg.passivity)
+                               max_rate=cfg.max_rate, passivity=cfg.passivity,
+                               anchoring='full' if cfg.mode == 'anchored' else cfg.anchoring,
+                               anchor_length=cfg.anchor_length)
     imp_every = max(1, int(round(cfg.rate / cfg.impedance_rate)))
 
     keys = ('t', 'x_hand', 'x_master', 'xd_master', 'x_slave', 'f_hand', 'f_desired', 'reference',
@@ -212,7 +235,7 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
 
     t = S['t']
     # the reference: a twin vessel (the slave's parameters and seed) along the master's motion
-    S['reference'] = twin_reference(t, S['x_master'], S['xd_master'], delay, vparams, seed)
+    S['reference'] = twin_reference(t, S['x_master'], S['xd_master'], delay, vspec, seed)
     out_m = outage_mask(t, cfg.outages, delay)
     evaluated = t >= default_eval_start(delay)
     S['outage'] = out_m

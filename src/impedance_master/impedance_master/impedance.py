@@ -35,7 +35,7 @@ On the wire (/slave/impedance, a JointState used as named float64 values) the mo
 from __future__ import annotations
 
 import math
-from typing import Dict, Optional, Sequence
+from typing import Dict, NamedTuple, Optional, Sequence
 
 from catheter_common.checks import finite, nonneg, positive
 
@@ -44,6 +44,15 @@ BASE_FIELDS = ('m', 'c', 'k', 'offset', 'valid')
 KIND_LINEAR = 0
 KIND_TABLE = 1
 MAX_NODES = 256
+
+
+def steady_states(xd: float, v_s: float, beta: float):
+    """The friction states (z1, z2) of steady motion at velocity xd (m/s): z1 = tanh(xd / v_s)
+    and z2 = z1 (1 + beta exp(-(xd / v_s)^2)). Also the states of a stateless model
+    (sigma = 0), whose friction follows the velocity and vanishes at rest."""
+    r = xd / v_s
+    z1 = math.tanh(r)
+    return z1, z1 * (1.0 + beta * (math.exp(-r * r) if r * r < 700.0 else 0.0))
 
 
 class FrictionState:
@@ -71,6 +80,10 @@ class FrictionState:
         self.z2 = 0.0
         self._x: Optional[float] = None
 
+    def key(self) -> tuple:
+        """The hyper-parameters that define the states (equal keys: interchangeable)."""
+        return self.sigma, self.v_s, self.beta
+
     def reset(self, x: Optional[float] = None, z1: float = 0.0, z2: float = 0.0) -> None:
         self._x = x
         self.z1 = z1
@@ -78,9 +91,7 @@ class FrictionState:
 
     def steady(self, xd: float):
         """Stateless approximation (z1, z2) for steady motion at velocity xd."""
-        z1 = math.tanh(xd / self.v_s)
-        r = xd / self.v_s
-        return z1, z1 * (1.0 + self.beta * (math.exp(-r * r) if r * r < 700.0 else 0.0))
+        return steady_states(xd, self.v_s, self.beta)
 
     def update(self, x: float, xd: float):
         """Advance to position x (m) moving at xd (m/s); return (z1, z2)."""
@@ -101,6 +112,27 @@ class FrictionState:
         return self.z1, self.z2
 
 
+class Anchor(NamedTuple):
+    """Where the model was made: the slave's state and measured force at that sample.
+
+    x m, xd m/s, xdd m/s^2, z1 / z2 the identifier's friction states there, f N the
+    measured force, r N the identifier's low-passed residual (measured minus model) there.
+    The master may render ``f + model(its state) - model(anchor)`` (model-mediated: the
+    model only has to be right about changes) or ``model + r`` near the anchor.
+    """
+    x: float
+    xd: float
+    xdd: float
+    z1: float
+    z2: float
+    f: float
+    r: float
+
+
+#: wire names of the anchor fields (in Anchor order)
+ANCHOR_FIELDS = tuple('anchor_' + n for n in Anchor._fields)
+
+
 class Impedance:
     """An environment model: linear impedance plus optional length-tabulated nonlinear terms.
 
@@ -109,21 +141,24 @@ class Impedance:
         valid: True when the identifier vouches for the model (False: warming up / holding
             without a good estimate; renderers keep their previous model).
         x0, dx: grid start and spacing in m (table models).
-        sigma: presliding length of the friction states in m; v_s: velocity scale in m/s;
-            beta: relative breakaway height of the z2 state (see FrictionState).
+        sigma: presliding length of the friction states in m (0: a stateless model, whose
+            friction follows the velocity, `steady_states`, and vanishes at rest); v_s:
+            velocity scale in m/s; beta: relative breakaway height of the z2 state (see
+            FrictionState).
         S, F, B, C: node values (same length n >= 2), N, N, N, N s/m. None: linear model.
         status: a short reason string from the identifier (not sent on the wire).
+        anchor: an `Anchor` (or a sequence in its field order), or None.
     """
 
     __slots__ = ('m', 'c', 'k', 'offset', 'valid', 'x0', 'dx', 'sigma', 'v_s', 'beta',
-                 'S', 'F', 'B', 'C', 'status')
+                 'S', 'F', 'B', 'C', 'status', 'anchor')
 
     def __init__(self, m: float = 0.0, c: float = 0.0, k: float = 0.0, offset: float = 0.0,
                  valid: bool = True, *, x0: float = 0.0, dx: float = 0.005,
                  sigma: float = 3e-4, v_s: float = 0.002, beta: float = 0.5,
                  S: Optional[Sequence[float]] = None, F: Optional[Sequence[float]] = None,
                  B: Optional[Sequence[float]] = None, C: Optional[Sequence[float]] = None,
-                 status: str = ''):
+                 status: str = '', anchor: Optional[Sequence[float]] = None):
         self.m = finite('m', m)
         self.c = finite('c', c)
         self.k = finite('k', k)
@@ -131,7 +166,7 @@ class Impedance:
         self.valid = bool(valid)
         self.x0 = finite('x0', x0)
         self.dx = positive('dx', dx)
-        self.sigma = positive('sigma', sigma)
+        self.sigma = nonneg('sigma', sigma)
         self.v_s = positive('v_s', v_s)
         self.beta = nonneg('beta', beta)
         self.status = str(status)
@@ -150,6 +185,32 @@ class Impedance:
                     raise ValueError(f'{name} must have {n} nodes like S, got {len(t)}')
                 out.append([finite(f'{name}[{i}]', v) for i, v in enumerate(t)])
             self.S, self.F, self.B, self.C = out
+        if anchor is None:
+            self.anchor = None
+        else:
+            if len(anchor) != len(Anchor._fields):
+                raise ValueError(f'anchor must have {len(Anchor._fields)} values '
+                                 f'{Anchor._fields}, got {len(anchor)}')
+            self.anchor = Anchor(*(finite(f'anchor.{n}', v)
+                                   for n, v in zip(Anchor._fields, anchor)))
+
+    @classmethod
+    def from_arrays(cls, m: float, c: float, k: float, offset: float, *, x0: float,
+                    dx: float, sigma: float, v_s: float, beta: float, S, F, B, C,
+                    status: str = '') -> 'Impedance':
+        """A valid table model from numpy arrays (one vectorised finiteness check instead
+        of one per node; the identifiers' fast path). ValueError if anything is not finite."""
+        import numpy as np
+        tabs = [np.asarray(t, dtype=float) for t in (S, F, B, C)]
+        n = tabs[0].size
+        if any(t.shape != (n,) for t in tabs) or not 2 <= n <= MAX_NODES:
+            raise ValueError(f'S, F, B, C must be 1-D of one length in 2..{MAX_NODES}')
+        if not all(bool(np.all(np.isfinite(t))) for t in tabs):
+            raise ValueError('S, F, B, C must be finite')
+        imp = cls(m, c, k, offset, True, x0=x0, dx=dx, sigma=sigma, v_s=v_s, beta=beta,
+                  status=status)
+        imp.S, imp.F, imp.B, imp.C = (t.tolist() for t in tabs)
+        return imp
 
     # ------------------------------------------------------------------ evaluation
     @property
@@ -160,15 +221,25 @@ class Impedance:
     def n_nodes(self) -> int:
         return 0 if self.S is None else len(self.S)
 
-    def make_state(self) -> FrictionState:
-        """A FrictionState with this model's sigma, v_s and beta."""
+    def make_state(self) -> Optional[FrictionState]:
+        """A FrictionState with this model's sigma, v_s and beta (None if it needs none:
+        a linear or a stateless model)."""
+        if self.S is None or self.sigma == 0.0:
+            return None
         return FrictionState(self.sigma, self.v_s, self.beta)
+
+    def state_key(self) -> Optional[tuple]:
+        """`FrictionState.key()` of the states this model needs (None: it needs none)."""
+        if self.S is None or self.sigma == 0.0:
+            return None
+        return self.sigma, self.v_s, self.beta
 
     def force(self, x: float, xd: float, xdd: float, z=None) -> float:
         """Model force in N at position x (m), velocity xd (m/s), acceleration xdd (m/s^2).
 
         z: friction states (z1, z2) from a `FrictionState` driven by the same trajectory;
-        None uses the stateless steady-motion approximation. Ignored by linear models.
+        None uses the stateless steady-motion approximation. Ignored by linear and
+        stateless (sigma = 0) models.
         """
         f = self.m * xdd + self.c * xd + self.k * x + self.offset
         S = self.S
@@ -185,15 +256,19 @@ class Impedance:
             w = u - j
         w0 = 1.0 - w
         F, B, C = self.F, self.B, self.C
-        if z is None:
-            z1 = math.tanh(xd / self.v_s)
-            r = xd / self.v_s
-            z2 = z1 * (1.0 + self.beta * (math.exp(-r * r) if r * r < 700.0 else 0.0))
+        if z is None or self.sigma == 0.0:
+            z1, z2 = steady_states(xd, self.v_s, self.beta)
         else:
             z1, z2 = z
         return (f + w0 * S[j] + w * S[j + 1]
                 + (w0 * F[j] + w * F[j + 1]) * z1 + (w0 * B[j] + w * B[j + 1]) * (z2 - z1)
                 + (w0 * C[j] + w * C[j + 1]) * xd)
+
+    def tables(self) -> Dict[str, list]:
+        """{name: node values} of the tables ('S', 'F', 'B', 'C'; empty for linear models)."""
+        if self.S is None:
+            return {}
+        return {'S': self.S, 'F': self.F, 'B': self.B, 'C': self.C}
 
     # ------------------------------------------------------------------ wire format
     def to_fields(self) -> Dict[str, float]:
@@ -203,9 +278,11 @@ class Impedance:
         if self.S is not None:
             d.update(x0=self.x0, dx=self.dx, sigma=self.sigma, v_s=self.v_s, beta=self.beta,
                      n=float(len(self.S)))
-            for name, t in zip('SFBC', (self.S, self.F, self.B, self.C)):
+            for name, t in self.tables().items():
                 for i, v in enumerate(t):
                     d[f'{name}{i}'] = float(v)
+        if self.anchor is not None:
+            d.update(zip(ANCHOR_FIELDS, self.anchor))
         return d
 
     @classmethod
@@ -235,14 +312,19 @@ class Impedance:
                       v_s=fields['v_s'], beta=fields['beta'])
         elif kind != KIND_LINEAR:
             raise ValueError(f'kind must be 0 (linear) or 1 (table), got {fields["kind"]!r}')
+        present = [n for n in ANCHOR_FIELDS if n in fields]
+        if present:
+            if len(present) != len(ANCHOR_FIELDS):
+                missing = [n for n in ANCHOR_FIELDS if n not in fields]
+                raise ValueError(f'fields is missing {missing[0]!r} (anchored model)')
+            kw['anchor'] = [fields[n] for n in ANCHOR_FIELDS]
         valid = finite('valid', fields['valid']) > 0.5
         return cls(fields['m'], fields['c'], fields['k'], fields['offset'], valid, **kw)
 
     def copy(self, **changes) -> 'Impedance':
         kw = dict(m=self.m, c=self.c, k=self.k, offset=self.offset, valid=self.valid,
                   x0=self.x0, dx=self.dx, sigma=self.sigma, v_s=self.v_s, beta=self.beta,
-                  S=self.S,
-                  F=self.F, B=self.B, C=self.C, status=self.status)
+                  S=self.S, F=self.F, B=self.B, C=self.C, status=self.status, anchor=self.anchor)
         kw.update(changes)
         return Impedance(**kw)
 
@@ -259,5 +341,5 @@ def check_state(x, xd, xdd) -> tuple:
     return finite('x', x), finite('xd', xd), finite('xdd', xdd)
 
 
-__all__ = ['Impedance', 'FrictionState', 'BASE_FIELDS', 'KIND_LINEAR', 'KIND_TABLE',
-           'check_state']
+__all__ = ['Impedance', 'Anchor', 'FrictionState', 'steady_states', 'BASE_FIELDS', 'ANCHOR_FIELDS',
+           'KIND_LINEAR', 'KIND_TABLE', 'check_state']

@@ -98,8 +98,11 @@ def twin_reference(t, x, xd, delay: float, vessel_params=None, seed: Optional[in
     rate, in order: the twin's friction state integrates it). A fresh
     `VesselModel(vessel_params, seed)` (the slave's parameters and seed) gives, for each k, the
     true force at time t[k] + delay for (x[k], xd[k]). Returns (n,) N.
+    ``vessel_params``: a `sim_slave.vessel.VesselParams` (the phantom's structure), a
+    `sim_slave.vessels.VesselSpec` (any vessel of the family) or None (the phantom).
     """
     from sim_slave.vessel import VesselModel
+    from sim_slave.vessels import VesselSpec
     t = _vec('t', t)
     x = _vec('x', x, t.size)
     xd = _vec('xd', xd, t.size)
@@ -109,7 +112,8 @@ def twin_reference(t, x, xd, delay: float, vessel_params=None, seed: Optional[in
     if t.size > 1 and np.any(np.diff(t) < 0.0):
         raise ValueError('t must be non-decreasing')
     d = _delay(delay)
-    twin = VesselModel(vessel_params, seed=seed)
+    twin = (vessel_params.build(seed) if isinstance(vessel_params, VesselSpec)
+            else VesselModel(vessel_params, seed=seed))
     force = twin.force
     out = np.empty(t.size)
     for k, (tk, xk, vk) in enumerate(zip(t.tolist(), x.tolist(), xd.tolist())):

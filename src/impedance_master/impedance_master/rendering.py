@@ -1,176 +1,331 @@
 """Master-side force rendering: impedance matching (IMA, thesis Eq. 35) and direct force
-reflection (DFR, the thesis's baseline).
+reflection (DFR, the thesis's baseline), both fail-safe (`safety.SafeOutput`).
 
 `ImaRenderer` evaluates the latest environment model on the master's LOCAL trajectory, so
 the feedback neither waits for nor stalls with the network. A new model never kicks the
 operator's hand: at a switch the difference between the old and the new model at the
 current state is taken up by a bumpless-transfer term that decays with `blend_time`
 (the rendered force is continuous across switches), and optionally the output slews at
-most `max_rate` N/s. The renderer owns the Dahl friction state of table models, driven by the
-master's own position. Invalid models (identifier warming up or without a good estimate)
-are ignored: the previous model stays in use.
+most `max_rate` N/s. The renderer owns the friction states of table models, driven by the
+master's own position.
 
-`DfrRenderer` returns the last received slave force (held during outages).
+What it refuses, and what then reaches the hand:
 
-Both clamp their output to +-`limit` N (default 2 N, the clinical insertion range).
+* a model that is not valid (identifier warming up) or outside the `envelope`
+  (`envelope.ModelEnvelope`: m = 1e308, k = 1e300, a tampered state): refused, counted
+  (`n_ignored`, `n_refused`), the current model stays in use;
+* a master state that is not finite or outside the state box (`state_box`: the envelope's
+  workspace with margins, default x in [-0.07, 0.25] m, |x'| <= 1 m/s, |x''| <= 100
+  m/s^2; x = -1.7e308 is not a hand): counted (`n_bad_input`), the FALLBACK holds the last
+  safe force and ramps it to 0 N over `fallback_time`;
+* a non-finite or absurd intermediate (model evaluation, bumpless term, passivity energy):
+  the model that produced it is DROPPED (`n_dropped`), the intermediate reset, fallback;
+* in every case the output is finite and within [-limit, limit] (`safety`); the renderer
+  recovers by itself: good input with a model in use, or the next accepted model, takes
+  over from the fallback's current value, the difference decaying with
+  max(blend_time, RECOVER_TIME = 50 ms) (no step at the hand, even with blend_time 0).
+
+`DfrRenderer` returns the last received slave force (held during outages); a force that is
+not finite or above the envelope's max_force is refused (counted), the last one is kept.
+
+`limit`, `max_rate`, `blend_time`, `passivity` and `fallback_time` are runtime-settable
+(validated; applied from the next call). `status()` -> `safety.RendererStatus` for
+diagnostics.
 """
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import Optional, Tuple
 
-from catheter_common.checks import finite, nonneg, positive
+from catheter_common.checks import nonneg, positive
+from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
 from impedance_master.impedance import FrictionState, Impedance
+from impedance_master.safety import ERROR, OK, WARN, RendererStatus, SafeOutput, check_number
+
+ANCHORING = ('none', 'full', 'residual')
+#: s, smallest time constant of the take-over from the fallback to the model's force
+RECOVER_TIME = 0.05
 
 
-class _Clamp:
-    def __init__(self, limit: float):
-        self.limit = positive('limit', limit)
-        self.n_clamped = 0
-
-    def __call__(self, f: float) -> float:
-        lim = self.limit
-        if f > lim:
-            self.n_clamped += 1
-            return lim
-        if f < -lim:
-            self.n_clamped += 1
-            return -lim
-        return f
+def _same(a: Impedance, b: Optional[Impedance]) -> bool:
+    """True if b is the same model as a (same object or same values)."""
+    if b is None:
+        return False
+    if a is b:
+        return True
+    return (a.m == b.m and a.c == b.c and a.k == b.k and a.offset == b.offset
+            and a.valid == b.valid and a.sigma == b.sigma and a.S == b.S and a.F == b.F
+            and a.B == b.B and a.C == b.C and a.x0 == b.x0 and a.dx == b.dx
+            and a.anchor == b.anchor)
 
 
-class _LimitedOutput:
-    """The safe output limit both renderers share: `limit` (N) and `n_clamped`."""
+class _Rendered:
+    """What both renderers share: the safe output stage and its runtime parameters."""
 
-    _clamp: _Clamp
+    _out: SafeOutput
+    stale_time: float
 
     @property
     def limit(self) -> float:
-        return self._clamp.limit
+        return self._out.limit
+
+    @limit.setter
+    def limit(self, value) -> None:
+        self._out.limit = value
+
+    @property
+    def max_rate(self) -> float:
+        return self._out.max_rate
+
+    @max_rate.setter
+    def max_rate(self, value) -> None:
+        self._out.max_rate = value
+
+    @property
+    def fallback_time(self) -> float:
+        return self._out.fallback_time
+
+    @fallback_time.setter
+    def fallback_time(self, value) -> None:
+        self._out.fallback_time = value
 
     @property
     def n_clamped(self) -> int:
-        return self._clamp.n_clamped
+        return self._out.n_clamped
+
+    @property
+    def in_fallback(self) -> bool:
+        return self._out.in_fallback
 
 
-class ImaRenderer(_LimitedOutput):
+class ImaRenderer(_Rendered):
     """Impedance-matching renderer: f_d from the latest model and the local trajectory.
 
     Args:
         limit: N, safe output limit (|f_d| <= limit).
         blend_time: s, time constant of the bumpless transfer at a model switch (0: jump).
+            Every switch is bumpless, the first one too: it blends in from the force
+            rendered before (0 N), so the first model does not step the operator's hand.
         max_rate: N/s, slew-rate limit of the output (> 0; default inf: none; the nodes use
             20 N/s as a safety net).
-    Every switch is bumpless, the first one too: it blends in from the force rendered before
-    (0 N), so the first model does not step the operator's hand either.
-        dt: s, the call period (1 kHz loop), used by blending and slew limiting.
+        dt: s, the call period (1 kHz loop), used by blending, slew limiting and timers.
         passivity: add the time-domain passivity controller (TDPA, Ryu & Hannaford): the
             observer E = sum f x' dt is the energy the operator has put into the rendered
             environment; when it would go negative (the model, e.g. a negative damping or a
             switch, returned more than it received), a damping alpha x' with
             alpha = -E / (dt x'^2) (at most max_damping N s/m) dissipates the excess.
-    Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_clamped`,
-    `energy` (J, observer), `n_passivity` (steps with added damping).
+        envelope: the `ModelEnvelope` models must satisfy (None: the default).
+        fallback_time: s, the fallback's ramp from the held force to 0 N (default 0.5).
+        stale_time: s, a model not received again for longer is reported 'held' (WARN).
+        state_box: (x_lo, x_hi, max_speed, max_accel) of acceptable master states (None:
+            the envelope's workspace with margins, see module doc).
+        anchoring: 'none' (default), 'full' (the anchored baseline: the model's anchor
+            force plus the model's change from the anchor state to the master's) or
+            'residual' (the model plus the identifier's low-passed residual at the anchor,
+            fading with distance from it over `anchor_length` m).
+    Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
+    (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
+    `n_bad_input`, `n_clamped`, `energy` (J, observer), `n_passivity` (steps with added
+    damping), `in_fallback`.
     """
 
     def __init__(self, limit: float = 2.0, blend_time: float = 0.05,
                  max_rate: float = math.inf, dt: float = 1e-3, passivity: bool = False,
-                 max_damping: float = 50.0):
-        self._clamp = _Clamp(limit)
-        self.blend_time = nonneg('blend_time', blend_time)
+                 max_damping: float = 50.0, envelope: Optional[ModelEnvelope] = None,
+                 fallback_time: float = 0.5, stale_time: float = 0.1,
+                 state_box: Optional[Tuple[float, float, float, float]] = None,
+                 anchoring: str = 'none', anchor_length: float = math.inf):
+        self._out = SafeOutput(limit, max_rate, dt, fallback_time)
+        self.dt = self._out.dt
+        self.blend_time = blend_time
+        self.passivity = passivity
+        self.max_damping = positive('max_damping', max_damping)
+        if envelope is not None and not isinstance(envelope, ModelEnvelope):
+            raise ValueError(f'envelope must be a ModelEnvelope, got {type(envelope).__name__}')
+        self.envelope = envelope if envelope is not None else DEFAULT_ENVELOPE
+        self.stale_time = nonneg('stale_time', stale_time)
+        env = self.envelope
+        box = state_box if state_box is not None else (
+            env.x_lo - 0.05, env.x_hi + 0.05, 10.0 * env.max_speed, 50.0 * env.max_accel)
         try:
-            self.max_rate = float(max_rate)
+            lo, hi, vmax, amax = (float(v) for v in box)
         except (TypeError, ValueError):
-            raise ValueError(f'max_rate must be a number > 0 (inf: none), got {max_rate!r}') \
-                from None
-        if math.isnan(self.max_rate) or self.max_rate <= 0.0:
-            raise ValueError(f'max_rate must be > 0 (inf: none), got {max_rate!r}')
-        self.dt = positive('dt', dt)
+            raise ValueError(f'state_box must be (x_lo, x_hi, max_speed, max_accel), '
+                             f'got {state_box!r}') from None
+        if not (lo < hi and vmax > 0.0 and amax > 0.0):
+            raise ValueError(f'state_box must have x_lo < x_hi and positive limits, '
+                             f'got {state_box!r}')
+        self.state_box = (lo, hi, vmax, amax)
+        if anchoring not in ANCHORING:
+            raise ValueError(f'anchoring must be one of {ANCHORING}, got {anchoring!r}')
+        self.anchoring = anchoring
+        self.anchor_length = float(anchor_length) if anchor_length == math.inf else \
+            positive('anchor_length', anchor_length)
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
         self._bump = 0.0
-        self._decay = math.exp(-dt / blend_time) if blend_time > 0 else 0.0
-        self._last_out = 0.0
         self._state: Optional[FrictionState] = None
         self._z = (0.0, 0.0)
-        self._x = None
-        self._xd = 0.0
-        self._xdd = 0.0
+        self._rho = 0.0
+        self._xa = 0.0
+        self._age = math.inf
+        self._refused_since_accept = False
+        self._bad_now = False
         self.n_switches = 0
         self.n_ignored = 0
-        self.passivity = bool(passivity)
-        self.max_damping = positive('max_damping', max_damping)
+        self.n_refused = 0
+        self.n_dropped = 0
+        self.n_bad_input = 0
         self.energy = 0.0
         self.n_passivity = 0
+        self.last_reason = ''
 
+    # ------------------------------------------------------------------ parameters
+    @property
+    def blend_time(self) -> float:
+        return self._blend_time
+
+    @blend_time.setter
+    def blend_time(self, value) -> None:
+        self._blend_time = nonneg('blend_time', value)
+        self._decay = math.exp(-self._out.dt / self._blend_time) if self._blend_time > 0 else 0.0
+        self._bump_decay = self._decay
+
+    @property
+    def passivity(self) -> bool:
+        return self._passivity
+
+    @passivity.setter
+    def passivity(self, value) -> None:
+        if not isinstance(value, (bool, int)):
+            raise ValueError(f'passivity must be a bool, got {value!r}')
+        self._passivity = bool(value)
+
+    # ------------------------------------------------------------------ models
     def set_impedance(self, imp: Impedance) -> bool:
-        """Offer a new model; returns True if it will be used (valid), False if ignored."""
+        """Offer a new model; returns True if it is (or already was) in use or pending,
+        False if refused (invalid, or outside the envelope: the current model stays).
+        The same model again only refreshes its age (the link is alive)."""
         if not isinstance(imp, Impedance):
             raise ValueError(f'imp must be an Impedance, got {type(imp).__name__}')
         if not imp.valid:
             self.n_ignored += 1
             return False
+        if _same(imp, self._pending) or (self._pending is None and _same(imp, self.model)):
+            self._age = 0.0
+            return True
+        why = self.envelope.check(imp)
+        if why is not None:
+            self.n_refused += 1
+            self._refused_since_accept = True
+            self.last_reason = f'model refused: {why}'
+            return False
         self._pending = imp
+        self._age = 0.0
+        self._refused_since_accept = False
         return True
+
+    def _eval(self, x: float, xd: float, xdd: float) -> float:
+        m = self.model
+        f = m.force(x, xd, xdd, self._z if self._state is not None else None)
+        if self._rho:
+            d = abs(x - self._xa)
+            f += self._rho * (math.exp(-d / self.anchor_length) if d else 1.0)
+        return f
 
     def _switch(self, x: float, xd: float, xdd: float) -> None:
         new = self._pending
         self._pending = None
-        if new is self.model:
-            return
-        if new.S is not None and (self._state is None or (self._state.sigma, self._state.v_s,
-                                                          self._state.beta)
-                                  != (new.sigma, new.v_s, new.beta)):
+        key = new.state_key()
+        if key is None:
+            self._state = None
+        elif self._state is None or self._state.key() != key:
             st = new.make_state()
             z0 = self._z if self._state is not None else st.steady(xd)
             st.reset(x, *z0)
             self._state = st
             self._z = z0
-        if self.blend_time > 0.0:
-            z = self._z if self._state is not None else None
-            new_f = new.force(x, xd, xdd, z if new.S is not None else None)
-            if self.model is not None:
-                old_f = self.model.force(x, xd, xdd, z if self.model.S is not None else None)
+        if self.model is not None and not self._out.in_fallback:
+            old_f = self._eval(x, xd, xdd)
+        else:       # the first model, or after a fault: blend in from what is rendered
+            old_f = self._out.last
+        a = new.anchor
+        self._rho = 0.0
+        if self.anchoring != 'none' and a is not None:
+            self._xa = a.x
+            if self.anchoring == 'full':
+                self._rho = a.f - new.force(a.x, a.xd, a.xdd, (a.z1, a.z2))
             else:
-                old_f = self._last_out      # the first model: blend in from what was rendered (0 N)
-            self._bump += old_f - new_f
+                self._rho = a.r
         self.model = new
         self.n_switches += 1
+        if self._out.in_fallback:       # a good model after a fault: take over bumplessly
+            self._take_over(old_f - self._eval(x, xd, xdd))
+        elif self._blend_time > 0.0:    # the old-new difference decays with blend_time
+            self._bump += old_f - self._eval(x, xd, xdd)
+            self._bump_decay = self._decay
 
-    def desired_force(self, x: float, xd: float, xdd: float) -> float:
-        """Desired force in N at the hand for the master state (x m, xd m/s, xdd m/s^2).
+    def _take_over(self, bump: float) -> None:
+        """Leave the fallback: the difference to the fallback's force decays with
+        RECOVER_TIME (whatever blend_time is: a recovery never steps the hand)."""
+        self._bump = bump
+        self._bump_decay = math.exp(-self._out.dt / max(self._blend_time, RECOVER_TIME))
+        self._out.recover()
 
-        0 until a valid model has arrived. Call once per control period `dt`.
-        """
-        x = finite('x', x)
-        xd = finite('xd', xd)
-        xdd = finite('xdd', xdd)
+    def _drop(self, why: str) -> None:
+        """A non-finite or absurd intermediate: drop the model, reset the intermediates."""
+        self.n_dropped += 1
+        self.last_reason = f'model dropped: {why}'
+        self.model = None
+        self._state = None
+        self._bump = 0.0
+        self.energy = 0.0
+        self._out.fault()
+
+    # ------------------------------------------------------------------ output
+    def desired_force(self, x, xd, xdd) -> float:
+        """Desired force in N at the hand for the master state (x m, xd m/s, xdd m/s^2):
+        always a finite float in [-limit, limit]. 0 until a valid model has arrived.
+        Call once per control period `dt`. Non-numbers: ValueError naming the argument;
+        non-finite or out-of-box numbers: bad input (fallback, see module doc)."""
+        x = check_number('x', x)
+        xd = check_number('xd', xd)
+        xdd = check_number('xdd', xdd)
+        self._age += self.dt
+        lo, hi, vmax, amax = self.state_box
+        if not (lo <= x <= hi and abs(xd) <= vmax and abs(xdd) <= amax):
+            self.n_bad_input += 1
+            self._bad_now = True
+            self.last_reason = f'bad master state x={x!r} xd={xd!r} xdd={xdd!r}'
+            self._out.fault()
+            return self._out.output(0.0)
+        self._bad_now = False
+        self._xd = xd
         if self._state is not None:
             self._z = self._state.update(x, xd)
         if self._pending is not None:
             self._switch(x, xd, xdd)
         if self.model is None:
-            f = 0.0
-        else:
-            m = self.model
-            f = m.force(x, xd, xdd, self._z if m.S is not None else None) + self._bump
-            self._bump *= self._decay
-        last = self._last_out
-        if last is not None and math.isfinite(self.max_rate):
-            step = self.max_rate * self.dt
-            if f > last + step:
-                f = last + step
-            elif f < last - step:
-                f = last - step
-        if self.passivity:
-            f = self._passivity(f, xd)
-        f = self._clamp(f)
-        self._last_out = f
-        if self.passivity:
-            self.energy += f * xd * self.dt
-        return f
+            return self._out.output(0.0)
+        f = self._eval(x, xd, xdd)
+        if not (math.isfinite(f) and abs(f) < 1e3) or not math.isfinite(self._bump):
+            self._drop(f'evaluation gave {f!r} (bump {self._bump!r})')
+            return self._out.output(math.nan)
+        if self._out.in_fallback:       # good input again with a model: take over bumplessly
+            self._take_over(self._out.last - f)
+        f += self._bump
+        self._bump *= self._bump_decay
+        out = self._out.output(f, self._passivity_step if self._passivity else None)
+        if self._out.in_fallback:       # the passivity step was not finite
+            self._drop(f'passivity gave a non-finite force (energy {self.energy!r})')
+        elif self._passivity:
+            self.energy += out * xd * self.dt
+            if not math.isfinite(self.energy):
+                self._drop(f'passivity energy {self.energy!r}')
+        return out
 
-    def _passivity(self, f: float, xd: float) -> float:
+    def _passivity_step(self, f: float) -> float:
+        xd = self._xd
         e = self.energy + f * xd * self.dt
         if e < 0.0 and xd * xd > 1e-12:
             alpha = min(-e / (self.dt * xd * xd), self.max_damping)
@@ -178,23 +333,73 @@ class ImaRenderer(_LimitedOutput):
             return f + alpha * xd
         return f
 
+    # ------------------------------------------------------------------ health
+    def status(self) -> RendererStatus:
+        """Health for diagnostics (see `safety.RendererStatus`)."""
+        counters = dict(self._out.counters(), switches=self.n_switches, ignored=self.n_ignored,
+                        refused=self.n_refused, dropped=self.n_dropped,
+                        bad_input=self.n_bad_input, passivity_steps=self.n_passivity)
+        if self._bad_now:
+            level, state, msg = ERROR, 'bad_input', self.last_reason
+        elif self._out.in_fallback:
+            level, state, msg = ERROR, 'fallback', (
+                f'fallback: holding and ramping to 0 N ({self.last_reason})')
+        elif self.model is None and self._pending is None:
+            level, state, msg = WARN, 'no_model', 'no valid model received yet: rendering 0 N'
+        elif self._refused_since_accept:
+            level, state, msg = WARN, 'refused', self.last_reason
+        elif self._age > self.stale_time:
+            level, state, msg = WARN, 'held', (
+                f'model held: not received for {self._age:.2f} s')
+        else:
+            level, state, msg = OK, 'ok', 'rendering the latest model'
+        return RendererStatus(level, state, msg, counters, self._age, self.limit)
 
-class DfrRenderer(_LimitedOutput):
+
+class DfrRenderer(_Rendered):
     """Direct force reflection: the desired force is the last force received from the slave.
 
-    Args: limit: N, safe output limit.
+    Args: limit N, safe output limit; max_force N, forces above it are refused (default
+    the envelope's max_force, 10 N); stale_time s (a force older is reported 'held');
+    dt s (call period, for the age).
     """
 
-    def __init__(self, limit: float = 2.0):
-        self._clamp = _Clamp(limit)
+    def __init__(self, limit: float = 2.0, max_force: Optional[float] = None,
+                 stale_time: float = 0.1, dt: float = 1e-3):
+        self._out = SafeOutput(limit, math.inf, dt, 0.0)
+        self.max_force = positive('max_force', DEFAULT_ENVELOPE.max_force
+                                  if max_force is None else max_force)
+        self.stale_time = nonneg('stale_time', stale_time)
         self._f = 0.0
+        self._age = math.inf
         self.n_updates = 0
+        self.n_refused = 0
+        self.last_reason = ''
 
-    def set_force(self, f: float) -> None:
-        """New slave force in N (finite)."""
-        self._f = finite('f', f)
+    def set_force(self, f) -> bool:
+        """New slave force in N; True if taken, False if refused (not finite, or above
+        max_force in magnitude: the last force is kept). Non-numbers: ValueError."""
+        f = check_number('f', f)
+        if not (math.isfinite(f) and abs(f) <= self.max_force):
+            self.n_refused += 1
+            self.last_reason = f'force refused: {f!r}'
+            return False
+        self._f = f
+        self._age = 0.0
         self.n_updates += 1
+        return True
 
     def desired_force(self, *_state) -> float:
         """Desired force in N (the state arguments, if any, are ignored)."""
-        return self._clamp(self._f)
+        self._age += self._out.dt
+        return self._out.output(self._f)
+
+    def status(self) -> RendererStatus:
+        counters = dict(self._out.counters(), updates=self.n_updates, refused=self.n_refused)
+        if self.n_updates == 0:
+            level, state, msg = WARN, 'no_model', 'no force received yet: rendering 0 N'
+        elif self._age > self.stale_time:
+            level, state, msg = WARN, 'held', f'force held: not received for {self._age:.2f} s'
+        else:
+            level, state, msg = OK, 'ok', 'reflecting the latest force'
+        return RendererStatus(level, state, msg, counters, self._age, self.limit)

@@ -16,7 +16,11 @@ assumes (Eq. 29): the force is the sum of
   grows with inserted length up to ``cardiac_depth``;
 * optionally (``shaft_stiffness > 0``) an axially compliant shaft between the robot's drive
   and the inserted part (a mass): with the Stribeck breakaway this gives genuine stick-slip
-  (a sawtooth force at slow insertion). Off by default (rigid shaft, kinematic drive).
+  (a sawtooth force at slow insertion). Off by default (rigid shaft, kinematic drive);
+* optionally (``extras``, `sim_slave.vessel_extras.VesselExtras`, all off by default) terms
+  of other structure: friction growing quadratically or in steps, smooth (stateless)
+  Coulomb friction, a Kelvin-Voigt wall, a stenosis, breathing. The named vessels of the
+  family are in `sim_slave.vessels`.
 
 Sign convention: the returned force is the axial force the vessel exerts against the
 catheter, as the slave's force sensor reads it: positive resists insertion (x increasing),
@@ -32,6 +36,8 @@ from dataclasses import asdict, dataclass, fields
 from typing import NamedTuple, Optional
 
 from catheter_common.checks import finite, nonneg, positive, seed as check_seed
+from sim_slave.vessel_extras import (VesselExtras, extra_friction, smooth_coulomb,
+                                     stenosis_force)
 
 
 @dataclass(frozen=True)
@@ -125,7 +131,9 @@ class VesselParams:
 
 
 class VesselForce(NamedTuple):
-    """The components of one force evaluation, N (total = sum of the four)."""
+    """The components of one force evaluation, N (total = sum of the four): friction
+    (LuGre or smooth Coulomb), viscous drag, wall (the tip's contacts: wall and stenosis),
+    cardiac (the physiological disturbances: cardiac and breathing)."""
     friction: float
     viscous: float
     wall: float
@@ -140,18 +148,30 @@ class VesselModel:
 
     Args:
         params: a :class:`VesselParams` (defaults if None).
-        seed: int >= 0 or None; sets the phase of the cardiac disturbance (deterministic for a
-            seed; None draws a random phase).
+        seed: int >= 0 or None; sets the phases of the cardiac and breathing disturbances
+            (deterministic for a seed; None draws random phases).
+        extras: a `VesselExtras` (structure terms beyond the phantom's; None: none).
     """
 
-    def __init__(self, params: Optional[VesselParams] = None, seed: Optional[int] = 0):
+    def __init__(self, params: Optional[VesselParams] = None, seed: Optional[int] = 0,
+                 extras: Optional[VesselExtras] = None):
         if params is None:
             params = VesselParams()
         if not isinstance(params, VesselParams):
             raise ValueError(f'params must be a VesselParams, got {type(params).__name__}')
+        if extras is not None and not isinstance(extras, VesselExtras):
+            raise ValueError(f'extras must be a VesselExtras, got {type(extras).__name__}')
         self.params = params
+        self.extras = extras if extras is not None else VesselExtras()
+        e = self.extras
+        self._extra_friction = e.friction_terms
+        self._smooth = e.coulomb_velocity > 0.0
+        self._stenosis = e.stenosis_force > 0.0 and e.stenosis_depth > 0.0
+        self._breathing = e.breathing_amplitude > 0.0
         self.seed = check_seed('seed', seed)
-        self.cardiac_phase = random.Random(seed).uniform(0.0, 2.0 * math.pi)
+        rng = random.Random(seed)
+        self.cardiac_phase = rng.uniform(0.0, 2.0 * math.pi)
+        self.breathing_phase = rng.uniform(0.0, 2.0 * math.pi)
         self.reset()
 
     def reset(self) -> None:
@@ -168,7 +188,10 @@ class VesselModel:
         """Coulomb (sliding) friction level Fc(x) in N at inserted length x [m] (0 for x <= 0)."""
         p = self.params
         xin = x if x > 0.0 else 0.0
-        return p.friction_per_length * xin * (1.0 + xin / p.capstan_length)
+        fc = p.friction_per_length * xin * (1.0 + xin / p.capstan_length)
+        if self._extra_friction:
+            fc += extra_friction(self.extras, xin)
+        return fc
 
     def breakaway_force(self, x: float) -> float:
         """Static (breakaway) friction level Fs(x) = stribeck_ratio * Fc(x), N."""
@@ -183,11 +206,13 @@ class VesselModel:
         fc = self.coulomb_force(x)
         if xd != 0.0:
             g = 1.0 + (p.stribeck_ratio - 1.0) * math.exp(-(xd / p.stribeck_velocity) ** 2)
-            fr = math.copysign(fc * g, xd)
+            fr = (smooth_coulomb(self.extras, fc, g, xd) if self._smooth
+                  else math.copysign(fc * g, xd))
         else:
             fr = 0.0
         xin = x if x > 0.0 else 0.0
-        return fr + p.viscous_per_length * xin * xd + self._wall(x, xd)
+        f = fr + p.viscous_per_length * xin * xd + self._wall(x, xd)
+        return f + stenosis_force(self.extras, x) if self._stenosis else f
 
     def wall_force(self, x: float, xd: float) -> float:
         """Hunt-Crossley wall contact force in N at x [m], xd [m/s] (stateless; 0 before the
@@ -199,7 +224,8 @@ class VesselModel:
         d = x - p.wall_depth
         if d <= 0.0 or p.wall_stiffness == 0.0:
             return 0.0
-        w = p.wall_stiffness * d ** p.wall_exponent * (1.0 + p.wall_damping * xd)
+        w = p.wall_stiffness * d ** p.wall_exponent * (1.0 + p.wall_damping * xd) \
+            + self.extras.wall_viscous * xd
         return w if w > 0.0 else 0.0
 
     def force(self, t: float, x: float, xd: float) -> float:
@@ -268,6 +294,8 @@ class VesselModel:
         """Advance the friction state by dt at velocity xd and return the force components at
         inserted length x [m] (of the catheter's inserted part)."""
         p = self.params
+        if self._smooth:
+            return self._evaluate_smooth(t, x, xd)
         zc = p.presliding_displacement
         # LuGre bristle state, integrated exactly for a velocity held over the step
         # (dz/dt = v - |v| z / (zc g(v)) is linear in z): unconditionally stable at any dt.
@@ -282,13 +310,31 @@ class VesselModel:
             zdot = 0.0
         fc = self.coulomb_force(x)
         friction = fc * (self.z / zc + p.bristle_damping * zdot)
+        return self._components(t, x, xd, friction)
+
+    def _evaluate_smooth(self, t: float, x: float, xd: float) -> VesselForce:
+        """Stateless smooth Coulomb friction (extras.coulomb_velocity > 0)."""
+        p = self.params
+        g = 1.0 + (p.stribeck_ratio - 1.0) * math.exp(-(xd / p.stribeck_velocity) ** 2)
+        return self._components(t, x, xd, smooth_coulomb(self.extras, self.coulomb_force(x), g, xd))
+
+    def _components(self, t: float, x: float, xd: float, friction: float) -> VesselForce:
+        """Drag, contacts and disturbances at (t, x, xd) around a friction force (N)."""
+        p = self.params
         xin = x if x > 0.0 else 0.0
         viscous = p.viscous_per_length * xin * xd
         wall = self._wall(x, xd)
-        if p.cardiac_amplitude > 0.0 and xin > 0.0:
+        if self._stenosis:
+            wall += stenosis_force(self.extras, x)
+        cardiac = 0.0
+        if xin > 0.0:
             depth = xin / p.cardiac_depth
-            cardiac = (p.cardiac_amplitude * (depth if depth < 1.0 else 1.0)
-                       * math.sin(2.0 * math.pi * p.cardiac_frequency * t + self.cardiac_phase))
-        else:
-            cardiac = 0.0
+            ramp = depth if depth < 1.0 else 1.0
+            if p.cardiac_amplitude > 0.0:
+                cardiac = (p.cardiac_amplitude * ramp * math.sin(
+                    2.0 * math.pi * p.cardiac_frequency * t + self.cardiac_phase))
+            if self._breathing:
+                e = self.extras
+                cardiac += e.breathing_amplitude * ramp * math.sin(
+                    2.0 * math.pi * e.breathing_frequency * t + self.breathing_phase)
         return VesselForce(friction, viscous, wall, cardiac, friction + viscous + wall + cardiac)

@@ -1,8 +1,11 @@
-"""Launch a scenario of ros_ws/config/ as separate processes (needs a full ROS 2 install with
-`launch` and `launch_ros`; the PyPI wheels this project installs have neither, so here use the
-launchless runner `run_scenario`, which also offers lockstep on a simulated clock):
+"""Launch a scenario (a YAML file of catheter_bringup's config/, installed to
+share/catheter_bringup/config) as separate processes, on a ROS 2 install with `launch` and
+`launch_ros`:
 
-    ros2 launch ros_ws/launch/scenario.launch.py scenario:=experiment_ii
+    ros2 launch catheter_bringup scenario.launch.py scenario:=experiment_ii
+
+The PyPI wheels this project installs have neither `launch` nor `ros2launch`: here use the
+launchless runner `run_scenario`, which also offers lockstep on a simulated clock.
 
 The nodes, parameters and remappings come from the same YAML and resolution as the launchless
 runner (catheter_bringup.make_launch.launch_entries), plus a recorder writing bags/<name>.mcap.
@@ -23,6 +26,7 @@ def _nodes(context, *args, **kwargs):
 def generate_launch_description():
     return LaunchDescription([
         DeclareLaunchArgument('scenario', default_value='experiment_ii',
-                              description='name of a scenario YAML in ros_ws/config/'),
+                              description="a scenario name of catheter_bringup's config/ "
+                                          'or a path to a YAML file'),
         OpaqueFunction(function=_nodes),
     ])

@@ -1,0 +1,219 @@
+"""The single-case Newton kernel of the fast path: the FAM residual and Jacobian for tip loads
+(force, moment; dead or follower), circular or clothoid arcs, written with 1-D arrays and as
+few numpy calls as possible (numpy call overhead dominates at N = 12), LAPACK called
+directly: dense Jacobian for N <= DENSE_MAX_N, the O(N) banded solve beyond. The same
+equations as ``equations.evaluate`` / ``linsolve`` (tests check that). No rclpy here.
+"""
+from __future__ import annotations
+
+import bisect
+import math
+from typing import Optional
+
+import numpy as np
+from scipy.linalg.lapack import dgesv as _dgesv
+
+from .equations import RHO_MAX, clothoid_terms
+from .linsolve import DENSE_MAX_N, banded_solve
+
+_MAXR = np.maximum.reduce
+_FAST_CACHE = {}
+#: clothoid arcs: the rates' Jacobian terms are added once max|r| < this (rad); further out
+#: the circular-arc factors do as well and cost less
+QUASI_ABOVE = 1e-2
+#: ... and from the first step below this N (the rates, ~ load / N^2, are large there)
+_QUASI_MIN_N = 3
+
+# Every function the arcs need is linear in E_k = integral_0^1 v^k e^{i phi v} dv, k = 0..4
+# (see ``arcs``): g = E0, q = E1, g' = i E1, q' = i E2, k = (E2 - E1)/2, k - km = (E3 - E2)/2,
+# k' = i (E3 - E2)/2, (k - km)' = i (E4 - E3)/2. Below |phi| < _SERIES_LIMIT the Taylor series
+# E_k = sum_j (i phi)^j / (j! (k + j + 1)) (_K_FAST terms: truncation < 1e-20, rounding
+# ~e^|phi| 1e-16), as ONE Vandermonde product; beyond it the closed forms
+# E_0 = (e^{i phi} - 1)/(i phi), E_k = (e^{i phi} - k E_{k-1}) / (i phi). The series reaches
+# further than in ``arcs`` so that few-arc models (N = 1-4, arcs of 1-3 rad) stay on the
+# cheap product.
+_EMAP = np.zeros((5, 8), dtype=complex)
+_EMAP[0, 0] = _EMAP[1, 1] = 1.0
+_EMAP[1, 2] = _EMAP[2, 3] = 1j
+_EMAP[1:3, 4] = (-0.5, 0.5)
+_EMAP[2:4, 5] = (-0.5, 0.5)
+_EMAP[2:4, 6] = (-0.5j, 0.5j)
+_EMAP[3:5, 7] = (-0.5j, 0.5j)
+_SERIES_LIMIT = 3.0
+_K_FAST = 34
+_EC = np.array([[1j ** j / math.factorial(j) / (k + j + 1) for k in range(5)] for j in range(_K_FAST)])
+_COEF4 = _EC[:, :3] @ _EMAP[:3, :4]     # g, q, g', q'
+_COEF8 = _EC @ _EMAP                    # ... and k, k - km, k', (k - km)'
+# fewer terms where all arcs are short (many arcs): k terms while max|phi|^k / k! <= 1e-17
+_TERMS_FOR = list(range(6, _K_FAST + 1))
+_PHI_FOR_TERMS = [(1e-17 * math.factorial(k)) ** (1.0 / k) for k in _TERMS_FOR]
+_BLOCK = 256
+
+
+def _fast_consts(n: int):
+    c = _FAST_CACHE.get(n)
+    if c is None:
+        idx = np.arange(n)
+        c = (idx[:, None] > idx[None, :],)
+        _FAST_CACHE[n] = c
+    return c
+
+
+def _arc_values(phi: np.ndarray, pmax: float, V: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """(N, 4) g, q, g', q' (or (N, 8) with k, k-km, k', (k-km)' when coef has 8 columns):
+    the series (one Vandermonde product; V (N, _K_FAST) holds the powers' storage) for
+    |phi| < _SERIES_LIMIT, the closed forms from E_0..E_4 elsewhere."""
+    if pmax < _SERIES_LIMIT:
+        k = _TERMS_FOR[bisect.bisect_left(_PHI_FOR_TERMS, pmax)]
+        V1 = V[:, 1:k]
+        V1[...] = phi[:, None]
+        np.multiply.accumulate(V1, axis=1, out=V1)
+        return _product(V[:, :k], coef[:k])
+    V1 = V[:, 1:]
+    m = coef.shape[1]
+    k = 5 if m == 8 else 3
+    big = np.abs(phi) >= _SERIES_LIMIT
+    a = 1j * np.where(big, phi, 1.0)
+    e = np.exp(a)
+    ia = 1.0 / a
+    E = np.empty((phi.size, k), dtype=complex)
+    E[:, 0] = (e - 1.0) * ia
+    for j in range(1, k):
+        E[:, j] = (e - j * E[:, j - 1]) * ia
+    R = E @ _EMAP[:k, :m]
+    if big.all():
+        return R
+    V1[...] = np.where(big, 0.0, phi)[:, None]
+    np.multiply.accumulate(V1, axis=1, out=V1)
+    return np.where(big[:, None], R, _product(V, coef))
+
+
+def _product(V: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """V @ coef in row blocks of _BLOCK: a large product would start BLAS threads, which
+    stall when the machine's cores are busy; blocks this small stay in one thread."""
+    n = V.shape[0]
+    if n <= _BLOCK:
+        return V @ coef
+    out = np.empty((n, coef.shape[1]), dtype=complex)
+    for i in range(0, n, _BLOCK):
+        np.matmul(V[i:i + _BLOCK], coef, out=out[i:i + _BLOCK])
+    return out
+
+
+def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
+                    phi: np.ndarray, max_iter: int, step_limit: float = 0.3, rtol: float = 1e-12,
+                    clothoid: bool = False, patience: int = 1 << 30):
+    """Damped Newton for one tip-loaded case. F complex (base or tip frame), m float.
+    Stops at max|r| <= 1e-13 + rtol max|phi| (converged is judged with rtol = 1e-12).
+    clothoid: clothoid arcs (as in evaluate; the Jacobian has the rates' derivatives once
+    max|r| < QUASI_ABOVE). N <= DENSE_MAX_N: dense Jacobian (returned); beyond: the O(N)
+    banded solve (no Jacobian returned). Gives up after ``patience`` iterations while max|r|
+    is still above QUASI_ABOVE and fell less than 10x in the last two (a start that leads
+    nowhere near a solution).
+
+    Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
+    Jacobian of the last Newton step (None if no step was taken or N > DENSE_MAX_N) and the
+    clothoid rates (N,) at phi (None for circular arcs)."""
+    dense = n <= DENSE_MAX_N
+    lower = _fast_consts(n)[0] if dense else None
+    cF0 = F.conjugate()
+    acc = np.add.accumulate
+    best = (phi, math.inf, 0j, None)
+    it = 0
+    J = None
+    th_r = None
+    wc = w[:, None]
+    w_r = w / RHO_MAX
+    iR = 1j * RHO_MAX
+    coef = _COEF8 if clothoid else _COEF4
+    V = np.empty((n, _K_FAST))       # powers phi^0..phi^(K-1) by a running product (cheaper than **)
+    V[:, 0] = 1.0
+    hist = [math.inf] * 3          # max|r| of the last iterations (for ``patience``)
+    for it in range(max_iter + 1):
+        th_end = acc(phi)
+        lE = l * np.exp(1j * (th_end - phi))
+        pmax = _MAXR(np.abs(phi))
+        R = _arc_values(phi, pmax, V, coef)  # (N, 4 or 8): g, q, g', q' (, k, k-km, k', (k-km)')
+        R *= lE[:, None]                     # l e^{i theta_start} times those
+        if follower:
+            t = float(th_end[-1])
+            cF = cF0 * complex(math.cos(t), -math.sin(t))
+        else:
+            cF = cF0
+        if clothoid:
+            z0 = R[:, 0] * cF
+            th_r = np.tanh(w_r * z0.imag)     # clothoid_rates: w (chord x -F), saturated
+            c = th_r * iR
+            P = acc(R[:, 0] + c * R[:, 4])
+            lever = R[:, 1] + c * R[:, 5]
+        else:
+            P = acc(R[:, 0])
+            lever = R[:, 1]
+        rel = P[-1] - P
+        ZF = (rel + lever) * cF
+        r = phi - w * (m - ZF.imag)
+        res = _MAXR(np.abs(r))
+        if not res < math.inf:
+            res = math.inf
+        if res < best[1]:
+            best = (phi, res, complex(P[-1]), th_r)
+        if res <= 1e-13 + rtol * pmax or it == max_iter or \
+                (it >= patience and res > QUASI_ABOVE and res > 0.1 * hist[(it - 2) % 3]):
+            break
+        hist[it % 3] = res
+        # -dMbar/dphi = D: D_ij = a_i (j < i), d_i (j = i), c_j + e_i (j > i); J = I + W D
+        Y = R[:, 2:] * cF                      # g', q' (, k, k-km, k', (k-km)') terms
+        irc = (1j * rel * cF).imag
+        d = irc + Y[:, 1].imag
+        c = irc + Y[:, 0].imag
+        e = None
+        if clothoid and (res < QUASI_ABOVE or n < _QUASI_MIN_N):
+            # with the rates' own derivatives (see clothoid_terms): quadratic convergence
+            rho_ = RHO_MAX * th_r
+            Yr = Y.real
+            lo_, dg_, up_, row_ = clothoid_terms(z0.real, Y[:, 0].imag, Yr[:, 2], Yr[:, 3],
+                                                 w, th_r, follower, rho_ * Yr[:, 4],
+                                                 rho_ * Yr[:, 5])
+            d = d + dg_
+            c = c + up_
+            if follower:
+                a, e = 0.0, row_ - ZF.real
+                d = d - ZF.real
+            else:
+                a = ZF.real + lo_
+        elif follower:   # (clothoid far from the solution: circular-arc factors, cheaper)
+            a, e = 0.0, -ZF.real
+            d = d - ZF.real
+        else:
+            a = ZF.real
+        if dense:
+            if follower:
+                D = np.where(lower, 0.0, c + e[:, None])
+            else:
+                D = np.where(lower, a[:, None], c)
+            D *= wc
+            D.flat[::n + 1] = w * d + 1.0
+            J = D
+            dx = _dgesv(D, r)[2]
+        else:   # J = I - (-W) D: the banded solver's convention
+            dx = banded_solve(-w, (np.broadcast_to(a, (n,)), d, c, e), r)
+        mx = _MAXR(np.abs(dx))
+        if not mx < math.inf:
+            break
+        if mx > step_limit:
+            dx *= step_limit / mx
+        phi = phi - dx
+    phi, res, tip, th_r = best
+    rho = None if th_r is None else RHO_MAX * th_r
+    if not res < math.inf:
+        phi, tip, rho = np.zeros(n), complex(float(np.sum(l))), None
+    pmax = _MAXR(np.abs(phi))
+    return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J, rho
+
+
+def jacobian_at(phi: np.ndarray, l: np.ndarray, w: np.ndarray, F: complex, m: float,
+                 follower: bool, clothoid: bool) -> Optional[np.ndarray]:
+    """The dense Jacobian (N <= DENSE_MAX_N) at phi: the one a Newton step from phi uses."""
+    J = fast_tip_newton(phi.size, l, w, F, m, follower, phi, 1, step_limit=math.inf, rtol=-1.0,
+                        clothoid=clothoid)[5]
+    return J

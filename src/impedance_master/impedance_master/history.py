@@ -1,0 +1,465 @@
+"""The project's default environment model (`make_identifier`), learned from the WHOLE
+history of the slave's data.
+
+Exponentially weighted least squares with a long memory (`HistoryParams.memory` s of motion)
+of the table kind of `impedance.Impedance`: static force, Coulomb and breakaway friction and
+viscous drag as functions of inserted length on a grid, Dahl friction states for direction
+and presliding (their presliding length chosen by the data among `HistoryParams.sigmas`:
+stiff catheters reverse their friction within a fraction of a millimetre, compliant shafts
+and vessel beds over millimetres), the mass term. Smoothness priors make unvisited grid
+nodes extrapolate from visited ones (friction linearly, static force flat); parameters are
+physically bounded (friction, breakaway and drag >= 0, a static force that never pulls the
+catheter in, a mass of grams) by an active-set solve (`history_prior`). Samples at rest are not learned from
+(the model is held). Forgetting, priors and bounds make the solve well posed whatever the
+data: the matrix is the data's information plus a positive definite prior, never singular.
+
+Bounded influence: physically impossible samples are refused before they touch any state
+(`gating.SampleGate`: counted in `n_rejected` / `rejected`); the measured force enters the
+fit clipped to the current model's prediction +- a robust band (`HistoryParams.clip_*`,
+counted in `n_clipped`), so one outlier sample of any size moves the fit as one sample with
+a residual of at most that band would. A model outside the `envelope` is not published
+(status 'out_of_envelope', the previous model is held).
+
+Each published model carries an `impedance.Anchor`: the slave's state, measured force and
+low-passed residual at the sample it was made at.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import fields, replace
+from typing import Optional
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+from catheter_common.checks import finite, positive
+from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
+from impedance_master.filters import Differentiator
+from impedance_master.gating import Despiker, SampleGate
+from impedance_master.history_params import HistoryParams
+from impedance_master.history_prior import build_prior, candidate_index, n_params
+from impedance_master.impedance import Anchor, FrictionState, Impedance, steady_states
+
+
+class HistoryIdentifier:
+    """The project's default environment model, learned from the whole history (see module doc).
+
+    Args:
+        window: s; only sets how much motion (window * rate moving samples) is needed before
+            the first model is declared valid.
+        rate: Hz, sample rate.
+        params: a `HistoryParams` (None: the defaults); keyword overrides of its fields may
+            be given directly (``HistoryIdentifier(memory=30.0)``).
+        gate: the `SampleGate` refusing impossible samples (None: the default gate).
+        envelope: the `ModelEnvelope` a model must satisfy to be published (None: the default).
+    Every field of the params is also an attribute (``ident.memory``), read-only by
+    convention; `params` holds them all.
+    Attributes after update: `status` ('filling', 'ok', 'at_rest', 'out_of_envelope',
+    'ill_conditioned'), `n_samples`, `n_moving`, `n_solves`, `n_held`, `n_rejected` and
+    `rejected` (from the gate), `n_clipped` (forces clipped to the robust band),
+    `n_out_of_envelope`, `scale` (N, running mean absolute residual), `last`.
+    """
+
+    STATE_VERSION = 2
+
+    def __init__(self, window: float = 1.0, rate: float = 1000.0,
+                 params: Optional[HistoryParams] = None, gate: Optional[SampleGate] = None,
+                 envelope: Optional[ModelEnvelope] = None, **overrides):
+        self.window = positive('window', window)
+        self.rate = positive('rate', rate)
+        if params is None:
+            params = HistoryParams()
+        if not isinstance(params, HistoryParams):
+            raise ValueError(f'params must be a HistoryParams, got {type(params).__name__}')
+        unknown = sorted(set(overrides) - set(HistoryParams.names()))
+        if unknown:
+            raise ValueError(f'unknown HistoryIdentifier parameter {unknown[0]!r} (see '
+                             'HistoryParams)')
+        p = replace(params, **overrides) if overrides else params
+        self.params = p
+        for f in fields(p):
+            setattr(self, f.name, getattr(p, f.name))
+        if gate is not None and not isinstance(gate, SampleGate):
+            raise ValueError(f'gate must be a SampleGate, got {type(gate).__name__}')
+        self.gate = gate if gate is not None else SampleGate(rate=self.rate)
+        if envelope is not None and not isinstance(envelope, ModelEnvelope):
+            raise ValueError(f'envelope must be a ModelEnvelope, got {type(envelope).__name__}')
+        self.envelope = envelope if envelope is not None else DEFAULT_ENVELOPE
+        self.dx = p.dx
+        self._nodes = self.x_min + self.dx * np.arange(self.n_nodes)
+        self.P = n_params(p)
+        self._K = len(self.sigmas)
+        self._cand = [candidate_index(p, k) for k in range(self._K)]
+        # scales of the feature columns: velocity by V, acceleration by A (coefficients in N)
+        self._V = 0.04
+        self._A = 1.0
+        self._lam = math.exp(-1.0 / (self.memory * self.rate))
+        self._prior, self._lo, self._hi = build_prior(p, self._A)
+        # per candidate: its prior block and bounds (constant), for the solves
+        self._cand_prior = [self._prior[np.ix_(i, i)] for i in self._cand]
+        self._cand_lo = [self._lo[i] for i in self._cand]
+        self._cand_hi = [self._hi[i] for i in self._cand]
+        self._res_alpha = (1.0 - math.exp(-1.0 / (self.residual_time * self.rate))
+                           if self.residual_time > 0.0 else 1.0)
+        self._scale_alpha = 1.0 - math.exp(-1.0 / (self.scale_time * self.rate))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything learned (the gate's counters too)."""
+        self._A_mat = np.zeros((self.P, self.P))
+        self._b = np.zeros(self.P)
+        self._Phi = np.zeros((self.solve_every, self.P))
+        self._f = np.zeros(self.solve_every)
+        self._rows = 0
+        self._moving_in_batch = 0
+        self._since_solve = 0
+        self._zs = [FrictionState(sg, self.v_s, self.beta) if sg > 0.0 else None
+                    for sg in self.sigmas]
+        self.selected = self.sigmas.index(self.sigma)     # the rendered candidate
+
+        self._last_k = self.selected                      # the candidate of `last`
+        self.n_selections = 0
+        self._da = Differentiator(self.rate)      # x'' from x' when not given
+        self.gate.reset()
+        self._despike = Despiker()
+        self.n_samples = 0
+        self.n_moving = 0
+        self.n_solves = 0
+        self.n_held = 0
+        self.n_clipped = 0
+        self.n_out_of_envelope = 0
+        self.status = 'filling'
+        self.theta = np.zeros(self.P)
+        self.last: Optional[Impedance] = None
+        self._sample = None          # (x, xd, xdd, zs, f) of the latest sample
+        self._res = 0.0              # low-passed residual f - model at the slave's state
+        self.scale = self.clip_floor / max(self.clip_factor, 1.0)
+        self.envelope_reason: Optional[str] = None
+
+    @property
+    def n_rejected(self) -> int:
+        return self.gate.n_rejected
+
+    @property
+    def rejected(self) -> dict:
+        return dict(self.gate.rejected)
+
+    # ------------------------------------------------------------------ persistence
+    def get_state(self) -> dict:
+        """The learned information (normal equations of every friction bank) and the
+        selected presliding length as plain JSON-able values."""
+        self._flush()
+        return {'version': self.STATE_VERSION, 'kind': 'HistoryIdentifier',
+                'grid': _json_ready(self), 'n_moving': int(self.n_moving),
+                'selected': int(self.selected),
+                'A': self._A_mat.tolist(), 'b': self._b.tolist()}
+
+    def _parse_state(self, state) -> dict:
+        """The validated arrays of a `get_state()` dict (ValueError naming what is wrong)."""
+        if not isinstance(state, dict) or state.get('kind') != 'HistoryIdentifier':
+            raise ValueError('state must be a dict from HistoryIdentifier.get_state()')
+        if state.get('version') != self.STATE_VERSION:
+            raise ValueError(f'state version must be {self.STATE_VERSION}, '
+                             f'got {state.get("version")!r}')
+        grid = state.get('grid')
+        if not isinstance(grid, dict):
+            raise ValueError('state grid must be a dict')
+        for k, v in _json_ready(self).items():
+            try:
+                same = k in grid and math.isclose(float(grid[k]), float(v), rel_tol=1e-12)
+            except (TypeError, ValueError):
+                same = False
+            if not same:
+                raise ValueError(f'state grid {k}={grid.get(k)!r} differs from this '
+                                 f'identifier\'s {v!r}')
+        out = {}
+        for name, shape in (('A', (self.P, self.P)), ('b', (self.P,))):
+            try:
+                a = np.asarray(state.get(name), dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(f'state {name} must be a numeric array') from None
+            if a.shape != shape:
+                raise ValueError(f'state {name} must have shape {shape}, got {a.shape}')
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f'state {name} must be finite')
+            if a.ndim == 2:
+                a = 0.5 * (a + a.T)
+                if np.linalg.eigvalsh(a).min() < -1e-9 * max(1.0, float(np.abs(a).max())):
+                    raise ValueError(f'state {name} must be positive semi-definite (an '
+                                     'information matrix)')
+            out[name] = a
+        n = state.get('n_moving')
+        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+            raise ValueError(f'state n_moving must be an int >= 0, got {n!r}')
+        k = state.get('selected')
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < self._K:
+            raise ValueError(f'state selected must be an int in 0..{self._K - 1}, got {k!r}')
+        out['n_moving'], out['selected'] = n, k
+        return out
+
+    def _install(self, arrays: dict) -> Optional[Impedance]:
+        self.reset()
+        self._A_mat, self._b = arrays['A'], arrays['b'].copy()
+        self.n_moving, self.selected = arrays['n_moving'], arrays['selected']
+        self._last_k = self.selected
+        if self.n_moving < self.window * self.rate:
+            return None
+        return self._solve(moved=True)
+
+    def set_state(self, state: dict) -> Optional[Impedance]:
+        """Continue from `get_state()` output (same grid and friction hyper-parameters);
+        returns the model solved from it (None if it holds too little motion).
+        ValueError, and nothing changed, if the state is malformed, of another version or
+        grid, not finite, not an information matrix, or gives no model inside the envelope
+        (a tampered file)."""
+        arrays = self._parse_state(state)
+        probe = HistoryIdentifier(window=self.window, rate=self.rate, params=self.params,
+                                  envelope=self.envelope)
+        probe._install(arrays)
+        if probe.n_moving >= self.window * self.rate and probe.status != 'ok':
+            raise ValueError(f'state gives no usable model ({probe.status}: '
+                             f'{probe.envelope_reason})')
+        return self._install(arrays)
+
+    def save_state(self, path: str) -> None:
+        """Write `get_state()` atomically (see `state_file.write_state`)."""
+        from impedance_master.state_file import write_state
+        write_state(path, self.get_state())
+
+    def load_state(self, path: str) -> Optional[Impedance]:
+        """Read a JSON file written by `save_state` and continue from it (ValueError if it
+        is unreadable or rejected; see `set_state`)."""
+        from impedance_master.state_file import read_state
+        return self.set_state(read_state(path))
+
+    # ------------------------------------------------------------------ samples
+    def update(self, x: float, xd: float, xdd: Optional[float], f: float) -> Optional[Impedance]:
+        """Add one sample (x m, x' m/s, x'' m/s^2 or None, measured force f N).
+
+        x'' None: the backward difference of x' at `rate` (what a node fed a JointState, which
+        has no acceleration field, passes; the simulated robot's x'' is exactly that
+        difference). Leaving it at 0 instead removes the mass column from the fit, which
+        doubled the outage error of the ROS graph against the pure experiment.
+        Non-finite values: ValueError naming the argument. Impossible samples (see
+        `gating.SampleGate`) are counted and ignored.
+
+        Returns None until `window` seconds of motion have been seen, then the latest model
+        (a new one every `solve_every` samples; the same object in between).
+        """
+        x = finite('x', x)
+        xd = finite('xd', xd)
+        xdd_in = None if xdd is None else finite('xdd', xdd)
+        f = finite('f', f)
+        if self.gate.check(x, xd, xdd_in, f) is not None:
+            return self._tick()         # refused: learned from nothing, the cadence goes on
+        if self.gate.resync:                 # the axis really moved there: restart the states
+            for st in self._zs:
+                if st is not None:
+                    st.reset(x, st.z1, st.z2)
+            self._da = Differentiator(self.rate)
+            self._despike.reset((x, xd, xdd_in, f))
+        x, xd, xdd_in, f = self._despike(x, xd, xdd_in, f)
+        xdd_diff = self._da(xd)
+        xdd = xdd_diff if xdd_in is None else xdd_in
+        zs = [st.update(x, xd) if st is not None else steady_states(xd, self.v_s, self.beta)
+              for st in self._zs]
+        z = zs[self._last_k]
+        self.n_samples += 1
+        model = self.last
+        if model is not None and model.valid:
+            pred = model.force(x, xd, xdd, z)
+            r = f - pred
+            band = max(self.clip_floor, self.clip_factor * self.scale)
+            if self.clip_factor > 0.0 and abs(r) > band:
+                self.n_clipped += 1
+                r = math.copysign(band, r)
+            f_fit = pred + r
+            self.scale += self._scale_alpha * (min(abs(r), 3.0 * self.scale + 1e-4)
+                                               - self.scale)
+            self._res += self._res_alpha * (r - self._res)
+        else:
+            f_fit = f
+        self._sample = (x, xd, xdd, zs, f)
+        if abs(xd) >= self.rest_velocity:
+            self._add_row(x, xd, xdd, zs, f_fit)
+        return self._tick()
+
+    def _tick(self) -> Optional[Impedance]:
+        """One sample period: a new model every `solve_every` samples."""
+        self._since_solve += 1
+        if self._since_solve >= self.solve_every or self._rows >= self.solve_every:
+            self._flush()
+            self._since_solve = 0
+            if self.n_moving >= self.window * self.rate:
+                return self._solve(moved=self._moving_in_batch > 0)
+            return None
+        return self.last
+
+    def _add_row(self, x, xd, xdd, zs, f) -> None:
+        G = self.n_nodes
+        u = (x - self.x_min) / self.dx
+        if u <= 0.0:
+            j, w = 0, 0.0
+        elif u >= G - 1:
+            j, w = G - 2, 1.0
+        else:
+            j = int(u)
+            w = u - j
+        w0 = 1.0 - w
+        row = self._Phi[self._rows]
+        row[j] = w0
+        row[j + 1] = w
+        g = G
+        for z1, z2 in zs:
+            row[g + j] = w0 * z1
+            row[g + j + 1] = w * z1
+            g += G
+            dz = z2 - z1
+            row[g + j] = w0 * dz
+            row[g + j + 1] = w * dz
+            g += G
+        vz = xd / self._V
+        row[g + j] = w0 * vz
+        row[g + j + 1] = w * vz
+        row[-1] = xdd / self._A
+        self._f[self._rows] = f
+        self._rows += 1
+        self.n_moving += 1
+
+    def _flush(self) -> None:
+        k = self._rows
+        self._moving_in_batch = k
+        if k == 0:
+            return
+        Phi = self._Phi[:k]
+        decay = self._lam ** k
+        self._A_mat *= decay
+        self._b *= decay
+        self._A_mat += Phi.T @ Phi
+        self._b += Phi.T @ self._f[:k]
+        self._Phi[:k] = 0.0
+        self._rows = 0
+
+    # ------------------------------------------------------------------ solve
+    def _hold(self, status: str) -> Optional[Impedance]:
+        self.status = status
+        self.n_held += 1
+        if self.last is None:
+            return Impedance(valid=False, status=status)
+        return self.last
+
+    def _solve_candidate(self, k: int):
+        """(theta of candidate k in Impedance order, penalised objective): solve, clamp the
+        parameters outside their bounds, re-solve the others, at most 4 rounds (bounds once
+        clamped stay clamped: the tuned behaviour of the default; then clipped into the
+        box)."""
+        idx = self._cand[k]
+        M = self._A_mat[np.ix_(idx, idx)]
+        M += self._cand_prior[k]
+        b = self._b[idx]
+        lo, hi = self._cand_lo[k], self._cand_hi[k]
+        free = np.ones(idx.size, dtype=bool)
+        theta = _spd_solve(M, b)
+        for _ in range(3):
+            bad = free & ((theta < lo) | (theta > hi))
+            if not bad.any():
+                break
+            theta[bad] = np.clip(theta[bad], lo[bad], hi[bad])
+            free &= ~bad
+            fi = np.flatnonzero(free)
+            rhs = b[fi] - M[np.ix_(fi, np.flatnonzero(~free))] @ theta[~free]
+            theta[fi] = _spd_solve(M[np.ix_(fi, fi)], rhs)
+        theta = np.clip(theta, lo, hi)
+        return theta, float(theta @ M @ theta - 2.0 * b @ theta)
+
+    def _select(self) -> None:
+        """Render the candidate presliding length whose penalised fit is best, if it beats
+        the current one by more than select_margin residual variances."""
+        if self._K == 1:
+            return
+        cur = self.selected
+        objs = [self._solve_candidate(k)[1] for k in range(self._K)]
+        best = int(np.argmin(objs))
+        var = (1.25 * self.scale) ** 2
+        if best != cur and objs[cur] - objs[best] > self.select_margin * var:
+            self.selected = best
+            self.n_selections += 1
+
+    def _solve(self, moved: bool) -> Optional[Impedance]:
+        if not moved and self.last is not None:
+            self.status = 'at_rest'
+            self.n_held += 1
+            self.last.status = 'at_rest'
+            return self.last
+        if self.n_solves % self.select_every == 0:
+            self._select()
+        theta, _ = self._solve_candidate(self.selected)
+        if not np.all(np.isfinite(theta)):
+            return self._hold('ill_conditioned')
+        new = self._model(theta)
+        self.envelope_reason = self.envelope.check(new)
+        if self.envelope_reason is not None:
+            self.n_out_of_envelope += 1
+            return self._hold('out_of_envelope')
+        self.theta = theta
+        self.n_solves += 1
+        self.status = 'ok'
+        smp = self._sample
+        if smp is not None:
+            x, xd, xdd, zs, f = smp
+            z = zs[self.selected]
+            m_new = new.force(x, xd, xdd, z)
+            if self.last is not None and self.last.valid:   # the residual w.r.t. the new model
+                self._res += self.last.force(x, xd, xdd, zs[self._last_k]) - m_new
+            else:
+                self._res = f - m_new
+            new.anchor = Anchor(x, xd, xdd, z[0], z[1], f, self._res)
+        self.last = new
+        self._last_k = self.selected
+        return new
+
+    def _model(self, theta: np.ndarray) -> Impedance:
+        """The Impedance of a candidate's parameters (S, F, B, C, mass). The linear part goes
+        in m, c, k, offset (the thesis's terms): the straight line through the static table
+        and the mean drag, weighted by how much data each node has seen; the tables keep
+        the rest, so force() is unchanged on the grid (outside it the linear part continues
+        while the tables hold their end values)."""
+        G = self.n_nodes
+        S = theta[:G]
+        C = theta[3 * G:4 * G] / self._V
+        idx = self._cand[self.selected]
+        info = np.diag(self._A_mat)[idx]
+        k, off = _line(self._nodes, S, info[:G] + 1e-9)
+        wc = info[3 * G:4 * G] + 1e-9
+        c = float(np.sum(wc * C) / np.sum(wc))
+        return Impedance.from_arrays(
+            float(theta[-1]) / self._A, c, k, off, x0=self.x_min, dx=self.dx,
+            sigma=self.sigmas[self.selected], v_s=self.v_s, beta=self.beta,
+            S=S - (k * self._nodes + off), F=theta[G:2 * G], B=theta[2 * G:3 * G], C=C - c,
+            status='ok')
+
+
+def _spd_solve(M: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve M x = b for a symmetric positive definite M (Cholesky; LU if that fails)."""
+    try:
+        return cho_solve(cho_factor(M, check_finite=False), b, check_finite=False)
+    except np.linalg.LinAlgError:
+        return np.linalg.solve(M, b)
+
+
+def _line(x: np.ndarray, y: np.ndarray, w: np.ndarray):
+    """(slope, intercept) of the least-squares line through (x, y) with weights w."""
+    sw = w.sum()
+    mx = (w * x).sum() / sw
+    my = (w * y).sum() / sw
+    dx = x - mx
+    sxx = (w * dx * dx).sum()
+    k = (w * dx * (y - my)).sum() / sxx if sxx > 0.0 else 0.0
+    return float(k), float(my - k * mx)
+
+
+def _json_ready(ident: HistoryIdentifier) -> dict:
+    d = {'x_min': ident.x_min, 'x_max': ident.x_max, 'n_nodes': ident.n_nodes,
+         'v_s': ident.v_s, 'beta': ident.beta, 'n_sigmas': len(ident.sigmas)}
+    d.update({f'sigma{i}': v for i, v in enumerate(ident.sigmas)})
+    return d

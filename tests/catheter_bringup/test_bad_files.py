@@ -1,0 +1,156 @@
+"""analyze, replay, reprocess and plots answer a missing, truncated, empty or foreign file with
+ONE clear line and a non-zero exit code (no traceback from inside the MCAP reader); a run
+killed with SIGKILL is recovered by `recover_bag` into a file rosbags and mcap_ros2 read, with
+a count of what was recovered and the run's scenario carried over."""
+import json
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from rclpy.serialization import serialize_message
+
+from catheter_bringup import analyze, bagfile, plots, replay, reprocess
+from catheter_bringup.recorder import McapRecorder, read_run_metadata
+
+TOOLS = {'analyze': analyze.main, 'replay': replay.main, 'reprocess': reprocess.main,
+         'plots': plots.main}
+
+
+def _wrench(fx):
+    from geometry_msgs.msg import WrenchStamped
+    m = WrenchStamped()
+    m.wrench.force.x = float(fx)
+    return m
+
+
+@pytest.fixture(scope='module')
+def good(tmp_path_factory):
+    path = tmp_path_factory.mktemp('good') / 'good.mcap'
+    rec = McapRecorder(path, chunk_size=4096)
+    rec.add_topic('/slave/force', 'geometry_msgs/msg/WrenchStamped')
+    for k in range(2000):
+        rec.write('/slave/force', serialize_message(_wrench(k * 1e-3)), k * 1_000_000)
+    rec.close('complete')
+    return path
+
+
+def _bad_files(good, d):
+    data = good.read_bytes()
+    files = {'missing': d / 'missing.mcap', 'empty': d / 'empty.mcap',
+             'truncated': d / 'truncated.mcap', 'foreign': d / 'foreign.mcap',
+             'random': d / 'random.mcap'}
+    files['empty'].write_bytes(b'')
+    files['truncated'].write_bytes(data[:len(data) // 2])
+    files['foreign'].write_text('{"not": "a bag"}\n')
+    files['random'].write_bytes(bytes((i * 7919 + 13) % 256 for i in range(5000)))
+    return files
+
+
+EXPECT = {'missing': 'no such file', 'empty': 'empty file (0 bytes)',
+          'truncated': 'cut off, no summary', 'foreign': 'not an MCAP file',
+          'random': 'not an MCAP file'}
+
+
+@pytest.mark.parametrize('tool', sorted(TOOLS))
+def test_a_bad_file_gets_one_clear_line_and_exit_code_2(tool, good, tmp_path, capsys):
+    for kind, path in _bad_files(good, tmp_path).items():
+        code = TOOLS[tool]([str(path)])
+        out, err = capsys.readouterr()
+        lines = [line for line in (out + err).splitlines() if line.strip()]
+        assert code == 2, (tool, kind, out, err)
+        assert len(lines) == 1, (tool, kind, lines)
+        assert lines[0].startswith(f'{tool}: {path}: ') and EXPECT[kind] in lines[0], lines
+        assert 'Traceback' not in out + err
+
+
+def test_a_cut_off_file_points_at_recover_bag(good, tmp_path):
+    p = _bad_files(good, tmp_path)['truncated']
+    with pytest.raises(bagfile.BagError, match=f'recover_bag {p}'):
+        bagfile.check_bag(p)
+
+
+def test_a_ros_less_mcap_is_refused_as_foreign(tmp_path):
+    from mcap.writer import Writer
+    p = tmp_path / 'json.mcap'
+    with open(p, 'wb') as f:
+        w = Writer(f)
+        w.start()
+        sid = w.register_schema('x', 'jsonschema', b'{}')
+        cid = w.register_channel('/x', 'json', sid)
+        w.add_message(cid, 0, b'{}', 0)
+        w.finish()
+    with pytest.raises(bagfile.BagError, match='not a ROS 2 recording'):
+        bagfile.check_bag(p)
+
+
+def test_recover_rebuilds_a_stream_cut_anywhere(good, tmp_path):
+    """Cut the good file at many places: recover_bag returns what precedes the cut (whole
+    chunks), never more than was written, and the result is a complete, readable bag."""
+    from mcap_ros2.reader import read_ros2_messages
+    data = good.read_bytes()
+    seen = []
+    for frac in (0.1, 0.35, 0.6, 0.85, 0.99):
+        cut = tmp_path / f'cut_{frac}.mcap'
+        cut.write_bytes(data[:int(len(data) * frac)])
+        res = bagfile.recover(cut)
+        out = pathlib.Path(res['output'])
+        bagfile.check_bag(out)
+        xs = [m.ros_msg.wrench.force.x for m in read_ros2_messages(str(out))]
+        assert len(xs) == res['messages'] == res['topics']['/slave/force']
+        assert xs == [k * 1e-3 for k in range(len(xs))]          # a prefix, in order
+        meta = read_run_metadata(out)
+        # cut before the writer's close: interrupted; after its catheter_run record (only the
+        # summary lost): that record, complete
+        assert (meta['status'] == 'interrupted' and meta['messages'] == str(len(xs))) or \
+            (meta['status'] == 'complete' and len(xs) == 2000), (frac, meta)
+        seen.append(len(xs))
+    assert seen == sorted(seen) and seen[-1] > 1500 and seen[0] < 500
+    with pytest.raises(bagfile.BagError, match='nothing to recover'):
+        bagfile.recover(good)
+    with pytest.raises(bagfile.BagError, match='not an MCAP file'):
+        bagfile.recover(_bad_files(good, tmp_path)['foreign'])
+
+
+@pytest.mark.slow
+@pytest.mark.ros
+def test_a_sigkilled_run_is_recovered_with_its_scenario(tmp_path):
+    """run_scenario killed with SIGKILL mid-run: the file has no summary, analyze refuses it
+    in one line, recover_bag rebuilds it (counts printed), and rosbags, mcap_ros2 and analyze
+    read the result; the scenario written at the start says what the run was."""
+    bag = tmp_path / 'killed.mcap'
+    exe = [sys.executable, '-m', 'catheter_bringup.run_scenario', 'smoke', '--duration', '60',
+           '--bag', str(bag), '--quiet']
+    proc = subprocess.Popen(exe, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        t_end = time.monotonic() + 60
+        while time.monotonic() < t_end and (not bag.exists() or bag.stat().st_size < 600_000):
+            time.sleep(0.2)
+            assert proc.poll() is None, proc.stdout.read()
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert proc.returncode == -signal.SIGKILL
+    assert analyze.main([str(bag), '--quiet']) == 2
+    out = tmp_path / 'back.mcap'
+    done = subprocess.run([sys.executable, '-m', 'catheter_bringup.bagfile', str(bag), '-o',
+                           str(out)], capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ))
+    assert done.returncode == 0, done.stderr
+    first = done.stdout.splitlines()[0]
+    assert first.startswith('recovered ') and f'-> {out}' in first
+    n = int(first.split()[1])
+    assert n > 3_000
+    from rosbags.highlevel import AnyReader
+    with AnyReader([out]) as reader:
+        count = sum(1 for c, _, raw in reader.messages() if reader.deserialize(raw, c.msgtype))
+    assert count == n
+    meta = read_run_metadata(out)
+    assert meta['status'] == 'interrupted' and meta['scenario'] == 'smoke'
+    assert sum(json.loads(meta['counts']).values()) == n == int(meta['messages'])
+    res = analyze.analyze(out)
+    assert 'warnings' not in res and res['delay_s'] == 0.2
+    assert res['force_tracking']['ima']['all']['n'] > 0

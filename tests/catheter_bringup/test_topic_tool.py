@@ -1,0 +1,126 @@
+"""catheter_topic (list, echo, hz, bw on live DDS topics; info for a bag) against a lockstep run
+started with `run_scenario --dds` in another process: its topics are seen and their messages
+arrive outside the process; without --dds they do not."""
+import math
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import pytest
+
+from catheter_bringup import topic_tool
+
+REF = pathlib.Path(__file__).resolve().parents[2] / 'bags' / 'reference'
+
+
+def _start(*extra):
+    cmd = [sys.executable, '-m', 'catheter_bringup.run_scenario', 'smoke', '--duration', '300',
+           '--no-record', '--quiet', *extra]
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env=dict(os.environ))
+
+
+def _stop(proc):
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    return proc.returncode
+
+
+@pytest.fixture
+def dds_run():
+    proc = _start('--dds')
+    try:
+        # the run is up once its topics are in the graph (start-up imports take seconds)
+        session = topic_tool._Session()
+        try:
+            up = session.topic_type('/slave/force', 60.0)
+        finally:
+            session.close()
+        assert up and proc.poll() is None, proc.stdout.read() if proc.poll() is not None else ''
+        yield proc
+    finally:
+        code = _stop(proc)
+        assert code == 0
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_list_echo_hz_bw_see_a_lockstep_run_published_with_dds(dds_run, capsys):
+    assert topic_tool.main(['list', '-t', '--wait', '3']) == 0
+    listed = capsys.readouterr().out.splitlines()
+    assert '/slave/force [geometry_msgs/msg/WrenchStamped]' in listed
+    assert '/master/rendered_force [geometry_msgs/msg/WrenchStamped]' in listed
+
+    assert topic_tool.main(['echo', '/slave/force', '--count', '2', '--timeout', '20']) == 0
+    out = capsys.readouterr().out
+    assert out.count('---') >= 2 and 'wrench:' in out and "frame_id: 'catheter_base'" in out
+
+    assert topic_tool.main(['hz', '/slave/force', '--duration', '2', '--stamps']) == 0
+    out = capsys.readouterr().out
+    # the lockstep clock: one message per 1 ms step of simulated time
+    assert 'average rate: 1000.000 Hz (header stamps)' in out
+
+    assert topic_tool.main(['hz', '/slave/force', '--duration', '1.0']) == 0
+    assert 'average rate: ' in capsys.readouterr().out
+
+    assert topic_tool.main(['bw', '/master/rendered_force', '--duration', '1.5']) == 0
+    out = capsys.readouterr().out
+    from geometry_msgs.msg import WrenchStamped
+    from catheter_bringup.ros_recording import exact_bytes
+    msg = WrenchStamped()
+    msg.header.frame_id = 'catheter_base'
+    size = len(exact_bytes(msg))                                # 84 B on the wire
+    assert 'KB/s from' in out and f'mean: {size} B' in out
+
+
+@pytest.mark.ros
+def test_an_unknown_topic_is_reported(capsys):
+    assert topic_tool.main(['echo', '/no/such/topic', '--timeout', '0.5']) == 1
+    assert 'no such topic' in capsys.readouterr().err
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_without_dds_a_lockstep_run_sends_nothing_outside(capsys):
+    proc = _start()
+    try:
+        session = topic_tool._Session()
+        try:
+            assert session.topic_type('/slave/force', 60.0)      # advertised, but ...
+        finally:
+            session.close()
+        assert topic_tool.main(['hz', '/slave/force', '--duration', '2', '--timeout', '3']) == 1
+    finally:
+        assert _stop(proc) == 0
+
+
+def test_info_describes_a_bag(capsys):
+    assert topic_tool.main(['info', str(REF / 'reference_outage.mcap')]) == 0
+    out = capsys.readouterr().out
+    assert 'Duration:          1.999 s' in out and 'Messages:          8000' in out
+    assert 'Run:               reference_outage (complete)' in out
+    line = next(x for x in out.splitlines() if x.strip().startswith('/slave/force'))
+    assert line.split()[1:] == ['geometry_msgs/msg/WrenchStamped', '2000', 'msgs',
+                                'best_effort']
+    assert topic_tool.main(['info', str(REF / 'missing.mcap')]) == 2
+    assert 'no such file' in capsys.readouterr().err
+
+
+def test_echo_format_and_rate_statistics():
+    from sensor_msgs.msg import Image, JointState
+    lines = topic_tool.to_yaml(JointState(name=['a'], position=[0.5]))
+    assert lines[:3] == ['header:', '  stamp:', '    sec: 0'] and "name: ['a']" in lines
+    img = topic_tool.to_yaml(Image(height=2, width=20, encoding='mono8', data=bytes(40)))
+    assert "data: '<sequence of 40 values>'" in img
+    assert len([ln for ln in topic_tool.to_yaml(Image(data=bytes(40)), full=True)
+                if ln.startswith('data: [')]) == 1
+    st = topic_tool.rate_stats([0.0, 0.001, 0.002, 0.004])
+    assert st['rate_hz'] == pytest.approx(1000 * 3 / 4) and st['max'] == pytest.approx(0.002)
+    assert st['min'] == pytest.approx(0.001) and st['n'] == 3
+    assert math.isnan(topic_tool.rate_stats([1.0])['rate_hz'])

@@ -1,0 +1,192 @@
+"""catheter_common.messages: the typed messages of catheter_interfaces <-> core objects and
+plain values, through real serialisation; and recordings of them decoded by rosbags (typestore
+built from the MCAP's own schema text) and mcap_ros2."""
+import math
+import pathlib
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from rclpy.serialization import deserialize_message, serialize_message
+
+from catheter_common import messages as M
+from catheter_interfaces.msg import ImpedanceModel, MasterCommand, TipForceEstimate
+
+impedance = pytest.importorskip('impedance_master.impedance')
+Impedance = impedance.Impedance
+
+FIN = st.floats(-1e6, 1e6, allow_nan=False)
+POS = st.floats(1e-6, 1e3, allow_nan=False)
+
+
+@st.composite
+def models(draw):
+    base = dict(m=draw(FIN), c=draw(FIN), k=draw(FIN), offset=draw(FIN),
+                valid=draw(st.booleans()), status=draw(st.sampled_from(['ok', 'held', ''])))
+    if draw(st.booleans()):
+        return Impedance(**base)
+    n = draw(st.integers(2, 40))
+    tables = {name: draw(st.lists(FIN, min_size=n, max_size=n)) for name in 'SFBC'}
+    return Impedance(**base, x0=draw(FIN), dx=draw(POS), sigma=draw(POS), v_s=draw(POS),
+                     beta=draw(st.floats(0, 10)), **tables)
+
+
+def _wire(msg):
+    return deserialize_message(serialize_message(msg), type(msg))
+
+
+@settings(max_examples=60, deadline=None)
+@given(models(), st.integers(0, 2 ** 40))
+def test_impedance_round_trip_through_the_wire(model, t_ns):
+    msg = _wire(M.impedance_msg(model, stamp=t_ns, frame_id='catheter_base'))
+    assert M.stamp_ns(msg) == t_ns and msg.status == model.status
+    assert msg.kind == model.kind
+    fields = M.impedance_fields(msg)
+    assert fields == model.to_fields()
+    back = Impedance.from_fields(fields)
+    for x, xd, xdd in ((0.0, 0.0, 0.0), (0.031, 0.02, -0.5), (0.2, -0.04, 1.0)):
+        assert back.force(x, xd, xdd) == model.force(x, xd, xdd)
+
+
+def test_impedance_table_fields_land_in_the_named_arrays():
+    model = Impedance(0.1, 2.0, 3.0, 0.5, True, x0=0.01, dx=0.005, S=[1, 2, 3], F=[4, 5, 6],
+                      B=[7, 8, 9], C=[10, 11, 12], status='ok')
+    msg = M.impedance_msg(model)
+    assert msg.kind == ImpedanceModel.KIND_TABLE
+    assert list(msg.s_table) == [1, 2, 3] and list(msg.c_table) == [10, 11, 12]
+    assert list(msg.f_table) == [4, 5, 6] and list(msg.b_table) == [7, 8, 9]
+    assert (msg.x0, msg.dx, msg.valid) == (0.01, 0.005, True)
+    linear = M.impedance_msg(Impedance(1.0, 2.0, 3.0, 4.0, False))
+    assert linear.kind == ImpedanceModel.KIND_LINEAR and len(linear.s_table) == 0
+    assert not linear.valid
+
+
+def test_impedance_bad_input_is_refused_naming_the_field():
+    good = Impedance(0.1, 2.0, 3.0, 0.5, True, S=[1, 2], F=[1, 2], B=[1, 2], C=[1, 2])
+    fields = good.to_fields()
+    for key, value, match in (('m', math.nan, 'model m'), ('kind', 7.0, 'kind'),
+                              ('S1', math.inf, 'model S1'), ('n', 1.0, 'model n')):
+        bad = dict(fields, **{key: value})
+        with pytest.raises(ValueError, match=match):
+            M.impedance_msg(bad)
+    with pytest.raises(ValueError, match="missing the field 'F1'"):
+        M.impedance_msg({k: v for k, v in fields.items() if k != 'F1'})
+    with pytest.raises(ValueError, match="missing the field 'valid'"):
+        M.impedance_msg({'m': 0.0, 'c': 0.0, 'k': 0.0, 'offset': 0.0})
+    with pytest.raises(ValueError, match='model must'):
+        M.impedance_msg(42)
+    msg = M.impedance_msg(good)
+    msg.f_table = [1.0]
+    with pytest.raises(ValueError, match='msg.f_table'):
+        M.impedance_fields(msg)
+    msg = M.impedance_msg(good)
+    msg.c = math.nan
+    with pytest.raises(ValueError, match='msg.c'):
+        M.impedance_fields(msg)
+    msg.c, msg.kind = 0.0, 5
+    with pytest.raises(ValueError, match='msg.kind'):
+        M.impedance_fields(msg)
+    with pytest.raises(ValueError, match='stamp'):
+        M.impedance_msg(good, stamp=-1)
+    with pytest.raises(ValueError, match='stamp'):
+        M.impedance_msg(good, stamp=1.5)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(FIN, min_size=2, max_size=3), st.floats(0, 10), st.floats(0, 10),
+       st.floats(-1, 1), st.sampled_from(sorted(M.TIP_FORCE_STATUS)),
+       st.sampled_from(M.TIP_FORCE_METHODS), st.floats(0, 100))
+def test_tip_force_round_trip(force, vx, vy, rho, status, method, dist):
+    cxy = rho * math.sqrt(vx * vy)
+    cov = [[vx, cxy], [cxy, vy]]
+    msg = _wire(M.tip_force_msg(force, cov, status, method, dist, stamp=123))
+    v = M.tip_force_values(msg)
+    assert v['force'] == tuple(force + [0.0] * (3 - len(force)))
+    assert v['covariance'] == ((vx, cxy), (cxy, vy))
+    assert v['status'] == getattr(TipForceEstimate, status.upper())
+    assert v['status_name'] == status and v['method'] == method
+    assert v['domain_distance'] == dist and v['stamp_ns'] == 123
+    assert v['frame_id'] == 'catheter_base'
+
+
+def test_tip_force_statuses_are_the_message_constants_and_bad_input_is_refused():
+    assert M.TIP_FORCE_STATUS == {'ok': 0, 'out_of_domain': 1, 'non_finite_input': 2,
+                                  'no_shape': 3, 'unobservable_axial': 4}
+    assert M.tip_force_values(M.tip_force_msg((0.1, 0.2)))['covariance'] is None
+    assert M.tip_force_msg((0, 0), status=TipForceEstimate.NO_SHAPE).status == 3
+    for kwargs, match in (({'force': (math.nan, 0.0)}, r'force\[0\]'),
+                          ({'force': (1.0,)}, 'force'),
+                          ({'force': 'ab'}, 'force'),
+                          ({'covariance': [[1, 2], [3, 4]]}, 'symmetric'),
+                          ({'covariance': [[-1, 0], [0, 1]]}, 'diagonal'),
+                          ({'covariance': [1, 0, 0]}, 'covariance'),
+                          ({'covariance': [[1, 0], [0, math.inf]]}, r'covariance\[3\]'),
+                          ({'status': 'bogus'}, 'status'), ({'status': 9}, 'status'),
+                          ({'method': 'bogus'}, 'method'),
+                          ({'domain_distance': -1.0}, 'domain_distance')):
+        kw = {'force': (0.1, 0.2)}
+        kw.update(kwargs)
+        with pytest.raises(ValueError, match=match):
+            M.tip_force_msg(**kw)
+
+
+@settings(max_examples=30, deadline=None)
+@given(FIN, FIN, FIN, FIN)
+def test_master_command_round_trip(x, v, a, r):
+    msg = _wire(M.master_command_msg(x, v, a, r, stamp=5_000_000_001))
+    assert M.master_command_values(msg) == (x, v, a, r)
+    assert msg.header.stamp.sec == 5 and msg.header.stamp.nanosec == 1
+
+
+def test_master_command_refuses_non_finite():
+    with pytest.raises(ValueError, match='acceleration'):
+        M.master_command_msg(0.0, 0.0, math.inf)
+    msg = MasterCommand(position=math.nan)
+    with pytest.raises(ValueError, match='msg.position'):
+        M.master_command_values(msg)
+
+
+def test_recorded_typed_messages_decode_from_the_mcap_schema_text(tmp_path):
+    """The recorder stores the custom definitions as schemas: rosbags with a typestore built
+    from the file's own schema text, and mcap_ros2, decode every message."""
+    from mcap.reader import make_reader
+    from mcap_ros2.reader import read_ros2_messages
+    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+    from catheter_bringup.recorder import McapRecorder
+
+    model = Impedance(0.1, 2.0, 3.0, 0.5, True, x0=0.01, dx=0.005, S=[1, 2, 3], F=[4, 5, 6],
+                      B=[7, 8, 9], C=[10, 11, 12], status='ok')
+    sent = {'/slave/impedance': M.impedance_msg(model, stamp=1),
+            '/catheter/tip_estimate': M.tip_force_msg((0.1, -0.2), [[1e-4, 0], [0, 2e-4]],
+                                                      'out_of_domain', 'mlp', 0.3, stamp=2),
+            '/master/command': M.master_command_msg(0.01, 0.02, -0.3, 0.0, stamp=3)}
+    path = tmp_path / 'typed.mcap'
+    rec = McapRecorder(path)
+    for i, (topic, msg) in enumerate(sent.items()):
+        rec.add_topic(topic, f'catheter_interfaces/msg/{type(msg).__name__}')
+        rec.write(topic, serialize_message(msg), i)
+    rec.close()
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with open(path, 'rb') as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        for schema in summary.schemas.values():
+            assert schema.name.startswith('catheter_interfaces/msg/')
+            assert 'MSG: std_msgs/Header' in schema.data.decode()
+            store.register(get_types_from_msg(schema.data.decode(), schema.name))
+        got = {c.topic: store.deserialize_cdr(m.data, summary.schemas[c.schema_id].name)
+               for _, c, m in reader.iter_messages()}
+    imp = got['/slave/impedance']
+    assert imp.KIND_TABLE == 1 and imp.kind == 1 and list(imp.b_table) == [7, 8, 9]
+    assert imp.status == 'ok' and imp.valid
+    est = got['/catheter/tip_estimate']
+    assert est.status == est.OUT_OF_DOMAIN and est.method == 'mlp'
+    assert list(est.covariance) == [1e-4, 0, 0, 2e-4] and est.force.y == -0.2
+    assert got['/master/command'].acceleration == -0.3
+
+    decoded = {m.channel.topic: m.ros_msg for m in read_ros2_messages(str(path))}
+    assert list(decoded['/slave/impedance'].c_table) == [10, 11, 12]
+    assert decoded['/catheter/tip_estimate'].domain_distance == 0.3
+    assert decoded['/master/command'].position == 0.01
+    assert pathlib.Path(path).stat().st_size > 0

@@ -1,0 +1,101 @@
+"""Mutants of the impedance_master and sim_slave cores for tests/mutation/mutate.py: each
+breaks one property the packages promise (the fail-safe haptic path, bounded influence,
+forgetting, the presliding selection, the envelope, state files, the vessel and operator
+families); the core tests (without the ROS node tests) must kill every one.
+
+    python tests/mutation/mutate.py ima
+"""
+from mutate import Mutant
+
+TESTS = ['tests/impedance_master', 'tests/sim_slave', '-k',
+         'not test_nodes and not test_graph and not test_node and not test_camera_node']
+
+I = 'src/impedance_master/impedance_master/'
+S = 'src/sim_slave/sim_slave/'
+
+MUTANTS = [
+    # -- what reaches the hand (issue 10 item 1)
+    Mutant('I01', I + 'safety.py',
+           'ok = isinstance(f, numbers.Real) and math.isfinite(f) and abs(f) <= ABSURD_FORCE',
+           'ok = isinstance(f, numbers.Real)',
+           'the clamp compares a NaN (it passes min/max) instead of falling back'),
+    Mutant('I02', I + 'safety.py',
+           '        return self._hold * (1.0 - self._t_fb / T)',
+           '        return self._hold',
+           'the fallback holds the force for ever instead of ramping it to 0 N'),
+    Mutant('I03', I + 'rendering.py',
+           'alpha = min(-e / (self.dt * xd * xd), self.max_damping)',
+           'alpha = -e / (self.dt * xd * xd)',
+           'issue 14 survivor: the passivity damping cap removed (a jolt at slow velocity)'),
+    Mutant('I04', I + 'rendering.py',
+           '        if not (math.isfinite(f) and abs(f) < 1e3) or not math.isfinite(self._bump):',
+           '        if False:',
+           'a model whose evaluation overflows is not dropped for the right reason'),
+    Mutant('I05', I + 'rendering.py',
+           '        why = self.envelope.check(imp)',
+           '        why = None',
+           'models outside the envelope (m = 1e308, k = 1e300) are rendered'),
+    # -- the identifiers (issue 10 item 2, issue 14)
+    Mutant('I06', I + 'history.py',
+           'self._lam = math.exp(-1.0 / (self.memory * self.rate))',
+           'self._lam = 1.0',
+           'issue 14 survivor: the forgetting removed'),
+    Mutant('I07', I + 'history.py',
+           '        decay = self._lam ** k',
+           '        decay = self._lam',
+           'issue 14 survivor: the forgetting changed (per batch instead of per sample)'),
+    Mutant('I08', I + 'history.py',
+           '        x, xd, xdd_in, f = self._despike(x, xd, xdd_in, f)',
+           '        pass',
+           'one plausible outlier (5 N, a 2 cm glitch) reaches the fit'),
+    Mutant('I09', I + 'history.py',
+           '            self._add_row(x, xd, xdd, zs, f_fit)',
+           '            self._add_row(x, xd, xdd, zs, f)',
+           'a burst of outliers enters the fit unclipped'),
+    Mutant('I10', I + 'gating.py',
+           '        if (not lo <= x <= hi or abs(xd) > self.max_speed or abs(f) > self.max_force',
+           '        if (not lo <= x <= hi or abs(f) > self.max_force',
+           'a velocity of 1e300 is not refused (inf in the information matrix)'),
+    Mutant('I11', I + 'history.py',
+           '        if best != cur and objs[cur] - objs[best] > self.select_margin * var:',
+           '        if best != cur:',
+           'the presliding length switches on chance differences of fit'),
+    # -- envelope and state files (issue 10 item 5)
+    Mutant('I12', I + 'history.py',
+           "        if probe.n_moving >= self.window * self.rate and probe.status != 'ok':",
+           '        if False:',
+           'a tampered state file (b x 1e6) loads and publishes a 72 kN model'),
+    Mutant('I13', I + 'state_file.py',
+           '            self.save_path = beside(self.path)',
+           '            pass',
+           'a rejected state file is overwritten at shutdown'),
+    Mutant('I14', I + 'state_file.py',
+           '        os.replace(tmp, target)',
+           "        os.replace(tmp, target); open(str(target) + '.tmp', 'w').close()",
+           'a write leaves a temporary file behind'),
+    Mutant('I15', I + 'envelope.py',
+           '                fric = np.abs(grid(imp.F)) + (2.0 + imp.beta) * np.abs(grid(imp.B))',
+           '                fric = np.abs(grid(imp.F)) + np.abs(grid(imp.B))',
+           'the force bound misses the breakaway state range (not the maximum any more)'),
+    # -- operator and vessel families (issue 12)
+    Mutant('I16', I + 'operator.py',
+           '        self._amp = min((self.x_hi - self.x_lo) / span if span > 0 else math.inf,',
+           '        self._amp = max((self.x_hi - self.x_lo) / span if span > 0 else math.inf,',
+           'the sines operator leaves the 4-56 mm range or exceeds 41.3 mm/s'),
+    Mutant('S01', S + 'vessel_extras.py',
+           '    return e.stenosis_force * math.sin(2.0 * math.pi * d / e.stenosis_length)',
+           '    return e.stenosis_force * abs(math.sin(2.0 * math.pi * d / e.stenosis_length))',
+           'the stenosis stops being conservative (net work over its length)'),
+    Mutant('S02', S + 'vessel_extras.py',
+           '    fc = e.friction_quadratic * x * x',
+           '    fc = e.friction_quadratic * x',
+           'quadratic friction growth becomes linear'),
+    Mutant('S03', S + 'vessel.py',
+           '                    2.0 * math.pi * e.breathing_frequency * t + self.breathing_phase)',
+           '                    2.0 * math.pi * p.cardiac_frequency * t + self.breathing_phase)',
+           'breathing at the heart rate'),
+    Mutant('S04', S + 'vessel.py',
+           '            + self.extras.wall_viscous * xd',
+           '            - self.extras.wall_viscous * xd',
+           'the Kelvin-Voigt damper of the wall pushes instead of resisting'),
+]
