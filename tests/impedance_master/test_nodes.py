@@ -236,5 +236,7 @@ def test_identifier_node_never_overwrites_a_state_file_it_could_not_load(ros, tm
     node.ident.update(0.03, 0.01, 0.0, 0.2)
     node.close()
     assert path.read_text() == '[1, 2, 3]'
-    assert (tmp_path / 'ident.json.new').exists()
+    beside = sorted(p.name for p in tmp_path.iterdir() if p.name != 'ident.json')
+    assert beside == ['ident.1.json'], beside
+    assert node.diag.level()[0] == 1 and 'rejected' in node.diag.level()[1]
     node.destroy_node()

@@ -15,8 +15,8 @@ pytest.importorskip('sim_slave.sim_slave_node')
 @pytest.fixture(scope='module')
 def statuses(tmp_path_factory):
     sc = load_scenario('smoke')
-    sc['duration'] = 3.5
-    sc['link']['outages'] = [[1.5, 1.0]]
+    sc['duration'] = 5.5
+    sc['link']['outages'] = [[3.5, 1.0]]          # (the identifier has a model by then)
     bag = tmp_path_factory.mktemp('diag') / 'diag.mcap'
     res = ScenarioRunner(sc, bag=str(bag), progress=False, log=lambda *_: None).run()
     assert res.status == 'complete', res.reason
@@ -38,19 +38,19 @@ def _at(rows, t):
 @pytest.mark.parametrize('node', ['sim_slave_node', 'sim_haptic_node'])
 def test_sim_nodes_warn_during_their_link_outage_and_recover(statuses, node):
     rows = statuses[node]
-    assert [r[0] for r in rows] == [1.0, 2.0, 3.0]
-    t1, t2, t3 = rows
-    assert t1[1] == 0 and t1[2] == 'ok'
-    assert t2[1] == 1 and 'link outage' in t2[2] and 'link_outage' in t2[3]
-    assert t3[1] == 0 and 'link_outage' not in t3[3]
+    assert [r[0] for r in rows] == [1.0, 2.0, 3.0, 4.0, 5.0]
+    before, during, after = rows[2], rows[3], rows[4]
+    assert before[1] == 0 and before[2] == 'ok'
+    assert during[1] == 1 and 'link outage' in during[2] and 'link_outage' in during[3]
+    assert after[1] == 0 and 'link_outage' not in after[3]
 
 
 @pytest.mark.parametrize('node', ['ima_master_node', 'dfr_master_node'])
-def test_renderers_report_stale_feedback_during_the_outage(statuses, node):
+def test_renderers_report_a_held_model_during_the_outage(statuses, node):
     rows = statuses[node]
-    during, after = _at(rows, 2.0), _at(rows, 3.0)
-    assert during[1] >= 1 and 'feedback_stale' in during[3], during
-    assert 'feedback_stale' not in after[3], after
+    during, after = _at(rows, 4.0), _at(rows, 5.0)
+    assert during[1] >= 1 and 'held' in during[3].get('renderer', ''), during
+    assert 'renderer' not in after[3], after
 
 
 def test_every_level_matches_its_conditions(statuses):

@@ -10,10 +10,12 @@ Subscribes  master/command         sensor_msgs/JointState, the LOCAL master traj
 Publishes   master/rendered_force  geometry_msgs/WrenchStamped, force.x = desired force N
                                    (positive resists insertion), frame catheter_base; at
                                    `rate` Hz on the node clock while subscribed. QOS_FAST.
-            /diagnostics           rendered, models received / switched / ignored (invalid),
-                                   clamps, bad messages, age of the last command; conditions:
-                                   no model yet, feedback stale (link outage), no command,
-                                   output clamped or not finite, bad messages.
+            /diagnostics           rendered, models received, bad messages, the renderer's
+                                   counters (renderer.*), age of the last command; conditions:
+                                   the renderer's status (no model yet, model held = link
+                                   outage, model refused: WARN; fallback, bad input: ERROR),
+                                   no fresh command, output clamped (WARN) or not finite
+                                   (ERROR), bad messages (WARN).
 Topic names are relative (the node's namespace applies). Modes (parameter `mode`):
   ima         ImaRenderer with bumpless model switches, slew limiting and the time-domain
               passivity controller (project default);
@@ -42,6 +44,8 @@ from impedance_master.impedance import Impedance
 from impedance_master.rendering import DfrRenderer, ImaRenderer
 
 MODES = ('ima', 'ima_thesis', 'dfr')
+#: the renderer's status levels ('ok', 'warn', 'error') as diagnostics levels
+_LEVELS = {'ok': 0, 'warn': WARN, 'error': ERROR}
 
 PARAMS = table(
     Param('mode', 'ima', 'ima (default model, bumpless), ima_thesis (linear Eq. 35) or dfr '
@@ -49,13 +53,21 @@ PARAMS = table(
     Param('rate', 1000.0, 'rendering rate, Hz', 10.0, 5000.0),
     Param('limit', 2.0, 'safe force limit |f_d|, N (applies from the next tick)', 0.01, 20.0,
           dynamic=True),
-    Param('blend_time', 0.05, 'bumpless model switch time constant, s', 0.0, 5.0),
-    Param('max_rate', 20.0, 'slew-rate limit of the desired force, N/s', 0.01, 1e6),
+    Param('blend_time', 0.05, 'bumpless model switch time constant, s (mode ima; applies '
+          'from the next tick)', 0.0, 5.0, dynamic=True),
+    Param('max_rate', 20.0, 'slew-rate limit of the desired force, N/s (mode ima)', 0.01, 1e6,
+          dynamic=True),
     Param('passivity', True, 'time-domain passivity controller on the rendered model (mode '
-          'ima only)'),
-    Param('stale_after', 0.1, 'feedback (model or force) older than this is reported as stale '
+          'ima)', dynamic=True),
+    Param('fallback_time', 0.5, 'after a dropped model or bad input the renderer holds the '
+          'last safe force and ramps it to 0 N over this time, s (mode ima)', 0.0, 10.0,
+          dynamic=True),
+    Param('stale_after', 0.1, 'feedback (model or force) older than this is reported as held '
           '(link outage), s', 0.001, 60.0, dynamic=True),
 )
+#: the renderer settings that only the default mode has (ima_thesis renders Eq. 35 as the
+#: thesis does: no blending, no slew limit, no passivity controller)
+_IMA_ONLY = ('blend_time', 'max_rate', 'passivity', 'fallback_time')
 
 
 def fields_from_msg(msg: JointState) -> dict:
@@ -94,12 +106,14 @@ class ImaMasterNode(Node):
             self.renderer = ImaRenderer(limit=self.limit, blend_time=0.0, max_rate=1e6, dt=dt)
         else:
             self.renderer = ImaRenderer(limit=self.limit, blend_time=p['blend_time'],
-                                        max_rate=p['max_rate'], dt=dt, passivity=p['passivity'])
+                                        max_rate=p['max_rate'], dt=dt, passivity=p['passivity'],
+                                        fallback_time=p['fallback_time'])
+        self.renderer.stale_time = p['stale_after']
         self.state = None            # (x, xd, xdd) of the local trajectory
         self._t_state = None         # node-clock ns of the last command
-        self._t_feedback = None      # node-clock ns of the last model (ima) / force (dfr)
         self._last_values = None
         self._last_names = None
+        self._last_imp = None
         self.diag = Diagnostics(self)
         for k in ('rendered', 'bad_messages', 'nonfinite_outputs', 'clamped_outputs'):
             self.diag.count(k, 0)
@@ -118,6 +132,14 @@ class ImaMasterNode(Node):
             f'(limit {self.limit:g} N)')
 
     def _apply_params(self, changes, values) -> None:
+        for k in _IMA_ONLY:
+            if k in changes and self.mode != 'ima':
+                raise ValueError(f'{k} applies in mode ima only (this node renders {self.mode})')
+        for k in _IMA_ONLY:                    # the renderer validates (ValueError refuses)
+            if k in changes:
+                setattr(self.renderer, k, changes[k])
+        if 'stale_after' in changes:
+            self.renderer.stale_time = values['stale_after']
         if 'limit' in changes:
             self.limit = values['limit']
             set_core_limit(self.renderer, self.limit)
@@ -143,8 +165,10 @@ class ImaMasterNode(Node):
             return
         values = list(msg.position)
         if values == self._last_values and list(msg.name) == self._last_names:
-            self.diag.count('models_unchanged')   # the identifier re-sends a held model
-            self._t_feedback = self._now_ns()
+            # the identifier re-sends a held model: offered again (no parsing), which tells
+            # the renderer it is fresh
+            self.diag.count('models_unchanged')
+            self.renderer.set_impedance(self._last_imp)
             return
         try:
             imp = Impedance.from_fields(fields_from_msg(msg))
@@ -153,8 +177,7 @@ class ImaMasterNode(Node):
             return
         if self.mode == 'ima_thesis' and imp.kind != 0:
             imp = Impedance(imp.m, imp.c, imp.k, imp.offset, imp.valid)
-        self._last_values, self._last_names = values, list(msg.name)
-        self._t_feedback = self._now_ns()
+        self._last_values, self._last_names, self._last_imp = values, list(msg.name), imp
         self.diag.count('models_received')
         if not self.renderer.set_impedance(imp):
             self.diag.count('models_ignored_invalid')
@@ -171,7 +194,6 @@ class ImaMasterNode(Node):
             self.diag.bad_input('force', str(exc))
             return
         self.renderer.set_force(f)
-        self._t_feedback = self._now_ns()
         self.diag.count('forces_received')
 
     def _render(self) -> None:
@@ -210,17 +232,16 @@ class ImaMasterNode(Node):
         return f
 
     def _conditions(self) -> None:
-        now = self._now_ns()
+        """The renderer's own health (no model, model held = link outage, model refused,
+        fallback) and the master command's age."""
         d = self.diag
-        if self.mode != 'dfr':
-            d.condition('no_model', WARN if self.renderer.model is None else 0,
-                        'no valid model yet: rendering 0 N')
+        st = self.renderer.status()
+        d.condition('renderer', _LEVELS.get(st.level, ERROR), f'{st.state}: {st.message}')
+        d.set('renderer_state', st.state)
+        for k, v in sorted(st.counters.items()):
+            d.set('renderer.' + k, v)
+        now = self._now_ns()
         stale = self.params['stale_after'] * 1e9
-        fb_age = None if self._t_feedback is None else now - self._t_feedback
-        d.condition('feedback_stale', WARN if fb_age is None or fb_age > stale else 0,
-                    'no feedback from the slave yet' if fb_age is None else
-                    f'no {"force" if self.mode == "dfr" else "model"} from the slave for '
-                    f'{fb_age * 1e-9:.3f} s (link outage?)')
         cmd_age = None if self._t_state is None else now - self._t_state
         d.condition('no_command', WARN if cmd_age is None or cmd_age > stale else 0,
                     'no master command yet' if cmd_age is None else
@@ -231,12 +252,8 @@ class ImaMasterNode(Node):
         self._conditions()
         self.diag.set('mode', self.mode)
         self.diag.set('limit_n', float(self.limit))
-        self.diag.set('clamped', r.n_clamped)
         if isinstance(r, ImaRenderer):
-            self.diag.set('model_switches', r.n_switches)
-            self.diag.set('models_ignored', r.n_ignored)
             self.diag.set('has_model', str(r.model is not None))
-            self.diag.set('passivity_steps', r.n_passivity)
             self.diag.set('passivity_energy_j', float(r.energy))
         if self._t_state is not None:
             self.diag.set('command_age_s', (self._now_ns() - self._t_state) * 1e-9)

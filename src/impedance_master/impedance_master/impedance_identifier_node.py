@@ -17,15 +17,14 @@ Publishes   slave/impedance    sensor_msgs/JointState used as stamped named floa
 Parameters: identifier (default | thesis), window s, rate Hz (sample rate of the joint
 states), publish_rate Hz (50-1000, applies at run time), state_file (default identifier
 only: a JSON file of the learned information, loaded at start if it exists and written at
-shutdown, so the model keeps learning across sessions on the same phantom; '' = none; a file
-that cannot be loaded is never overwritten: the new state is written beside it, as
-<state_file>.new). Every sample is learned from, subscribed or not (the default model learns
-from the whole history); publishing happens only while subscribed. Topic names are relative
-(the node's namespace applies). Thin: the identification is impedance_master.identification.
+shutdown, so the model keeps learning across sessions on the same phantom; '' = none; the
+core's StateFile: a file it rejects is never overwritten, the new state is written beside it,
+<stem>.<n>.json, and the rejection is a WARN). Every sample is learned from, subscribed or
+not (the default model learns from the whole history); publishing happens only while
+subscribed. Topic names are relative (the node's namespace applies). Thin: the
+identification is impedance_master.identification.
 """
 from __future__ import annotations
-
-import os
 
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -37,6 +36,7 @@ from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import run_node
 from impedance_master.identification import SlidingWindowIdentifier, make_identifier
+from impedance_master.state_file import StateFile
 
 PARAMS = table(
     Param('identifier', 'default', 'default: the history model (make_identifier); thesis: the '
@@ -63,23 +63,22 @@ class ImpedanceIdentifierNode(Node):
         window, rate = p['window'], p['rate']
         self.publish_rate = p['publish_rate']
         self.state_file = p['state_file']
-        self._write_to = self.state_file     # where close() writes the learned state
         self.model = None
+        #: the learned state on disk (default identifier, state_file set): loaded now, saved
+        #: at close(); a file it rejects is kept and the new state goes beside it
+        self.sf = None
         if self.kind == 'thesis':
             self.ident = SlidingWindowIdentifier(window=window, rate=rate)
         else:
             self.ident = make_identifier(window=window, rate=rate)
-            if self.state_file and os.path.exists(self.state_file):
-                try:
-                    self.model = self.ident.load_state(self.state_file)
-                    self.get_logger().info(f'continuing from the learned state in '
-                                           f'{self.state_file} ({self.ident.n_moving} samples '
-                                           'of motion)')
-                except (OSError, ValueError) as exc:
-                    self._write_to = self.state_file + '.new'
-                    self.get_logger().warning(
-                        f'ignoring state file {self.state_file}: {exc}; it is kept as it is, '
-                        f'the new state will be written to {self._write_to}')
+            if self.state_file:
+                self.sf = StateFile(self.state_file)
+                self.model = self.sf.load(self.ident)
+                self._sf_message = self.sf.message
+                if self.sf.rejected:
+                    self.get_logger().warning(self.sf.message)
+                else:
+                    self.get_logger().info(self.sf.message)
         self._published_model = None
         self._ill_since = None       # node-clock ns since when the status is ill_conditioned
         self.diag = Diagnostics(self)
@@ -140,12 +139,15 @@ class ImpedanceIdentifierNode(Node):
 
     def close(self) -> None:
         """Write the learned state (default identifier, state_file set)."""
-        if self._write_to and self.kind == 'default':
-            try:
-                self.ident.save_state(self._write_to)
-                self.get_logger().info(f'learned state written to {self._write_to}')
-            except OSError as exc:
-                self.get_logger().error(f'could not write {self._write_to}: {exc}')
+        if self.sf is None:
+            return
+        try:
+            written = self.sf.save(self.ident)
+        except (OSError, ValueError) as exc:
+            self.get_logger().error(f'could not write the learned state: {exc}')
+            return
+        if written:
+            self.get_logger().info(f'learned state written to {written}')
 
     def _to_diag(self) -> None:
         d = self.diag
@@ -156,6 +158,11 @@ class ImpedanceIdentifierNode(Node):
         if self.model is not None:
             d.set('model_valid', str(self.model.valid))
             d.set('model_kind', 'table' if self.model.kind else 'linear')
+        for k in ('n_rejected', 'n_clipped', 'n_out_of_envelope'):
+            if hasattr(self.ident, k):
+                d.set(k[2:], getattr(self.ident, k))
+        if self.sf is not None and self.sf.rejected:
+            d.condition('state_file', WARN, self._sf_message)
         d.condition('no_model', WARN if self.model is None or not self.model.valid else 0,
                     f'no valid model yet (identifier {status})')
         now = self.get_clock().now().nanoseconds
