@@ -129,6 +129,19 @@ def points_to_path(points, stamp, frame_id: str = T.FRAME_CATHETER_BASE,
     return msg
 
 
+#: px, drawing coordinates are kept within +-this (OpenCV takes int32 pixel positions; a wild
+#: calibration or base_px gives positions far outside the image, or not finite)
+_DRAW_LIMIT = 1e6
+
+
+def _draw_points(pts, shift: int = 0) -> np.ndarray:
+    """Pixel positions (n, 2) as the int32 (n, 1, 2) OpenCV draws, scaled by 2**shift, with
+    non-finite and far-away positions pulled to the drawing limit."""
+    a = np.nan_to_num(np.asarray(pts, dtype=float) * (1 << shift), nan=-_DRAW_LIMIT,
+                      posinf=_DRAW_LIMIT, neginf=-_DRAW_LIMIT)
+    return np.rint(np.clip(a, -_DRAW_LIMIT, _DRAW_LIMIT)).astype(np.int32).reshape(-1, 1, 2)
+
+
 def debug_overlay(frame: np.ndarray, obs, psi: np.ndarray) -> np.ndarray:
     """BGR overlay: the catheter mask tinted, the ordered centreline (green), the fitted
     curve (red), control points (yellow), base (blue) and tip (magenta) ends."""
@@ -140,16 +153,15 @@ def debug_overlay(frame: np.ndarray, obs, psi: np.ndarray) -> np.ndarray:
         sub[obs.mask > 0] = (0.5 * sub[obs.mask > 0] + np.array([0, 60, 120])).astype(np.uint8)
     if obs.ok:
         from catheter_shape.camera import psi_to_pixels
-        pts = np.rint(obs.pixels * 4).astype(np.int32).reshape(-1, 1, 2)
-        cv2.polylines(img, [pts], False, (0, 200, 0), 1, cv2.LINE_AA, 2)
+        cv2.polylines(img, [_draw_points(obs.pixels, 2)], False, (0, 200, 0), 1, cv2.LINE_AA, 2)
         curve = bezier_eval(obs.control_points, np.linspace(0, 1, 100))
-        cpx = psi_to_pixels(psi, curve)
-        cv2.polylines(img, [np.rint(cpx * 4).astype(np.int32).reshape(-1, 1, 2)], False,
-                      (0, 0, 255), 1, cv2.LINE_AA, 2)
-        for q in psi_to_pixels(psi, obs.control_points):
-            cv2.circle(img, (int(round(q[0])), int(round(q[1]))), 4, (0, 220, 220), 1, cv2.LINE_AA)
-        cv2.circle(img, tuple(int(round(x)) for x in obs.base_px), 5, (255, 0, 0), 2)
-        cv2.circle(img, tuple(int(round(x)) for x in obs.tip_px), 5, (255, 0, 255), 2)
+        cv2.polylines(img, [_draw_points(psi_to_pixels(psi, curve), 2)], False, (0, 0, 255), 1,
+                      cv2.LINE_AA, 2)
+        for q in _draw_points(psi_to_pixels(psi, obs.control_points)).reshape(-1, 2):
+            cv2.circle(img, (int(q[0]), int(q[1])), 4, (0, 220, 220), 1, cv2.LINE_AA)
+        for p, colour in ((obs.base_px, (255, 0, 0)), (obs.tip_px, (255, 0, 255))):
+            q = _draw_points([p]).reshape(2)
+            cv2.circle(img, (int(q[0]), int(q[1])), 5, colour, 2)
         txt = (f'ok  residual {obs.residual * 1e3:.3f} mm  '
                f'{obs.timings.get("total", 0) * 1e3:.1f} ms')
     else:
