@@ -56,7 +56,8 @@ def threshold_frame(gray: np.ndarray, threshold: int = 132,
     keeps g < threshold (the catheter is at least 255 - threshold grey levels darker than
     the scene behind it). Without a background, 'fixed' keeps gray < threshold.
     'otsu' picks the level by Otsu's method on g; 'adaptive' keeps pixels darker than the
-    local mean (block x block pixels) minus `offset`.
+    local mean (block x block pixels, odd, at least 3: a coarse calibration can ask for
+    less) minus `offset`.
 
     Returns (mask uint8 0/255, score uint8, level): score = 255 - g is the darkness image and
     mask == score > level (used for sub-pixel edge search; level is NaN for 'adaptive').
@@ -74,7 +75,7 @@ def threshold_frame(gray: np.ndarray, threshold: int = 132,
     elif method == 'adaptive':
         g = cv2.bitwise_not(score)
         mask = cv2.adaptiveThreshold(g, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY_INV,
-                                     int(block) | 1, float(offset))
+                                     max(3, int(block) | 1), float(offset))
         level = float('nan')
     else:
         raise ValueError(f'method must be one of {METHODS}, got {method!r}')
