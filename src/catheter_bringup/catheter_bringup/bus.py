@@ -73,11 +73,24 @@ class LocalBus:
     subscription of its topic (raw subscriptions get the bytes, the others a fresh deserialised
     copy). Deterministic and without DDS delivery latency. The nodes' own DDS subscriptions
     stay (subscription counts, "work only while subscribed" keep working) but what DDS delivers
-    to them is dropped. With ``dds=True`` every message is also published on DDS, for tools
-    outside the process."""
+    to them is dropped (cheaply: they are switched to raw, so nothing is deserialised for
+    them). With ``dds=True`` every message is also published on DDS, for tools outside the
+    process.
 
-    def __init__(self, dds: bool = False):
+    ``immediate=True`` (real time driven by an executor): a publish delivers at once, in the
+    publisher's callback (a publish made by a subscriber during delivery is queued and
+    delivered by the same loop, in order). What DDS delivers to subscriptions outside the bus
+    is counted per topic in ``received``."""
+
+    def __init__(self, dds: bool = False, immediate: bool = False):
         self.queue = collections.deque()
+        self.immediate = immediate
+        self._delivering = False
+        #: s spent delivering in total (callers subtract it from a timer's own time)
+        self.delivery_s = 0.0
+        #: per topic: messages DDS delivered to this process's subscriptions outside the bus
+        self.received: Dict[str, int] = {}
+        self._counted = set()
         self.counts: Dict[str, int] = {}
         self.delivered = 0
         self.dds = dds
@@ -111,6 +124,8 @@ class LocalBus:
                     _orig(msg)
                 bus.counts[_topic] += 1
                 bus.queue.append((_topic, data))
+                if bus.immediate and not bus._delivering:
+                    bus.deliver_all()
 
             intercept_publish(pub, publish)
 
@@ -122,12 +137,42 @@ class LocalBus:
                 # nobody in this process publishes it (yet): DDS delivers it, the runner spins
                 # the executor for it
                 self.external.add(id(sub))
+                self._count_external(sub, node.get_name())
                 continue
             self.external.discard(id(sub))
             self._subs.add(id(sub))
-            cb, with_info = take_callback(sub, _drop)
+            raw = bool(sub.raw)
+            # what DDS still delivers is dropped, taken raw: nothing deserialised for it
+            cb, with_info = take_callback(sub, _drop, raw=True)
             self.subs.setdefault(sub.topic_name, []).append(
-                (cb, bool(sub.raw), sub.msg_type, with_info, node.get_name()))
+                (cb, raw, sub.msg_type, with_info, node.get_name()))
+
+    def _count_external(self, sub, owner: str) -> None:
+        """Count (and time) what DDS delivers to a subscription outside the bus."""
+        if id(sub) in self._counted or not self.immediate:
+            return
+        self._counted.add(id(sub))
+        topic = sub.topic_name
+        self.received.setdefault(topic, 0)
+
+        def counting(orig, bus=self, _topic=topic, _owner=owner):
+            def callback(*args):
+                bus.received[_topic] += 1
+                return bus.timed(_owner, orig, *args)
+            return callback
+
+        wrap_callback(sub, counting)
+
+    def timed(self, owner: str, fn, *args):
+        """Call fn(*args), adding its wall time minus the deliveries it caused to `owner`'s
+        cost (a timer's own work, not its subscribers')."""
+        clock = time.perf_counter
+        d0 = self.delivery_s
+        t = clock()
+        try:
+            return fn(*args)
+        finally:
+            self.cost.add(owner, clock() - t - (self.delivery_s - d0))
 
     def deliver_all(self) -> int:
         from rclpy.serialization import deserialize_message
@@ -135,17 +180,23 @@ class LocalBus:
         q = self.queue
         clock = time.perf_counter
         cost = self.cost
-        while q:
-            topic, data = q.popleft()
-            for cb, raw, msg_type, with_info, owner in self.subs.get(topic, ()):
-                t = clock()
-                msg = data if raw else deserialize_message(data, msg_type)
-                if with_info:
-                    cb(msg, {})
-                else:
-                    cb(msg)
-                cost.add(owner, clock() - t)
-                n += 1
+        self._delivering = True
+        t_all = clock()
+        try:
+            while q:
+                topic, data = q.popleft()
+                for cb, raw, msg_type, with_info, owner in self.subs.get(topic, ()):
+                    t = clock()
+                    msg = data if raw else deserialize_message(data, msg_type)
+                    if with_info:
+                        cb(msg, {})
+                    else:
+                        cb(msg)
+                    cost.add(owner, clock() - t)
+                    n += 1
+        finally:
+            self._delivering = False
+            self.delivery_s += clock() - t_all
         self.delivered += n
         return n
 

@@ -40,7 +40,7 @@ from catheter_bringup.recorder import McapRecorder
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
 from catheter_bringup.scenario import load_scenario, resolve_nodes
 from catheter_bringup.stepping import Stepping
-from catheter_bringup.worker import Worker
+from catheter_bringup.worker import Workers
 from catheter_common import qos as Q
 from catheter_common import topics as T
 from catheter_common.params import declare
@@ -67,6 +67,12 @@ class RunResult:
     published: Dict[str, int]
     recorded: Dict[str, int]
     cost: Dict[str, dict] = dataclasses.field(default_factory=dict)   # per node callback time
+    #: per topic: what DDS delivered to this process's subscriptions outside the bus
+    received: Dict[str, int] = dataclasses.field(default_factory=dict)
+    #: multi-process runs: each worker process's report (published, received, cost, gc, ...)
+    processes: Dict[str, dict] = dataclasses.field(default_factory=dict)
+    #: this process's real-time settings and GC pauses (real time only)
+    realtime: Dict[str, object] = dataclasses.field(default_factory=dict)
 
     @property
     def lost(self) -> Dict[str, int]:
@@ -127,10 +133,21 @@ class ScenarioRunner(Stepping):
             if not duration >= 0:
                 raise ValueError(f'duration must be >= 0, got {duration!r}')
             self.scenario['duration'] = float(duration)
+        if self.scenario.get('layout', 'one') == 'split' and self.scenario['mode'] != 'realtime' \
+                and not only:
+            raise ValueError('layout split runs the graph as separate processes in real time: '
+                             'use mode realtime (lockstep runs in one process)')
         self.registry = registry
+        #: the name of this process in a multi-process run (a worker's), for logs and reports
+        self.process = 'main'
+        #: a worker process waits for this file before its loop starts (`Workers.go`)
+        self.go_file: Optional[str] = None
+
         #: start only these node instances (a real-time worker process runs a subset)
         self.only = set(only) if only else None
-        self.child = None             # the worker process of a split real-time run
+        self.children: Optional[Workers] = None   # worker processes of a real-time run
+        #: process name -> node instances that run in a worker process
+        self.child_groups: Dict[str, List[str]] = {}
         self.child_nodes: List[str] = []
         self.progress = progress
         self.log = log
@@ -192,6 +209,14 @@ class ScenarioRunner(Stepping):
         if self.only is not None:
             chosen = [i for i in chosen if i.name in self.only]
             wanted_all = [i for i in wanted_all if i.name in self.only]
+        elif not lockstep and sc.get('layout', 'one') == 'split':
+            # every node in a worker process (master, slave, vision); this process records
+            from catheter_bringup.scenario import split_processes
+            groups = split_processes(chosen, sc)
+            self.child_groups = {g: [i.name for i in insts] for g, insts in groups.items()}
+            self.child_nodes = [n for names in self.child_groups.values() for n in names]
+            self._child_produces = {t for i in chosen for t in i.spec.produces}
+            chosen, wanted_all = [], []
         elif (not lockstep and sc.get('realtime_processes', 2) >= 2
               and sc.get('realtime_transport', 'local') == 'local'
               and any(i.spec.kind == 'vision' for i in chosen)):
@@ -200,6 +225,8 @@ class ScenarioRunner(Stepping):
             worker = [i for i in chosen if i.spec.kind == 'vision']
             chosen = [i for i in chosen if i.spec.kind != 'vision']
             self.child_nodes = [i.name for i in worker]
+            self.child_groups = {'vision': list(self.child_nodes)}
+            self._child_produces = {t for i in worker for t in i.spec.produces}
             wanted_all = [i for i in wanted_all if i.name not in self.child_nodes]
             self._child_inputs = {t for i in worker for t in i.spec.consumes}
         self.skipped = sorted({i.name for i in wanted_all} - {i.name for i in chosen})
@@ -207,13 +234,18 @@ class ScenarioRunner(Stepping):
         self.start_errors = {}
         self.fallbacks = {}
         transport = sc.get('lockstep_transport' if lockstep else 'realtime_transport', 'local')
-        # the local bus calls timers itself and spins a SingleThreadedExecutor now and then;
-        # real time through DDS spins an EventsExecutor
-        self.executor = make_executor('single' if lockstep or transport == 'local' else 'events',
-                                      context=self.context)
+        if not lockstep and not chosen and self.child_nodes:
+            transport = 'dds'            # layout split: this process only records, via DDS
+        #: real time in a worker process: an EventsExecutor fires the timers and takes what
+        #: DDS delivers; in-process topics go through the bus at once (`LocalBus.immediate`)
+        self.events_bus = (not lockstep and transport == 'local' and self.only is not None)
+        # the local bus (lockstep, one-process real time) calls timers itself and spins a
+        # SingleThreadedExecutor now and then; real time through DDS spins an EventsExecutor
+        single = lockstep or (transport == 'local' and not self.events_bus)
+        self.executor = make_executor('single' if single else 'events', context=self.context)
         self.executor.add_node(self.runner_node)
         if transport == 'local':
-            self.bus = LocalBus(dds=bool(sc.get('dds', False)))
+            self.bus = LocalBus(dds=bool(sc.get('dds', False)), immediate=self.events_bus)
             self.counter = self.bus       # the bus counts what was published
             for t in self.inject_topics:
                 self.bus.counts.setdefault(t, 0)
@@ -243,7 +275,12 @@ class ScenarioRunner(Stepping):
             self.nodes[inst.name] = node
             self.executor.add_node(node)
             if not lockstep:
-                self.counter.wrap_node(node)
+                # publishers counted from the start; subscriptions are taken over by _track
+                # once every node's publishers are known
+                if self.bus is not None:
+                    self.bus.wrap_publishers(node)
+                else:
+                    self.counter.wrap_node(node)
             if lockstep:
                 self._drive_clock_of(node)
         if self.bag:
@@ -258,26 +295,47 @@ class ScenarioRunner(Stepping):
             self.sink.buffered = lockstep
             self._record_publishers()
         self._track()
-        if self.child_nodes:
-            self._start_child()
+        if self.child_groups:
+            self._start_children()
         return self
 
-    def _start_child(self):
-        """Start the worker process running the image pipeline nodes (real time) and wait
-        until its nodes are in the graph."""
-        self.child = Worker(self.scenario, self.child_nodes, self.log)
-        if not self.child.wait_in_graph(self.runner_node.get_node_names):
-            self.child = None
+    def _start_children(self):
+        """Start the worker processes (real time) and wait until their nodes are in the
+        graph."""
+        self.children = Workers(self.scenario, self.child_groups, self.log)
+        if not self.children.wait_in_graph(self.runner_node.get_node_names):
+            self.children = None
+            if not self.nodes:
+                raise RuntimeError('a worker process failed to start (see the log)')
             return
         if self.sink is not None:
-            time.sleep(0.5)
-            self.sink.discover()       # the worker's topics, recorded through DDS
+            # the workers' topics, recorded through DDS: subscribed before their loops start
+            want = {t for t in self._child_produces if self.sink.wants(t)}
+            t_end = time.monotonic() + 10.0
+            while time.monotonic() < t_end:
+                self.sink.discover()
+                if not (want - set(self.sink.subs)):
+                    break
+                time.sleep(0.1)
             self._track()
+            time.sleep(0.5)            # the workers' publishers match the new subscriptions
+        self.children.go()
 
-    def _stop_child(self):
-        if self.child is not None:
-            self.child.stop()
-            self.child = None
+    def _stop_children(self):
+        """Stop the workers (the recorder takes what they still publish meanwhile) and keep
+        their reports."""
+        if self.children is None:
+            return
+        spin = self._spin_external if self.bus is not None else (
+            lambda: self.executor.spin_once(timeout_sec=0.01))
+        self.children.stop(spin)
+        self.child_reports = dict(self.children.reports)
+        self.child_published = self.children.published()
+        self.child_cost = self.children.cost()
+        t_end = time.perf_counter() + 0.3
+        while time.perf_counter() < t_end:
+            spin()
+        self.children = None
 
     def _drive_clock_of(self, node: Node):
         """Lockstep: the runner sets the node's sim time directly each step (what its /clock
@@ -354,16 +412,15 @@ class ScenarioRunner(Stepping):
 
     # ------------------------------------------------------------------ teardown
     def _finish(self, status, reason, sim, wall, steps) -> RunResult:
-        if self.child is not None:
-            # what the worker still has in flight, then stop it
-            t_end = time.perf_counter() + 0.3
-            while time.perf_counter() < t_end:
-                self._spin_external()
-            self._stop_child()
+        self.child_reports, self.child_published, self.child_cost = {}, {}, {}
+        if self.children is not None:
+            self._stop_children()
         if self.sink is not None:
             self.sink.flush()
         recorded = dict(self.sink.received) if self.sink else {}
         published = dict(self.counter.counts)
+        for t, n in self.child_published.items():
+            published[t] = published.get(t, 0) + n
         for name, node in self.nodes.items():
             close = getattr(node, 'close', None)
             if callable(close):
@@ -387,17 +444,23 @@ class ScenarioRunner(Stepping):
                 'scenario_yaml': _scenario_text(self.scenario),
             })
         cost = self.bus.cost.summary(wall) if self.bus is not None else {}
+        cost.update(self.child_cost)
         if self.child_nodes:
             res_nodes = sorted(set(self.nodes) | set(self.child_nodes))
         else:
             res_nodes = sorted(self.nodes)
         res = RunResult(self.scenario['name'], status, reason, self.bag, sim, wall, steps,
-                        res_nodes, self.skipped, self.missing, published, recorded, cost)
+                        res_nodes, self.skipped, self.missing, published, recorded, cost,
+                        received=dict(self.bus.received) if self.bus is not None else {},
+                        processes=self.child_reports,
+                        realtime=dict(getattr(self, 'realtime_info', {})))
         self.close()
         return res
 
     def close(self):
-        self._stop_child()
+        if self.children is not None:
+            self.children.stop(lambda: time.sleep(0.01))
+            self.children = None
         for sig, handler in self._old_handlers.items():
             signal.signal(sig, handler)
         self._old_handlers = {}

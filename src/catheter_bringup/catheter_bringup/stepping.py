@@ -4,13 +4,13 @@ EventsExecutor). A mixin of `catheter_bringup.runner.ScenarioRunner`, which owns
 these methods use (nodes, executor, bus, timers, recorder, scenario)."""
 from __future__ import annotations
 
-import gc
 import time
 
 from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.rclpy_adapter import (fire_timer, set_time, spin_ready, timer_due_in_ns,
-                                            timer_ready)
+                                            timer_ready, wrap_timer_callback)
+from catheter_bringup.realtime import GcWatch, quiet_gc, reset_priority, set_fifo_priority
 
 #: ns, real time with the local bus: how often DDS is polled for subscriptions outside the bus
 #: (the image worker's 30 Hz topics). One poll builds an rclpy wait set, 0.3-1.4 ms measured:
@@ -137,18 +137,44 @@ class Stepping:
                 self.counter.wrap_node(node)
         self._track()
 
+    def _wait_go(self) -> None:
+        """A worker: wait until the run's other processes are ready (the go file exists)."""
+        import os
+        while self.go_file and not os.path.exists(self.go_file):
+            if self.stop_requested:
+                raise KeyboardInterrupt
+            time.sleep(0.02)
+
     def _run_realtime(self, bar):
+        from catheter_bringup.scenario import LOOP_PROCESSES
+        self._wait_go()
+        info = self.realtime_info = {'process': self.process, 'scheduling': 'SCHED_OTHER'}
+        prio = int(self.scenario.get('realtime_priority', 0))
+        # the processes whose loops run at 1 kHz: the master and slave workers, or the one
+        # process that holds every loop (not a recorder-only or vision process)
+        loops = self.process in LOOP_PROCESSES or (self.process == 'main' and self.nodes
+                                                    and not self.events_bus)
+        fifo = set_fifo_priority(prio, self.log) if prio > 0 and loops else None
+        if fifo:
+            info['scheduling'] = fifo
         # everything alive now (nodes, models, earlier runs' garbage) out of the collector's
         # sight: a full collection of a big heap inside the 1 kHz loop stalled it 55 ms (in
-        # the benchmark, after lockstep runs in the same process); young collections remain
-        gc.collect()
-        gc.freeze()
+        # the benchmark, after lockstep runs in the same process); young collections remain,
+        # fewer of them (threshold raised)
+        undo = quiet_gc()
+        watch = GcWatch().start()
         try:
             return self._run_realtime_inner(bar)
         finally:
-            gc.unfreeze()
+            watch.stop()
+            undo()
+            if fifo:
+                reset_priority()
+            info['gc'] = watch.summary()
 
     def _run_realtime_inner(self, bar):
+        if self.bus is not None and self.events_bus:
+            return self._run_realtime_events(bar)
         if self.bus is not None:
             return self._run_realtime_local(bar)
         sc = self.scenario
@@ -170,6 +196,8 @@ class Stepping:
             self._sim_reached = min(el, sc['duration'])
             if now >= next_scan:
                 self._rescan()
+                if self.sink is not None and self.child_nodes and self.sink.discover():
+                    self._track()
                 next_scan = now + 200_000_000
             if bar is not None and el - last >= 0.1:
                 bar.update(round(min(el, sc['duration']) - last, 3))
@@ -226,6 +254,46 @@ class Stepping:
             if wait > 60_000:
                 time.sleep((wait - 50_000) * 1e-9)   # wake a little early: sleep overshoots
         return 0, self._sim_reached
+
+    def _run_realtime_events(self, bar):
+        """Real time in a worker process: the EventsExecutor fires the timers on the system
+        clock (an rcl timer is due a whole number of periods after its start, so lateness
+        never accumulates) and takes what DDS delivers from the other processes; what a
+        callback publishes reaches this process's subscribers through the bus at once."""
+        sc = self.scenario
+        clock = self.runner_node.get_clock()
+        start = clock.now().nanoseconds
+        end = start + int(sc['duration'] * 1e9)
+        self._sim_reached = 0.0
+        self._time_timers()
+        next_scan = start + 200_000_000
+        spin = self.executor.spin_once
+        while True:
+            now = clock.now().nanoseconds
+            if now >= end:
+                break
+            if self.stop_requested:
+                raise KeyboardInterrupt
+            spin(timeout_sec=min(0.05, (end - now) * 1e-9))
+            if now >= next_scan:
+                self._now_ns = now
+                self._sim_reached = min((now - start) * 1e-9, sc['duration'])
+                self._rescan()
+                self._time_timers()
+                next_scan = now + 200_000_000
+        self._sim_reached = min((clock.now().nanoseconds - start) * 1e-9, sc['duration'])
+        return 0, self._sim_reached
+
+    def _time_timers(self) -> None:
+        """Events loop: each timer's callback timed into the bus's per-node cost (its own
+        work, without the deliveries its publishes cause)."""
+        done = self.__dict__.setdefault('_timed_timers', set())
+        for tmr in self._timers:
+            if id(tmr) in done:
+                continue
+            done.add(id(tmr))
+            owner = self._timer_owner.get(id(tmr), '?')
+            wrap_timer_callback(tmr, lambda f, _o=owner, _b=self.bus: (lambda: _b.timed(_o, f)))
 
     def _spin_external(self, limit: int = 50) -> None:
         """Handle what DDS delivered to subscriptions outside the bus (the worker's topics)."""
