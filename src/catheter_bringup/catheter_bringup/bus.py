@@ -7,6 +7,7 @@ need are in `catheter_bringup.rclpy_adapter`.
 """
 from __future__ import annotations
 
+import array
 import collections
 import time
 from typing import Callable, Dict, List, Optional
@@ -63,6 +64,12 @@ class CallbackCost:
         return out
 
 
+def _stamp_ns(msg) -> Optional[int]:
+    """The header stamp of a message in ns (None: no header, or raw bytes)."""
+    st = getattr(getattr(msg, 'header', None), 'stamp', None)
+    return None if st is None else st.sec * 1_000_000_000 + st.nanosec
+
+
 def _drop(*_args):
     """Callback of a DDS delivery that the lockstep bus already delivered."""
 
@@ -91,6 +98,17 @@ class LocalBus:
         #: per topic: messages DDS delivered to this process's subscriptions outside the bus
         self.received: Dict[str, int] = {}
         self._counted = set()
+        #: real time: per topic, the wall times (perf_counter s) of its publishes (None: off)
+        self.times: Optional[Dict[str, array.array]] = None
+        #: real time: topics whose publish also notes (now - header stamp), s, in `latency`
+        self.latency_topics = set()
+        self.latency: Dict[str, array.array] = {}
+        self.wall_ns: Optional[Callable[[], int]] = None
+        #: real time: topics whose header stamps (ns) are noted as published (`sent`) and as
+        #: taken from DDS (`taken`), to count what DDS lost between processes
+        self.stamp_topics = set()
+        self.sent: Dict[str, array.array] = {}
+        self.taken: Dict[str, array.array] = {}
         self.counts: Dict[str, int] = {}
         self.delivered = 0
         self.dds = dds
@@ -124,10 +142,29 @@ class LocalBus:
                     _orig(msg)
                 bus.counts[_topic] += 1
                 bus.queue.append((_topic, data))
+                if bus.times is not None:
+                    bus.note_times(_topic, msg)
                 if bus.immediate and not bus._delivering:
                     bus.deliver_all()
 
             intercept_publish(pub, publish)
+
+    def note_times(self, topic: str, msg) -> None:
+        """Real time: note when `topic` was published (and, for `latency_topics`, how old
+        its header stamp was then)."""
+        ts = self.times.get(topic)
+        if ts is None:
+            ts = self.times[topic] = array.array('d')
+        ts.append(time.perf_counter())
+        if topic in self.latency_topics and self.wall_ns is not None:
+            ns = _stamp_ns(msg)
+            if ns is not None:
+                lat = self.latency.setdefault(topic, array.array('d'))
+                lat.append((self.wall_ns() - ns) * 1e-9)
+        if topic in self.stamp_topics:
+            ns = _stamp_ns(msg)
+            if ns is not None:
+                self.sent.setdefault(topic, array.array('q')).append(ns)
 
     def wrap_subscriptions(self, node) -> None:
         for sub in list(node.subscriptions):
@@ -158,6 +195,10 @@ class LocalBus:
         def counting(orig, bus=self, _topic=topic, _owner=owner):
             def callback(*args):
                 bus.received[_topic] += 1
+                if bus.times is not None and _topic in bus.stamp_topics:
+                    ns = _stamp_ns(args[0])
+                    if ns is not None:
+                        bus.taken.setdefault(_topic, array.array('q')).append(ns)
                 return bus.timed(_owner, orig, *args)
             return callback
 

@@ -107,3 +107,59 @@ class GcWatch:
         out['total_ms'] = 1e3 * sum(allp)
         out['max_ms'] = 1e3 * max(allp) if allp else 0.0
         return out
+
+
+def stream_stats(times_s, skip_fraction: float = 0.1) -> Dict[str, float]:
+    """Rate and period statistics of a stream from its publish times (s, increasing): the
+    first `skip_fraction` of the samples (start-up) left out. n, rate_hz, p50_ms, p99_ms,
+    max_ms; a stream with fewer than 3 samples left gives n and NaNs."""
+    import numpy as np
+    if not 0.0 <= skip_fraction < 1.0:
+        raise ValueError(f'skip_fraction must be in [0, 1), got {skip_fraction!r}')
+    t = np.asarray(times_s, dtype=float)
+    if t.ndim != 1 or not np.all(np.isfinite(t)):
+        raise ValueError('times_s must be a 1-D sequence of finite times')
+    t = t[int(len(t) * skip_fraction):]
+    nan = float('nan')
+    if t.size < 3:
+        return {'n': int(t.size), 'rate_hz': nan, 'p50_ms': nan, 'p99_ms': nan, 'max_ms': nan}
+    d = np.diff(t)
+    if np.any(d < 0):
+        raise ValueError('times_s must be non-decreasing')
+    span = t[-1] - t[0]
+    return {'n': int(t.size), 'rate_hz': float((t.size - 1) / span) if span > 0 else nan,
+            'p50_ms': float(np.percentile(d, 50) * 1e3),
+            'p99_ms': float(np.percentile(d, 99) * 1e3), 'max_ms': float(d.max() * 1e3)}
+
+
+def latency_stats(lat_s, skip: int = 2) -> Dict[str, float]:
+    """n, p50_ms, p99_ms, max_ms of latencies (s), the first `skip` left out (start-up)."""
+    import numpy as np
+    a = np.asarray(lat_s, dtype=float)[skip:]
+    if a.ndim != 1 or not np.all(np.isfinite(a)):
+        raise ValueError('lat_s must be a 1-D sequence of finite latencies')
+    nan = float('nan')
+    if a.size == 0:
+        return {'n': 0, 'p50_ms': nan, 'p99_ms': nan, 'max_ms': nan}
+    return {'n': int(a.size), 'p50_ms': float(np.percentile(a, 50) * 1e3),
+            'p99_ms': float(np.percentile(a, 99) * 1e3), 'max_ms': float(a.max() * 1e3)}
+
+
+def link_loss(sent_ns, taken_ns) -> Dict[str, int]:
+    """What DDS lost of a stream between two processes, from the header stamps (ns) the
+    publisher sent and those the subscriber took: counted inside the window both were
+    running, [max(first sent, first taken), min(last sent, last taken)], so a process that
+    started or stopped earlier is not charged. Returns sent, taken (distinct stamps of the
+    window that were sent) and lost."""
+    import numpy as np
+    s = np.asarray(sent_ns, dtype=np.int64)
+    t = np.asarray(taken_ns, dtype=np.int64)
+    if s.ndim != 1 or t.ndim != 1:
+        raise ValueError('sent_ns and taken_ns must be 1-D sequences of stamps')
+    if s.size == 0 or t.size == 0:
+        return {'sent': int(s.size), 'taken': int(t.size), 'lost': int(s.size) if t.size == 0
+                else 0}
+    lo, hi = max(s.min(), t.min()), min(s.max(), t.max())
+    sw = np.unique(s[(s >= lo) & (s <= hi)])
+    tw = np.intersect1d(np.unique(t[(t >= lo) & (t <= hi)]), sw)
+    return {'sent': int(sw.size), 'taken': int(tw.size), 'lost': int(sw.size - tw.size)}

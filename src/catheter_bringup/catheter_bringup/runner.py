@@ -330,6 +330,8 @@ class ScenarioRunner(Stepping):
             lambda: self.executor.spin_once(timeout_sec=0.01))
         self.children.stop(spin)
         self.child_reports = dict(self.children.reports)
+        if self.children.link:
+            self.child_reports['link'] = self.children.link
         self.child_published = self.children.published()
         self.child_cost = self.children.cost()
         t_end = time.perf_counter() + 0.3

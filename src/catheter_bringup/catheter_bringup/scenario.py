@@ -102,6 +102,8 @@ PROCESSES: Dict[str, str] = {
     'camera_node': 'vision', 'shape_node': 'vision', 'force_estimator_node': 'vision',
     'fam_solver_node': 'vision',
 }
+#: the link between master and slave: what crosses between their processes (layout split)
+LINK_TOPICS = (T.MASTER_COMMAND, T.SLAVE_FORCE, T.SLAVE_IMPEDANCE)
 #: processes whose loops run at 1 kHz (they get the scenario's realtime_priority)
 LOOP_PROCESSES = ('master', 'slave')
 #: the identifier's input when the scenario's force source is the image (force_source_node)

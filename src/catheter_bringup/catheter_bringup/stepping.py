@@ -10,7 +10,8 @@ from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.rclpy_adapter import (fire_timer, set_time, spin_ready, timer_due_in_ns,
                                             timer_ready, wrap_timer_callback)
-from catheter_bringup.realtime import GcWatch, quiet_gc, reset_priority, set_fifo_priority
+from catheter_bringup.realtime import (GcWatch, latency_stats, quiet_gc, reset_priority,
+                                       set_fifo_priority, stream_stats)
 
 #: ns, real time with the local bus: how often DDS is polled for subscriptions outside the bus
 #: (the image worker's 30 Hz topics). One poll builds an rclpy wait set, 0.3-1.4 ms measured:
@@ -146,7 +147,7 @@ class Stepping:
             time.sleep(0.02)
 
     def _run_realtime(self, bar):
-        from catheter_bringup.scenario import LOOP_PROCESSES
+        from catheter_bringup.scenario import LINK_TOPICS, LOOP_PROCESSES
         self._wait_go()
         info = self.realtime_info = {'process': self.process, 'scheduling': 'SCHED_OTHER'}
         prio = int(self.scenario.get('realtime_priority', 0))
@@ -161,6 +162,14 @@ class Stepping:
         # sight: a full collection of a big heap inside the 1 kHz loop stalled it 55 ms (in
         # the benchmark, after lockstep runs in the same process); young collections remain,
         # fewer of them (threshold raised)
+        if self.bus is not None:
+            # per stream: when it was published (rate, period) and the image -> tip force
+            # latency, measured where they happen (a recorder in another process may miss some)
+            from catheter_common import topics as T
+            self.bus.times = {}
+            self.bus.latency_topics = {T.TIP_WRENCH}
+            self.bus.stamp_topics = set(LINK_TOPICS) if self.children is None else set()
+            self.bus.wall_ns = time.time_ns
         undo = quiet_gc()
         watch = GcWatch().start()
         try:
@@ -171,6 +180,13 @@ class Stepping:
             if fifo:
                 reset_priority()
             info['gc'] = watch.summary()
+            if self.bus is not None and self.bus.times is not None:
+                info['streams'] = {t: stream_stats(v) for t, v in self.bus.times.items()
+                                   if len(v) >= 10}
+                info['latency'] = {t: latency_stats(v) for t, v in self.bus.latency.items()}
+                info['link_sent'] = {t: list(v) for t, v in self.bus.sent.items()}
+                info['link_taken'] = {t: list(v) for t, v in self.bus.taken.items()}
+                self.bus.times = None
 
     def _run_realtime_inner(self, bar):
         if self.bus is not None and self.events_bus:

@@ -102,6 +102,8 @@ class Workers:
         self.log = log
         self.workers = [Worker(scenario, nodes, log, name) for name, nodes in groups.items()]
         self.reports: Dict[str, dict] = {}
+        #: after `stop`: per link topic and receiving process, sent / taken / lost by DDS
+        self.link: Dict[str, dict] = {}
 
     @property
     def nodes(self) -> List[str]:
@@ -145,6 +147,21 @@ class Workers:
                 self.reports[w.name] = rep
             w.cleanup()
         self.workers = []
+        self.link = self._link_loss()
+
+    def _link_loss(self) -> Dict[str, dict]:
+        """Per link topic and receiving process: what DDS lost between the processes
+        (`catheter_bringup.realtime.link_loss`); the stamp lists leave the reports."""
+        from catheter_bringup.realtime import link_loss
+        sent, taken = {}, {}
+        for name, rep in self.reports.items():
+            rt = rep.get('realtime') or {}
+            for t, v in (rt.pop('link_sent', None) or {}).items():
+                sent[t] = v
+            for t, v in (rt.pop('link_taken', None) or {}).items():
+                taken.setdefault(t, {})[name] = v
+        return {f'{t} -> {proc}': link_loss(sent[t], v)
+                for t in sorted(sent) for proc, v in sorted(taken.get(t, {}).items())}
 
     def published(self) -> Dict[str, int]:
         out: Dict[str, int] = {}
