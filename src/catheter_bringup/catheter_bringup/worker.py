@@ -47,7 +47,7 @@ class Worker:
         self._log_file = tempfile.TemporaryFile(mode='w+')
         self.proc: Optional[subprocess.Popen] = subprocess.Popen(
             cmd, stdout=subprocess.DEVNULL, stderr=self._log_file, text=True)
-        self.log(f'[run] {name} process (pid {self.proc.pid}): {", ".join(self.nodes)}')
+        self.log(f'[run] {name} worker process (pid {self.proc.pid}): {", ".join(self.nodes)}')
 
     def exited(self) -> bool:
         """True (and the reason logged) if the process ended on its own."""
