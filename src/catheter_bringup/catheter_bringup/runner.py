@@ -445,7 +445,9 @@ class ScenarioRunner(Stepping):
                 'published': published,
                 'scenario_yaml': _scenario_text(self.scenario),
             })
-        cost = self.bus.cost.summary(wall) if self.bus is not None else {}
+        # shares of the time the loop ran (a worker's wall time includes its wait for go)
+        loop_s = getattr(self, 'realtime_info', {}).get('loop_s', wall)
+        cost = self.bus.cost.summary(loop_s) if self.bus is not None else {}
         cost.update(self.child_cost)
         if self.child_nodes:
             res_nodes = sorted(set(self.nodes) | set(self.child_nodes))

@@ -149,6 +149,7 @@ class Stepping:
     def _run_realtime(self, bar):
         from catheter_bringup.scenario import LINK_TOPICS, LOOP_PROCESSES
         self._wait_go()
+        self._loop_t0 = time.perf_counter()
         info = self.realtime_info = {'process': self.process, 'scheduling': 'SCHED_OTHER'}
         prio = int(self.scenario.get('realtime_priority', 0))
         # the processes whose loops run at 1 kHz: the master and slave workers, or the one
@@ -180,6 +181,7 @@ class Stepping:
             if fifo:
                 reset_priority()
             info['gc'] = watch.summary()
+            info['loop_s'] = time.perf_counter() - self._loop_t0
             if self.bus is not None and self.bus.times is not None:
                 info['streams'] = {t: stream_stats(v) for t, v in self.bus.times.items()
                                    if len(v) >= 10}
