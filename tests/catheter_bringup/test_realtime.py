@@ -142,7 +142,10 @@ def test_immediate_bus_delivers_inside_publish_in_order(ros):
         pub_u.publish(String(data=msg.data + '!'))
         order.append('t-done')
     sub_t = b.create_subscription(String, 'imm/t', on_t, QOS_DEFAULT)
-    c.create_subscription(String, 'imm/u', lambda m: order.append('u:' + m.data), QOS_DEFAULT)
+    seen_u = []
+    c.create_subscription(String, 'imm/u', lambda m: (order.append('u:' + m.data),
+                                                      seen_u.append(m)), QOS_DEFAULT)
+    a.create_subscription(String, 'imm/u', seen_u.append, QOS_DEFAULT)
     ext = c.create_subscription(String, 'imm/ext', lambda m: order.append('ext'), QOS_DEFAULT)
     bus = LocalBus(immediate=True)
     for n in (a, b, c):
@@ -152,6 +155,11 @@ def test_immediate_bus_delivers_inside_publish_in_order(ros):
     assert sub_t.raw is True and ext.raw is False
     pub_t.publish(String(data='x'))
     assert order == ['t:x', 't-done', 'u:x!']
+    # one deserialised message for both subscribers of /imm/u (share), a copy each without
+    assert len(seen_u) == 2 and seen_u[0] is seen_u[1] and seen_u[0].data == 'x!'
+    bus.share = False
+    pub_u.publish(String(data='z'))
+    assert len(seen_u) == 4 and seen_u[2] is not seen_u[3] and seen_u[2] == seen_u[3]
     assert bus.counts['/imm/t'] == 1 and bus.counts['/imm/u'] == 1
     other = ros.node('imm_other').create_publisher(String, 'imm/ext', QOS_DEFAULT)
     assert ros.spin_until(lambda: other.get_subscription_count() > 0, 10.0)

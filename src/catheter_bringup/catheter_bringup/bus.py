@@ -77,8 +77,9 @@ def _drop(*_args):
 class LocalBus:
     """Lockstep transport between the runner's nodes: every publish is serialised once, counted
     and queued; `deliver_all` hands each queued message, in publish order, to every in-process
-    subscription of its topic (raw subscriptions get the bytes, the others a fresh deserialised
-    copy). Deterministic and without DDS delivery latency. The nodes' own DDS subscriptions
+    subscription of its topic (raw subscriptions get the bytes, the others one deserialised
+    message, shared: subscribers must not modify what they receive, as in rclcpp's
+    intra-process delivery). Deterministic and without DDS delivery latency. The nodes' own DDS subscriptions
     stay (subscription counts, "work only while subscribed" keep working) but what DDS delivers
     to them is dropped (cheaply: they are switched to raw, so nothing is deserialised for
     them). With ``dds=True`` every message is also published on DDS, for tools outside the
@@ -98,6 +99,10 @@ class LocalBus:
         #: per topic: messages DDS delivered to this process's subscriptions outside the bus
         self.received: Dict[str, int] = {}
         self._counted = set()
+        #: one deserialised message shared by all subscribers of a publish (as rclcpp hands
+        #: a const shared message to its intra-process subscribers: they must not modify
+        #: it); False: a fresh copy each
+        self.share = True
         #: real time: per topic, the wall times (perf_counter s) of its publishes (None: off)
         self.times: Optional[Dict[str, array.array]] = None
         #: real time: topics whose publish also notes (now - header stamp), s, in `latency`
@@ -224,11 +229,19 @@ class LocalBus:
         self._delivering = True
         t_all = clock()
         try:
+            share = self.share
             while q:
                 topic, data = q.popleft()
+                last_type = last = None
                 for cb, raw, msg_type, with_info, owner in self.subs.get(topic, ()):
                     t = clock()
-                    msg = data if raw else deserialize_message(data, msg_type)
+                    if raw:
+                        msg = data
+                    elif share and msg_type is last_type:
+                        msg = last            # one deserialised message for every subscriber
+                    else:
+                        msg = last = deserialize_message(data, msg_type)
+                        last_type = msg_type
                     if with_info:
                         cb(msg, {})
                     else:
