@@ -6,16 +6,20 @@ reference measured in the same run, and the ratio.
 1. Lockstep: the 12 s Experiment II scenario (whatever of its graph exists) on the 1 ms simulated
    clock: real-time factor with the in-process bus, with and without recording; reference: the
    same graph in lockstep through DDS (waiting for delivery each step), 1.5 s.
-2. Real time: the Experiment II graph on the system clock for 5 s (in-process bus, timers called
-   when due): period p50/p99/max of the 1 kHz loops from their header stamps; references: one
-   bare 1 kHz timer node (EventsExecutor), and the same graph through DDS with an
-   EventsExecutor.
-3. Image -> tip force latency (real time): synthetic 640x480 frames at 30 Hz -> shape_node ->
-   force_estimator_node (method fam: needs no trained model): p50/p99 of (arrival of
-   /catheter/tip_wrench - the image's stamp).
+2. Real time, the split layout (master / slave / vision processes over DDS, the runner's
+   process recording) beside the one-process layout (reference), on the machine as it is
+   ("quiet") and with a busy-loop process occupying one core ("loaded"), 6 s of Experiment II
+   each with 5 % injected link loss: rate and period p50/p99/max of every 1 kHz stream,
+   measured where it is published; image -> tip force latency in the vision process; what
+   DDS lost on the link topics (from the header stamps both ends saw) against the injected
+   loss; recorder loss; GC and scheduling per process; reference: a lone 1 kHz timer.
+3. Image -> tip force latency alone: synthetic 800x800 frames of the system camera at 30 Hz ->
+   shape_node -> force_estimator_node (svr; fam when no model is installed).
 4. Recorder: write throughput of McapRecorder (pre-serialised CDR) against mcap_ros2's Writer
    (reference); lost messages when a publisher in the same process runs at 1, 5 and 20 kHz and
    the recorder subscribes through DDS (real time).
+5. Where the time goes (after the table): callback cost per node in both layouts (quiet run),
+   serialise / deserialise / construct per message.
 The machine has 2 cores shared with other work: timings are noisy.
 """
 from __future__ import annotations

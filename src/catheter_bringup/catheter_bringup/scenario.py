@@ -106,6 +106,9 @@ PROCESSES: Dict[str, str] = {
 LINK_TOPICS = (T.MASTER_COMMAND, T.SLAVE_FORCE, T.SLAVE_IMPEDANCE)
 #: processes whose loops run at 1 kHz (they get the scenario's realtime_priority)
 LOOP_PROCESSES = ('master', 'slave')
+#: nice value of the vision process when the loops run under SCHED_FIFO: more CPU share than
+#: the machine's other work (30 frames/s must keep up), never ahead of the 1 kHz loops
+VISION_NICE = -10
 #: the identifier's input when the scenario's force source is the image (force_source_node)
 SLAVE_JOINT_STATE_IMAGE = '/slave/joint_state_image'
 FORCE_SOURCES = ('load_cell', 'image')

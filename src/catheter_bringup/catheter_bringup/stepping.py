@@ -11,7 +11,7 @@ from rosgraph_msgs.msg import Clock
 from catheter_bringup.rclpy_adapter import (fire_timer, set_time, spin_ready, timer_due_in_ns,
                                             timer_ready, wrap_timer_callback)
 from catheter_bringup.realtime import (GcWatch, latency_stats, quiet_gc, reset_priority,
-                                       set_fifo_priority, stream_stats)
+                                       set_fifo_priority, set_nice, stream_stats)
 
 #: ns, real time with the local bus: how often DDS is polled for subscriptions outside the bus
 #: (the image worker's 30 Hz topics). One poll builds an rclpy wait set, 0.3-1.4 ms measured:
@@ -147,7 +147,7 @@ class Stepping:
             time.sleep(0.02)
 
     def _run_realtime(self, bar):
-        from catheter_bringup.scenario import LINK_TOPICS, LOOP_PROCESSES
+        from catheter_bringup.scenario import LINK_TOPICS, LOOP_PROCESSES, VISION_NICE
         self._wait_go()
         self._loop_t0 = time.perf_counter()
         info = self.realtime_info = {'process': self.process, 'scheduling': 'SCHED_OTHER'}
@@ -159,6 +159,11 @@ class Stepping:
         fifo = set_fifo_priority(prio, self.log) if prio > 0 and loops else None
         if fifo:
             info['scheduling'] = fifo
+        old_nice = None
+        if prio > 0 and self.process == 'vision':
+            old_nice = set_nice(VISION_NICE, self.log)
+            if old_nice is not None:
+                info['scheduling'] = f'SCHED_OTHER nice {VISION_NICE}'
         # everything alive now (nodes, models, earlier runs' garbage) out of the collector's
         # sight: a full collection of a big heap inside the 1 kHz loop stalled it 55 ms (in
         # the benchmark, after lockstep runs in the same process); young collections remain,
@@ -180,6 +185,8 @@ class Stepping:
             undo()
             if fifo:
                 reset_priority()
+            if old_nice is not None:
+                set_nice(old_nice, self.log)
             info['gc'] = watch.summary()
             info['loop_s'] = time.perf_counter() - self._loop_t0
             if self.bus is not None and self.bus.times is not None:
