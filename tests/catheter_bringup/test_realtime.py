@@ -160,9 +160,37 @@ def test_immediate_bus_delivers_inside_publish_in_order(ros):
     bus.share = False
     pub_u.publish(String(data='z'))
     assert len(seen_u) == 4 and seen_u[2] is not seen_u[3] and seen_u[2] == seen_u[3]
-    assert bus.counts['/imm/t'] == 1 and bus.counts['/imm/u'] == 1
+    assert bus.counts['/imm/t'] == 1 and bus.counts['/imm/u'] == 2
     other = ros.node('imm_other').create_publisher(String, 'imm/ext', QOS_DEFAULT)
     assert ros.spin_until(lambda: other.get_subscription_count() > 0, 10.0)
     other.publish(String(data='y'))
     assert ros.spin_until(lambda: bus.received.get('/imm/ext') == 1, 10.0)
     assert order[-1] == 'ext'
+
+
+def test_nice_applies_to_every_thread_falls_back_and_refuses_bad_values(monkeypatch):
+    with pytest.raises(ValueError, match='nice'):
+        R.set_nice(-21)
+    with pytest.raises(ValueError, match='nice'):
+        R.set_nice(1.5)
+    old = os.getpriority(os.PRIO_PROCESS, 0)
+    import threading
+    stop = threading.Event()
+    th = threading.Thread(target=stop.wait)
+    th.start()
+    try:
+        assert R.set_nice(old + 1, print) == old             # raising nice is always allowed
+        assert os.getpriority(os.PRIO_PROCESS, 0) == old + 1
+        assert os.getpriority(os.PRIO_PROCESS, th.native_id) == old + 1
+    finally:
+        if os.geteuid() == 0:
+            R.set_nice(old, print)
+        stop.set()
+        th.join()
+
+    def refuse(*_a):
+        raise PermissionError(1, 'Operation not permitted')
+    monkeypatch.setattr(os, 'setpriority', refuse)
+    logs = []
+    assert R.set_nice(-5, logs.append) is None
+    assert len(logs) == 1 and 'not permitted' in logs[0]
