@@ -144,7 +144,7 @@ class LocalBus:
             def publish(msg, _orig=orig, _topic=topic, bus=self):
                 data = msg if isinstance(msg, bytes) else serialize_message(msg)
                 if bus.dds or _topic in bus.dds_topics:
-                    _orig(msg)
+                    _orig(data)       # the bytes already serialised: not serialised twice
                 bus.counts[_topic] += 1
                 bus.queue.append((_topic, data))
                 if bus.times is not None:

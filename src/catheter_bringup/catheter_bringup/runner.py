@@ -320,12 +320,20 @@ class ScenarioRunner(Stepping):
             self._track()
             time.sleep(0.5)            # the workers' publishers match the new subscriptions
         self.children.go()
+        # the workers stop at the end of the run even when this process cannot keep up
+        # (an executor busy with a backlog of recorder messages returns late)
+        self._watchdog = threading.Timer(self.scenario['duration'] + 1.0,
+                                         self.children.interrupt)
+        self._watchdog.daemon = True
+        self._watchdog.start()
 
     def _stop_children(self):
         """Stop the workers (the recorder takes what they still publish meanwhile) and keep
         their reports."""
         if self.children is None:
             return
+        if getattr(self, '_watchdog', None) is not None:
+            self._watchdog.cancel()
         spin = self._spin_external if self.bus is not None else (
             lambda: self.executor.spin_once(timeout_sec=0.01))
         self.children.stop(spin)
@@ -462,6 +470,8 @@ class ScenarioRunner(Stepping):
         return res
 
     def close(self):
+        if getattr(self, '_watchdog', None) is not None:
+            self._watchdog.cancel()
         if self.children is not None:
             self.children.stop(lambda: time.sleep(0.01))
             self.children = None

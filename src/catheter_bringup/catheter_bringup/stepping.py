@@ -128,7 +128,10 @@ class Stepping:
         msg.clock.nanosec = t_ns % 1_000_000_000
         for ts in self.time_sources:
             set_time(ts, msg)
-        self.clock_pub.publish(msg)
+        # /clock for tools outside the run (the nodes' time is set directly): a DDS publish
+        # per step costs ~20-50 us, so only while someone listens
+        if self.clock_pub.get_subscription_count() > 0:
+            self.clock_pub.publish(msg)
 
     def _rescan(self):
         if self.sink is not None:

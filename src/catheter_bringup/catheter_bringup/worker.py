@@ -130,6 +130,11 @@ class Workers:
         for w in self.workers:
             w.go()
 
+    def interrupt(self) -> None:
+        """SIGINT to every worker (they stop their loops, report and exit)."""
+        for w in self.workers:
+            w.interrupt()
+
     def stop(self, spin: Callable[[], None], timeout: float = 15.0) -> None:
         """SIGINT to every worker, then `spin()` (the recorder takes what is in flight) until
         all have exited; a worker still running after `timeout` s is killed."""
