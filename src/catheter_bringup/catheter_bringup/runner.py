@@ -13,9 +13,13 @@ Ctrl-C / SIGTERM (through the stop handlers of run_scenario, or a KeyboardInterr
 failing node stops the run; the recording is closed either way and its ``catheter_run``
 metadata says how far the run got and why it stopped (which signal, or the node's error).
 
+Layout split (real time): every node in a worker process (master, slave, vision; see
+`catheter_bringup.scenario.PROCESSES`), this process records through DDS.
+
 The parts: `node_start` (building the node instances), `bus` (the in-process transport and
-the counters), `stepping` (the lockstep and real-time loops), `worker` (the image pipeline's
-process in split real-time runs), `rclpy_adapter` (every rclpy internal all of these use).
+the counters), `stepping` (the lockstep and real-time loops), `worker` (the worker processes
+of multi-process real-time runs), `realtime` (scheduling, GC, real-time figures),
+`rclpy_adapter` (every rclpy internal all of these use).
 """
 from __future__ import annotations
 
