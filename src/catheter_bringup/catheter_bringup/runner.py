@@ -23,7 +23,6 @@ of multi-process real-time runs), `realtime` (scheduling, GC, real-time figures)
 """
 from __future__ import annotations
 
-import dataclasses
 import os
 import pathlib
 import signal
@@ -41,8 +40,9 @@ from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
 from catheter_bringup.node_start import available_instances, start_node
 from catheter_bringup.rclpy_adapter import detach_clock
 from catheter_bringup.recorder import McapRecorder
+from catheter_bringup.result import RunResult  # noqa: F401  (re-exported: part of the API)
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
-from catheter_bringup.scenario import load_scenario, resolve_nodes
+from catheter_bringup.scenario import load_scenario, resolve_nodes, scenario_text
 from catheter_bringup.stepping import Stepping
 from catheter_bringup.worker import Workers
 from catheter_common import qos as Q
@@ -53,41 +53,6 @@ from catheter_common.ros_node import make_executor
 RUNNER_NODE = 'run_scenario'
 #: bytes, MCAP chunk size of real-time recordings (lockstep: 1 MB)
 REALTIME_CHUNK = 64 * 1024
-
-
-@dataclasses.dataclass
-class RunResult:
-    """What a run did. Times in seconds; counts per topic."""
-    scenario: str
-    status: str                  # complete | interrupted | failed
-    reason: str
-    bag: Optional[str]
-    sim_time: float              # simulated (lockstep) or elapsed (real time) seconds reached
-    wall_time: float
-    steps: int
-    nodes: List[str]
-    skipped: List[str]           # node instances that could not be imported
-    missing_outputs: List[str]   # wanted topics nobody produces
-    published: Dict[str, int]
-    recorded: Dict[str, int]
-    cost: Dict[str, dict] = dataclasses.field(default_factory=dict)   # per node callback time
-    #: per topic: what DDS delivered to this process's subscriptions outside the bus
-    received: Dict[str, int] = dataclasses.field(default_factory=dict)
-    #: multi-process runs: each worker process's report (published, received, cost, gc, ...)
-    processes: Dict[str, dict] = dataclasses.field(default_factory=dict)
-    #: this process's real-time settings and GC pauses (real time only)
-    realtime: Dict[str, object] = dataclasses.field(default_factory=dict)
-
-    @property
-    def lost(self) -> Dict[str, int]:
-        """Per recorded topic: published in this process but not in the recording."""
-        return {t: self.published[t] - self.recorded.get(t, 0)
-                for t in self.recorded
-                if t in self.published and self.published[t] != self.recorded.get(t, 0)}
-
-    @property
-    def realtime_factor(self) -> float:
-        return self.sim_time / self.wall_time if self.wall_time > 0 else float('inf')
 
 
 #: how the run status names the signals that stop a run
@@ -455,7 +420,7 @@ class ScenarioRunner(Stepping):
                 'start_errors': self.start_errors,
                 'fallbacks': self.fallbacks,
                 'published': published,
-                'scenario_yaml': _scenario_text(self.scenario),
+                'scenario_yaml': scenario_text(self.scenario),
             })
         # shares of the time the loop ran (a worker's wall time includes its wait for go)
         loop_s = getattr(self, 'realtime_info', {}).get('loop_s', wall)
@@ -503,11 +468,6 @@ class ScenarioRunner(Stepping):
         if self.context is not None and self._own_context:
             rclpy.try_shutdown(context=self.context)
         self.context = None
-
-
-def _scenario_text(sc) -> str:
-    import yaml
-    return yaml.safe_dump({k: v for k, v in sc.items() if k != 'source'}, sort_keys=True)
 
 
 def run_scenario(scenario, **kwargs) -> RunResult:
