@@ -125,3 +125,33 @@ def test_spin_ready_runs_ready_callbacks_and_raises_their_exceptions(ros):
     A.set_time(ts, _clock(2_000_000))
     with pytest.raises(RuntimeError, match='boom in a callback'):
         A.spin_ready(ros.executor, 10)
+
+
+@pytest.mark.parametrize('kind', ['single', 'events'])
+def test_executors_call_replaced_callbacks_and_take_raw_after_creation(ros, kind):
+    """The worker processes spin an EventsExecutor: it must call a subscription's and a timer's
+    callback as they are at call time (take_callback, wrap_timer_callback) and take a
+    subscription switched to raw after creation as bytes (take_callback(raw=True))."""
+    import time
+    from catheter_common.ros_node import make_executor
+    node = ros.node(f'adapter_raw_{kind}')
+    sub = node.create_subscription(String, f'adapter/raw_{kind}', lambda m: None, QOS_DEFAULT)
+    got, fired = [], []
+    A.take_callback(sub, got.append, raw=True)
+    tmr = node.create_timer(0.01, lambda: None)
+    A.wrap_timer_callback(tmr, lambda f: (lambda: fired.append(1)))
+    ex = make_executor(kind, context=ros.context)
+    try:
+        ex.add_node(node)
+        pub = ros.node(f'adapter_raw_pub_{kind}').create_publisher(
+            String, f'adapter/raw_{kind}', QOS_DEFAULT)
+        t_end = time.monotonic() + 10
+        while pub.get_subscription_count() == 0 and time.monotonic() < t_end:
+            ex.spin_once(timeout_sec=0.01)
+        pub.publish(String(data='r'))
+        while (not got or not fired) and time.monotonic() < t_end:
+            ex.spin_once(timeout_sec=0.01)
+    finally:
+        ex.remove_node(node)
+        ex.shutdown()
+    assert got and isinstance(got[0], bytes) and fired

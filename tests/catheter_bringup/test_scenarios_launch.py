@@ -40,11 +40,11 @@ class _Recorder:
         self.args, self.kwargs = args, kwargs
 
 
-def _fake_launch_modules(scenario_name):
+def _fake_launch_modules(scenario_name, layout=''):
     class LaunchConfiguration(_Recorder):
         def perform(self, context):
-            assert self.args == ('scenario',)
-            return scenario_name
+            assert self.args in (('scenario',), ('layout',))
+            return scenario_name if self.args == ('scenario',) else layout
     mods = {n: types.ModuleType(n) for n in
             ('launch', 'launch.actions', 'launch.substitutions', 'launch_ros', 'launch_ros.actions')}
     mods['launch'].LaunchDescription = _Recorder
@@ -64,8 +64,8 @@ def test_scenario_loads_and_the_launch_file_starts_its_nodes(name, monkeypatch):
         monkeypatch.setitem(sys.modules, mod_name, mod)
     ns = runpy.run_path(str(PKG / 'launch' / 'scenario.launch.py'))
     desc = ns['generate_launch_description']()
-    declare, opaque = desc.args[0]
-    assert declare.args[0] == 'scenario'
+    declare, declare_layout, opaque = desc.args[0]
+    assert declare.args[0] == 'scenario' and declare_layout.args[0] == 'layout'
     launched = opaque.kwargs['function'](context=None)
     started = {n.kwargs['name']: n.kwargs for n in launched}
     assert set(started) == {i.name for i in nodes} | {'recorder_node'}
@@ -79,6 +79,45 @@ def test_scenario_loads_and_the_launch_file_starts_its_nodes(name, monkeypatch):
     assert started['recorder_node']['parameters'][0]['path'] == f'bags/{name}.mcap'
     assert started['recorder_node']['parameters'][0]['scenario'] == sc['source']
     assert launch_entries(sc) == [{k: v for k, v in n.kwargs.items() if k != 'output'} for n in launched]
+
+
+def test_launch_with_layout_split_starts_master_slave_vision_processes(monkeypatch):
+    """layout:=split: one run_scenario process per process of the layout, each running only
+    its nodes in real time; the force loop's nodes (device, renderers) in one; every node
+    of the scenario in exactly one process; and the recorder."""
+    sc = load_scenario('experiment_ii')
+    nodes = {i.name for i in resolve_nodes(sc)[0]}
+    for mod_name, mod in _fake_launch_modules('experiment_ii', 'split').items():
+        monkeypatch.setitem(sys.modules, mod_name, mod)
+    ns = runpy.run_path(str(PKG / 'launch' / 'scenario.launch.py'))
+    opaque = ns['generate_launch_description']().args[0][2]
+    launched = [n.kwargs for n in opaque.kwargs['function'](context=None)]
+    procs = {}
+    for kw in launched[:-1]:
+        assert kw['executable'] == 'run_scenario' and 'name' not in kw   # names stay the nodes'
+        a = kw['arguments']
+        assert a[a.index('--mode') + 1] == 'realtime' and 'layout=split' in a
+        procs[a[a.index('--process') + 1]] = a[a.index('--only') + 1].split(',')
+    assert launched[-1]['executable'] == 'recorder_node'
+    assert set(procs) == {'master', 'slave', 'vision'}
+    assert {'sim_haptic_node', 'ima_master_node', 'dfr_master_node'} == set(procs['master'])
+    assert {'sim_slave_node', 'impedance_identifier_node'} == set(procs['slave'])
+    assert {'camera_node', 'shape_node', 'force_estimator_node'} == set(procs['vision'])
+    every = [n for names in procs.values() for n in names]
+    assert sorted(every) == sorted(nodes)
+
+
+def test_layout_is_validated_and_split_needs_real_time():
+    from catheter_bringup.overrides import apply_overrides
+    sc = load_scenario('smoke')
+    assert sc['layout'] == 'one'
+    with pytest.raises(ValueError, match='layout'):
+        apply_overrides(sc, ['layout=three'])
+    with pytest.raises(ValueError, match='layout split .*realtime'):
+        apply_overrides(sc, ['layout=split'])           # smoke is lockstep
+    assert apply_overrides(sc, ['layout=split', 'mode=realtime'])['layout'] == 'split'
+    with pytest.raises(ValueError, match='realtime_priority'):
+        apply_overrides(sc, ['realtime_priority=120'])
 
 
 def test_default_scenario_is_experiment_ii_as_in_the_thesis():

@@ -7,6 +7,7 @@ need are in `catheter_bringup.rclpy_adapter`.
 """
 from __future__ import annotations
 
+import array
 import collections
 import time
 from typing import Callable, Dict, List, Optional
@@ -63,6 +64,12 @@ class CallbackCost:
         return out
 
 
+def _stamp_ns(msg) -> Optional[int]:
+    """The header stamp of a message in ns (None: no header, or raw bytes)."""
+    st = getattr(getattr(msg, 'header', None), 'stamp', None)
+    return None if st is None else st.sec * 1_000_000_000 + st.nanosec
+
+
 def _drop(*_args):
     """Callback of a DDS delivery that the lockstep bus already delivered."""
 
@@ -70,14 +77,43 @@ def _drop(*_args):
 class LocalBus:
     """Lockstep transport between the runner's nodes: every publish is serialised once, counted
     and queued; `deliver_all` hands each queued message, in publish order, to every in-process
-    subscription of its topic (raw subscriptions get the bytes, the others a fresh deserialised
-    copy). Deterministic and without DDS delivery latency. The nodes' own DDS subscriptions
+    subscription of its topic (raw subscriptions get the bytes, the others one deserialised
+    message, shared: subscribers must not modify what they receive, as in rclcpp's
+    intra-process delivery). Deterministic and without DDS delivery latency. The nodes' own DDS subscriptions
     stay (subscription counts, "work only while subscribed" keep working) but what DDS delivers
-    to them is dropped. With ``dds=True`` every message is also published on DDS, for tools
-    outside the process."""
+    to them is dropped (cheaply: they are switched to raw, so nothing is deserialised for
+    them). With ``dds=True`` every message is also published on DDS, for tools outside the
+    process.
 
-    def __init__(self, dds: bool = False):
+    ``immediate=True`` (real time driven by an executor): a publish delivers at once, in the
+    publisher's callback (a publish made by a subscriber during delivery is queued and
+    delivered by the same loop, in order). What DDS delivers to subscriptions outside the bus
+    is counted per topic in ``received``."""
+
+    def __init__(self, dds: bool = False, immediate: bool = False):
         self.queue = collections.deque()
+        self.immediate = immediate
+        self._delivering = False
+        #: s spent delivering in total (callers subtract it from a timer's own time)
+        self.delivery_s = 0.0
+        #: per topic: messages DDS delivered to this process's subscriptions outside the bus
+        self.received: Dict[str, int] = {}
+        self._counted = set()
+        #: one deserialised message shared by all subscribers of a publish (as rclcpp hands
+        #: a const shared message to its intra-process subscribers: they must not modify
+        #: it); False: a fresh copy each
+        self.share = True
+        #: real time: per topic, the wall times (perf_counter s) of its publishes (None: off)
+        self.times: Optional[Dict[str, array.array]] = None
+        #: real time: topics whose publish also notes (now - header stamp), s, in `latency`
+        self.latency_topics = set()
+        self.latency: Dict[str, array.array] = {}
+        self.wall_ns: Optional[Callable[[], int]] = None
+        #: real time: topics whose header stamps (ns) are noted as published (`sent`) and as
+        #: taken from DDS (`taken`), to count what DDS lost between processes
+        self.stamp_topics = set()
+        self.sent: Dict[str, array.array] = {}
+        self.taken: Dict[str, array.array] = {}
         self.counts: Dict[str, int] = {}
         self.delivered = 0
         self.dds = dds
@@ -108,11 +144,32 @@ class LocalBus:
             def publish(msg, _orig=orig, _topic=topic, bus=self):
                 data = msg if isinstance(msg, bytes) else serialize_message(msg)
                 if bus.dds or _topic in bus.dds_topics:
-                    _orig(msg)
+                    _orig(data)       # the bytes already serialised: not serialised twice
                 bus.counts[_topic] += 1
                 bus.queue.append((_topic, data))
+                if bus.times is not None:
+                    bus.note_times(_topic, msg)
+                if bus.immediate and not bus._delivering:
+                    bus.deliver_all()
 
             intercept_publish(pub, publish)
+
+    def note_times(self, topic: str, msg) -> None:
+        """Real time: note when `topic` was published (and, for `latency_topics`, how old
+        its header stamp was then)."""
+        ts = self.times.get(topic)
+        if ts is None:
+            ts = self.times[topic] = array.array('d')
+        ts.append(time.perf_counter())
+        if topic in self.latency_topics and self.wall_ns is not None:
+            ns = _stamp_ns(msg)
+            if ns is not None:
+                lat = self.latency.setdefault(topic, array.array('d'))
+                lat.append((self.wall_ns() - ns) * 1e-9)
+        if topic in self.stamp_topics:
+            ns = _stamp_ns(msg)
+            if ns is not None:
+                self.sent.setdefault(topic, array.array('q')).append(ns)
 
     def wrap_subscriptions(self, node) -> None:
         for sub in list(node.subscriptions):
@@ -122,12 +179,46 @@ class LocalBus:
                 # nobody in this process publishes it (yet): DDS delivers it, the runner spins
                 # the executor for it
                 self.external.add(id(sub))
+                self._count_external(sub, node.get_name())
                 continue
             self.external.discard(id(sub))
             self._subs.add(id(sub))
-            cb, with_info = take_callback(sub, _drop)
+            raw = bool(sub.raw)
+            # what DDS still delivers is dropped, taken raw: nothing deserialised for it
+            cb, with_info = take_callback(sub, _drop, raw=True)
             self.subs.setdefault(sub.topic_name, []).append(
-                (cb, bool(sub.raw), sub.msg_type, with_info, node.get_name()))
+                (cb, raw, sub.msg_type, with_info, node.get_name()))
+
+    def _count_external(self, sub, owner: str) -> None:
+        """Count (and time) what DDS delivers to a subscription outside the bus."""
+        if id(sub) in self._counted or not self.immediate:
+            return
+        self._counted.add(id(sub))
+        topic = sub.topic_name
+        self.received.setdefault(topic, 0)
+
+        def counting(orig, bus=self, _topic=topic, _owner=owner):
+            def callback(*args):
+                bus.received[_topic] += 1
+                if bus.times is not None and _topic in bus.stamp_topics:
+                    ns = _stamp_ns(args[0])
+                    if ns is not None:
+                        bus.taken.setdefault(_topic, array.array('q')).append(ns)
+                return bus.timed(_owner, orig, *args)
+            return callback
+
+        wrap_callback(sub, counting)
+
+    def timed(self, owner: str, fn, *args):
+        """Call fn(*args), adding its wall time minus the deliveries it caused to `owner`'s
+        cost (a timer's own work, not its subscribers')."""
+        clock = time.perf_counter
+        d0 = self.delivery_s
+        t = clock()
+        try:
+            return fn(*args)
+        finally:
+            self.cost.add(owner, clock() - t - (self.delivery_s - d0))
 
     def deliver_all(self) -> int:
         from rclpy.serialization import deserialize_message
@@ -135,17 +226,31 @@ class LocalBus:
         q = self.queue
         clock = time.perf_counter
         cost = self.cost
-        while q:
-            topic, data = q.popleft()
-            for cb, raw, msg_type, with_info, owner in self.subs.get(topic, ()):
-                t = clock()
-                msg = data if raw else deserialize_message(data, msg_type)
-                if with_info:
-                    cb(msg, {})
-                else:
-                    cb(msg)
-                cost.add(owner, clock() - t)
-                n += 1
+        self._delivering = True
+        t_all = clock()
+        try:
+            share = self.share
+            while q:
+                topic, data = q.popleft()
+                last_type = last = None
+                for cb, raw, msg_type, with_info, owner in self.subs.get(topic, ()):
+                    t = clock()
+                    if raw:
+                        msg = data
+                    elif share and msg_type is last_type:
+                        msg = last            # one deserialised message for every subscriber
+                    else:
+                        msg = last = deserialize_message(data, msg_type)
+                        last_type = msg_type
+                    if with_info:
+                        cb(msg, {})
+                    else:
+                        cb(msg)
+                    cost.add(owner, clock() - t)
+                    n += 1
+        finally:
+            self._delivering = False
+            self.delivery_s += clock() - t_all
         self.delivered += n
         return n
 

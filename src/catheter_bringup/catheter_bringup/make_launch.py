@@ -8,7 +8,11 @@ ROS 2 install with `launch` and `launch_ros`) calls `launch_entries` at launch t
 
 It starts the scenario's node instances (the nodes it needs, as the runner resolves them) as
 separate processes in real time, with their parameters and remaps, plus ``recorder_node``
-writing bags/<scenario>.mcap. Lockstep (simulated clock) runs need the launchless runner
+writing bags/<scenario>.mcap. With ``layout: split`` (in the YAML) it starts the deployment
+layout instead: a master process (haptic device and renderers: the force loop never
+crosses a process), a slave process (robot, vessel, sensor, identifier) and a vision process
+(camera, shape, force estimator), each a ``run_scenario --only ...`` in real time, plus the
+recorder; master and slave talk only through the link topics over DDS. Lockstep (simulated clock) runs need the launchless runner
 (``run_scenario``): separate processes cannot be stepped deterministically.
 
     python -m catheter_bringup.make_launch SCENARIO     # prints what the launch would start
@@ -25,10 +29,13 @@ from catheter_bringup.scenario import load_scenario, resolve_nodes
 
 def launch_entries(scenario: dict) -> List[Dict]:
     """Keyword arguments of one `launch_ros.actions.Node` per process the scenario starts:
-    package, executable, name, parameters ([dict]) and remappings (list of pairs)."""
+    package, executable, name, parameters ([dict]) and remappings (list of pairs); with
+    ``layout: split`` one `run_scenario --only ...` process per process of the layout (master,
+    slave, vision: package, executable, arguments) instead of one per node. Plus the
+    recorder."""
     nodes, _missing = resolve_nodes(scenario)
-    out = []
-    for inst in nodes:
+    out = split_entries(scenario, nodes) if scenario.get('layout') == 'split' else []
+    for inst in (nodes if not out else []):
         params = dict(inst.params)
         params['use_sim_time'] = False
         entry = {'package': inst.spec.module.split('.')[0], 'executable': inst.spec.executable,
@@ -43,6 +50,22 @@ def launch_entries(scenario: dict) -> List[Dict]:
                                 'scenario': scenario.get('source') or scenario['name'],
                                 'exclude': list(rec['exclude']) or [''],
                                 'topics': list(rec.get('only') or []) or ['']}]})
+    return out
+
+
+def split_entries(scenario: dict, nodes) -> List[Dict]:
+    """Layout split: one process per group of `split_processes` (the force loop's nodes
+    together), each a `run_scenario` in real time running only its nodes, with the loop
+    processes' SCHED_FIFO priority and their EventsExecutor; they talk over DDS."""
+    from catheter_bringup.scenario import split_processes
+    source = scenario.get('source') or scenario['name']
+    out = []
+    for group, insts in split_processes(nodes, scenario).items():
+        out.append({'package': 'catheter_bringup', 'executable': 'run_scenario',
+                    'arguments': [str(source), '--mode', 'realtime', '--no-record', '--quiet',
+                                  '--set', 'layout=split', '--process', group,
+                                  '--duration', '86400',
+                                  '--only', ','.join(i.name for i in insts)]})
     return out
 
 

@@ -56,14 +56,18 @@ def callback_wants_info(sub) -> bool:
     return ct is not None and ct.name != 'MessageOnly'
 
 
-def take_callback(sub, replacement: Callable) -> Tuple[Callable, bool]:
+def take_callback(sub, replacement: Callable, raw: bool = False) -> Tuple[Callable, bool]:
     """Replace the subscription's callback; returns (the old callback, whether it takes
-    message info). What DDS still delivers to the subscription goes to `replacement`.
+    message info). What DDS still delivers to the subscription goes to `replacement`; with
+    ``raw=True`` as bytes (taken without deserialising: cheap to drop).
 
-    Relies on: the executor calls ``sub.callback`` (a plain attribute) for each message."""
+    Relies on: the executor calls ``sub.callback`` (a plain attribute) for each message, and
+    reads ``sub.raw`` at each take (SingleThreadedExecutor and EventsExecutor alike)."""
     old = sub.callback
     wants = callback_wants_info(sub)
     sub.callback = replacement
+    if raw:
+        sub.raw = True
     return old, wants
 
 
@@ -112,6 +116,14 @@ def timer_due_in_ns(tmr) -> Optional[int]:
         return tmr.time_until_next_call()
     except Exception:  # noqa: BLE001 - a destroyed timer's handle raises
         return None
+
+
+def wrap_timer_callback(tmr, wrapper: Callable[[Callable], Callable]) -> None:
+    """``tmr.callback = wrapper(tmr.callback)`` (e.g. to time it).
+
+    Relies on: every executor (EventsExecutor too) calls ``Timer.callback`` (a plain
+    attribute) when the timer is due."""
+    tmr.callback = wrapper(tmr.callback)
 
 
 def fire_timer(tmr) -> None:

@@ -32,6 +32,13 @@ def build_parser():
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     p.add_argument('--only', default=None,
                    help='comma-separated node instances: start only these (a worker process)')
+    p.add_argument('--process', default='main',
+                   help='name of this process in a multi-process run (master, slave, vision)')
+    p.add_argument('--go', default=None,
+                   help='wait until this file exists before starting the loop (a worker '
+                        'process: its run starts with the others, once the recorder listens)')
+    p.add_argument('--report', default=None,
+                   help='write what this process published, took and spent to this JSON file')
     return p
 
 
@@ -54,6 +61,8 @@ def prepare_scenario(opts):
     from catheter_bringup.scenario import load_scenario
     sc = load_scenario(opts.scenario)
     items = list(opts.overrides)
+    if opts.mode:
+        items.append(f'mode={opts.mode}')      # validated with the rest (layout needs it)
     if opts.dds:
         items.append('dds=true')
     name, why = run_name(sc, opts.overrides, opts.name)
@@ -132,12 +141,30 @@ def main(args=None):
                             duration=opts.duration, progress=not opts.quiet,
                             record=False if opts.no_record else None,
                             only=opts.only.split(',') if opts.only else None)
+    runner.process = opts.process
+    runner.go_file = opts.go
     install_stop_handlers(runner)
-    runner.setup()
+    try:
+        runner.setup()
+    except (ValueError, RuntimeError) as exc:
+        print(f'run_scenario: {exc}', file=sys.stderr)
+        runner.close()
+        return 2 if isinstance(exc, ValueError) else 1
     record_run_start(runner)
     res = runner.run()
+    if opts.report:
+        write_report(opts.report, opts.process, res)
     print(summarize(res), flush=True)
     return 1 if res.status == 'failed' else 0
+
+
+def write_report(path: str, process: str, res) -> None:
+    """A worker process's report (read by `catheter_bringup.worker.Workers`)."""
+    import json
+    with open(path, 'w') as f:
+        json.dump({'process': process, 'status': res.status, 'reason': res.reason,
+                   'nodes': res.nodes, 'published': res.published, 'received': res.received,
+                   'cost': res.cost, 'realtime': res.realtime, 'wall_s': res.wall_time}, f)
 
 
 if __name__ == '__main__':

@@ -13,13 +13,16 @@ Ctrl-C / SIGTERM (through the stop handlers of run_scenario, or a KeyboardInterr
 failing node stops the run; the recording is closed either way and its ``catheter_run``
 metadata says how far the run got and why it stopped (which signal, or the node's error).
 
+Layout split (real time): every node in a worker process (master, slave, vision; see
+`catheter_bringup.scenario.PROCESSES`), this process records through DDS.
+
 The parts: `node_start` (building the node instances), `bus` (the in-process transport and
-the counters), `stepping` (the lockstep and real-time loops), `worker` (the image pipeline's
-process in split real-time runs), `rclpy_adapter` (every rclpy internal all of these use).
+the counters), `stepping` (the lockstep and real-time loops), `worker` (the worker processes
+of multi-process real-time runs), `realtime` (scheduling, GC, real-time figures),
+`rclpy_adapter` (every rclpy internal all of these use).
 """
 from __future__ import annotations
 
-import dataclasses
 import os
 import pathlib
 import signal
@@ -37,10 +40,11 @@ from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
 from catheter_bringup.node_start import available_instances, start_node
 from catheter_bringup.rclpy_adapter import detach_clock
 from catheter_bringup.recorder import McapRecorder
+from catheter_bringup.result import RunResult  # noqa: F401  (re-exported: part of the API)
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
-from catheter_bringup.scenario import load_scenario, resolve_nodes
+from catheter_bringup.scenario import load_scenario, resolve_nodes, scenario_text
 from catheter_bringup.stepping import Stepping
-from catheter_bringup.worker import Worker
+from catheter_bringup.worker import Workers
 from catheter_common import qos as Q
 from catheter_common import topics as T
 from catheter_common.params import declare
@@ -49,35 +53,6 @@ from catheter_common.ros_node import make_executor
 RUNNER_NODE = 'run_scenario'
 #: bytes, MCAP chunk size of real-time recordings (lockstep: 1 MB)
 REALTIME_CHUNK = 64 * 1024
-
-
-@dataclasses.dataclass
-class RunResult:
-    """What a run did. Times in seconds; counts per topic."""
-    scenario: str
-    status: str                  # complete | interrupted | failed
-    reason: str
-    bag: Optional[str]
-    sim_time: float              # simulated (lockstep) or elapsed (real time) seconds reached
-    wall_time: float
-    steps: int
-    nodes: List[str]
-    skipped: List[str]           # node instances that could not be imported
-    missing_outputs: List[str]   # wanted topics nobody produces
-    published: Dict[str, int]
-    recorded: Dict[str, int]
-    cost: Dict[str, dict] = dataclasses.field(default_factory=dict)   # per node callback time
-
-    @property
-    def lost(self) -> Dict[str, int]:
-        """Per recorded topic: published in this process but not in the recording."""
-        return {t: self.published[t] - self.recorded.get(t, 0)
-                for t in self.recorded
-                if t in self.published and self.published[t] != self.recorded.get(t, 0)}
-
-    @property
-    def realtime_factor(self) -> float:
-        return self.sim_time / self.wall_time if self.wall_time > 0 else float('inf')
 
 
 #: how the run status names the signals that stop a run
@@ -127,10 +102,21 @@ class ScenarioRunner(Stepping):
             if not duration >= 0:
                 raise ValueError(f'duration must be >= 0, got {duration!r}')
             self.scenario['duration'] = float(duration)
+        if self.scenario.get('layout', 'one') == 'split' and self.scenario['mode'] != 'realtime' \
+                and not only:
+            raise ValueError('layout split runs the graph as separate processes in real time: '
+                             'use mode realtime (lockstep runs in one process)')
         self.registry = registry
+        #: the name of this process in a multi-process run (a worker's), for logs and reports
+        self.process = 'main'
+        #: a worker process waits for this file before its loop starts (`Workers.go`)
+        self.go_file: Optional[str] = None
+
         #: start only these node instances (a real-time worker process runs a subset)
         self.only = set(only) if only else None
-        self.child = None             # the worker process of a split real-time run
+        self.children: Optional[Workers] = None   # worker processes of a real-time run
+        #: process name -> node instances that run in a worker process
+        self.child_groups: Dict[str, List[str]] = {}
         self.child_nodes: List[str] = []
         self.progress = progress
         self.log = log
@@ -192,6 +178,14 @@ class ScenarioRunner(Stepping):
         if self.only is not None:
             chosen = [i for i in chosen if i.name in self.only]
             wanted_all = [i for i in wanted_all if i.name in self.only]
+        elif not lockstep and sc.get('layout', 'one') == 'split':
+            # every node in a worker process (master, slave, vision); this process records
+            from catheter_bringup.scenario import split_processes
+            groups = split_processes(chosen, sc)
+            self.child_groups = {g: [i.name for i in insts] for g, insts in groups.items()}
+            self.child_nodes = [n for names in self.child_groups.values() for n in names]
+            self._child_produces = {t for i in chosen for t in i.spec.produces}
+            chosen, wanted_all = [], []
         elif (not lockstep and sc.get('realtime_processes', 2) >= 2
               and sc.get('realtime_transport', 'local') == 'local'
               and any(i.spec.kind == 'vision' for i in chosen)):
@@ -200,6 +194,8 @@ class ScenarioRunner(Stepping):
             worker = [i for i in chosen if i.spec.kind == 'vision']
             chosen = [i for i in chosen if i.spec.kind != 'vision']
             self.child_nodes = [i.name for i in worker]
+            self.child_groups = {'vision': list(self.child_nodes)}
+            self._child_produces = {t for i in worker for t in i.spec.produces}
             wanted_all = [i for i in wanted_all if i.name not in self.child_nodes]
             self._child_inputs = {t for i in worker for t in i.spec.consumes}
         self.skipped = sorted({i.name for i in wanted_all} - {i.name for i in chosen})
@@ -207,13 +203,18 @@ class ScenarioRunner(Stepping):
         self.start_errors = {}
         self.fallbacks = {}
         transport = sc.get('lockstep_transport' if lockstep else 'realtime_transport', 'local')
-        # the local bus calls timers itself and spins a SingleThreadedExecutor now and then;
-        # real time through DDS spins an EventsExecutor
-        self.executor = make_executor('single' if lockstep or transport == 'local' else 'events',
-                                      context=self.context)
+        if not lockstep and not chosen and self.child_nodes:
+            transport = 'dds'            # layout split: this process only records, via DDS
+        #: real time in a worker process: an EventsExecutor fires the timers and takes what
+        #: DDS delivers; in-process topics go through the bus at once (`LocalBus.immediate`)
+        self.events_bus = (not lockstep and transport == 'local' and self.only is not None)
+        # the local bus (lockstep, one-process real time) calls timers itself and spins a
+        # SingleThreadedExecutor now and then; real time through DDS spins an EventsExecutor
+        single = lockstep or (transport == 'local' and not self.events_bus)
+        self.executor = make_executor('single' if single else 'events', context=self.context)
         self.executor.add_node(self.runner_node)
         if transport == 'local':
-            self.bus = LocalBus(dds=bool(sc.get('dds', False)))
+            self.bus = LocalBus(dds=bool(sc.get('dds', False)), immediate=self.events_bus)
             self.counter = self.bus       # the bus counts what was published
             for t in self.inject_topics:
                 self.bus.counts.setdefault(t, 0)
@@ -243,7 +244,12 @@ class ScenarioRunner(Stepping):
             self.nodes[inst.name] = node
             self.executor.add_node(node)
             if not lockstep:
-                self.counter.wrap_node(node)
+                # publishers counted from the start; subscriptions are taken over by _track
+                # once every node's publishers are known
+                if self.bus is not None:
+                    self.bus.wrap_publishers(node)
+                else:
+                    self.counter.wrap_node(node)
             if lockstep:
                 self._drive_clock_of(node)
         if self.bag:
@@ -258,26 +264,57 @@ class ScenarioRunner(Stepping):
             self.sink.buffered = lockstep
             self._record_publishers()
         self._track()
-        if self.child_nodes:
-            self._start_child()
+        if self.child_groups:
+            self._start_children()
         return self
 
-    def _start_child(self):
-        """Start the worker process running the image pipeline nodes (real time) and wait
-        until its nodes are in the graph."""
-        self.child = Worker(self.scenario, self.child_nodes, self.log)
-        if not self.child.wait_in_graph(self.runner_node.get_node_names):
-            self.child = None
+    def _start_children(self):
+        """Start the worker processes (real time) and wait until their nodes are in the
+        graph."""
+        self.children = Workers(self.scenario, self.child_groups, self.log)
+        if not self.children.wait_in_graph(self.runner_node.get_node_names):
+            self.children = None
+            if not self.nodes:
+                raise RuntimeError('a worker process failed to start (see the log)')
             return
         if self.sink is not None:
-            time.sleep(0.5)
-            self.sink.discover()       # the worker's topics, recorded through DDS
+            # the workers' topics, recorded through DDS: subscribed before their loops start
+            want = {t for t in self._child_produces if self.sink.wants(t)}
+            t_end = time.monotonic() + 10.0
+            while time.monotonic() < t_end:
+                self.sink.discover()
+                if not (want - set(self.sink.subs)):
+                    break
+                time.sleep(0.1)
             self._track()
+            time.sleep(0.5)            # the workers' publishers match the new subscriptions
+        self.children.go()
+        # the workers stop at the end of the run even when this process cannot keep up
+        # (an executor busy with a backlog of recorder messages returns late)
+        self._watchdog = threading.Timer(self.scenario['duration'] + 1.0,
+                                         self.children.interrupt)
+        self._watchdog.daemon = True
+        self._watchdog.start()
 
-    def _stop_child(self):
-        if self.child is not None:
-            self.child.stop()
-            self.child = None
+    def _stop_children(self):
+        """Stop the workers (the recorder takes what they still publish meanwhile) and keep
+        their reports."""
+        if self.children is None:
+            return
+        if getattr(self, '_watchdog', None) is not None:
+            self._watchdog.cancel()
+        spin = self._spin_external if self.bus is not None else (
+            lambda: self.executor.spin_once(timeout_sec=0.01))
+        self.children.stop(spin)
+        self.child_reports = dict(self.children.reports)
+        if self.children.link:
+            self.child_reports['link'] = self.children.link
+        self.child_published = self.children.published()
+        self.child_cost = self.children.cost()
+        t_end = time.perf_counter() + 0.3
+        while time.perf_counter() < t_end:
+            spin()
+        self.children = None
 
     def _drive_clock_of(self, node: Node):
         """Lockstep: the runner sets the node's sim time directly each step (what its /clock
@@ -354,16 +391,15 @@ class ScenarioRunner(Stepping):
 
     # ------------------------------------------------------------------ teardown
     def _finish(self, status, reason, sim, wall, steps) -> RunResult:
-        if self.child is not None:
-            # what the worker still has in flight, then stop it
-            t_end = time.perf_counter() + 0.3
-            while time.perf_counter() < t_end:
-                self._spin_external()
-            self._stop_child()
+        self.child_reports, self.child_published, self.child_cost = {}, {}, {}
+        if self.children is not None:
+            self._stop_children()
         if self.sink is not None:
             self.sink.flush()
         recorded = dict(self.sink.received) if self.sink else {}
         published = dict(self.counter.counts)
+        for t, n in self.child_published.items():
+            published[t] = published.get(t, 0) + n
         for name, node in self.nodes.items():
             close = getattr(node, 'close', None)
             if callable(close):
@@ -384,20 +420,30 @@ class ScenarioRunner(Stepping):
                 'start_errors': self.start_errors,
                 'fallbacks': self.fallbacks,
                 'published': published,
-                'scenario_yaml': _scenario_text(self.scenario),
+                'scenario_yaml': scenario_text(self.scenario),
             })
-        cost = self.bus.cost.summary(wall) if self.bus is not None else {}
+        # shares of the time the loop ran (a worker's wall time includes its wait for go)
+        loop_s = getattr(self, 'realtime_info', {}).get('loop_s', wall)
+        cost = self.bus.cost.summary(loop_s) if self.bus is not None else {}
+        cost.update(self.child_cost)
         if self.child_nodes:
             res_nodes = sorted(set(self.nodes) | set(self.child_nodes))
         else:
             res_nodes = sorted(self.nodes)
         res = RunResult(self.scenario['name'], status, reason, self.bag, sim, wall, steps,
-                        res_nodes, self.skipped, self.missing, published, recorded, cost)
+                        res_nodes, self.skipped, self.missing, published, recorded, cost,
+                        received=dict(self.bus.received) if self.bus is not None else {},
+                        processes=self.child_reports,
+                        realtime=dict(getattr(self, 'realtime_info', {})))
         self.close()
         return res
 
     def close(self):
-        self._stop_child()
+        if getattr(self, '_watchdog', None) is not None:
+            self._watchdog.cancel()
+        if self.children is not None:
+            self.children.stop(lambda: time.sleep(0.01))
+            self.children = None
         for sig, handler in self._old_handlers.items():
             signal.signal(sig, handler)
         self._old_handlers = {}
@@ -422,11 +468,6 @@ class ScenarioRunner(Stepping):
         if self.context is not None and self._own_context:
             rclpy.try_shutdown(context=self.context)
         self.context = None
-
-
-def _scenario_text(sc) -> str:
-    import yaml
-    return yaml.safe_dump({k: v for k, v in sc.items() if k != 'source'}, sort_keys=True)
 
 
 def run_scenario(scenario, **kwargs) -> RunResult:

@@ -19,6 +19,10 @@ A scenario file::
                               # run_scenario --dds)
     strict: false             # a node that fails to start fails the run (else it is left out)
     realtime_processes: 2     # real time: 2 = the image pipeline in a worker process, 1 = none
+    layout: one               # one | split (real time only: master, slave, vision processes
+                              # talking over DDS, the runner's process records; see PROCESSES)
+    realtime_priority: 30     # SCHED_FIFO priority of the real-time processes that run 1 kHz
+                              # loops (0: normal scheduling; falls back with a log line)
     record: {exclude: [/clock]}   # and/or only: [topics] (everything else is not recorded)
     nodes:                    # parameters per node instance (and optional registry fields)
       ima_master_node: {params: {mode: ima}}
@@ -88,6 +92,23 @@ REGISTRY: Dict[str, NodeSpec] = {s.executable: s for s in [
 ]}
 
 MODES = ('lockstep', 'realtime')
+LAYOUTS = ('one', 'split')
+#: layout split: the process each executable runs in. The force loop (haptic device +
+#: renderers) stays in one process; master and slave talk only through the link topics
+#: (/master/command, /slave/force, /slave/impedance) over DDS, as across two machines.
+PROCESSES: Dict[str, str] = {
+    'sim_haptic_node': 'master', 'ima_master_node': 'master',
+    'sim_slave_node': 'slave', 'impedance_identifier_node': 'slave', 'force_source_node': 'slave',
+    'camera_node': 'vision', 'shape_node': 'vision', 'force_estimator_node': 'vision',
+    'fam_solver_node': 'vision',
+}
+#: the link between master and slave: what crosses between their processes (layout split)
+LINK_TOPICS = (T.MASTER_COMMAND, T.SLAVE_FORCE, T.SLAVE_IMPEDANCE)
+#: processes whose loops run at 1 kHz (they get the scenario's realtime_priority)
+LOOP_PROCESSES = ('master', 'slave')
+#: nice value of the vision process when the loops run under SCHED_FIFO: more CPU share than
+#: the machine's other work (30 frames/s must keep up), never ahead of the 1 kHz loops
+VISION_NICE = -10
 #: the identifier's input when the scenario's force source is the image (force_source_node)
 SLAVE_JOINT_STATE_IMAGE = '/slave/joint_state_image'
 FORCE_SOURCES = ('load_cell', 'image')
@@ -219,6 +240,14 @@ def validate_scenario(data: Mapping) -> dict:
         if not isinstance(s[key], bool):
             raise ValueError(f'scenario.{key} must be true or false, got {s[key]!r}')
     s['realtime_processes'] = _num(s, 'realtime_processes', 2, 1, 2)
+    s.setdefault('layout', 'one')
+    if s['layout'] not in LAYOUTS:
+        raise ValueError(f'scenario.layout must be one of {LAYOUTS}, got {s["layout"]!r}')
+    s['realtime_priority'] = _num(s, 'realtime_priority', 30, 0, 99)
+    if s['layout'] == 'split' and s['mode'] != 'realtime':
+        raise ValueError('scenario.layout split runs the graph as separate processes in real '
+                         'time: it needs mode realtime (--mode realtime); lockstep runs in '
+                         'one process')
     s.setdefault('description', '')
     s.setdefault('global_params', {})
     s.setdefault('metrics', {})
@@ -346,3 +375,22 @@ def resolve_nodes(scenario: Mapping, available: Optional[set] = None,
     missing = [t for t in scenario['outputs'] if t not in produced]
     order = sorted(chosen.values(), key=lambda i: i.name)
     return order, missing
+
+
+def process_of(inst: NodeInstance, scenario: Mapping) -> str:
+    """The process (layout split) a node instance runs in: the scenario's ``nodes.<name>.process``
+    if given, else `PROCESSES` by executable, else 'vision' for vision nodes and 'slave' for
+    the rest."""
+    cfg = scenario['nodes'].get(inst.name) or {}
+    if cfg.get('process'):
+        return str(cfg['process'])
+    return PROCESSES.get(inst.spec.executable, 'vision' if inst.spec.kind == 'vision' else 'slave')
+
+
+def split_processes(chosen: List[NodeInstance], scenario: Mapping) -> Dict[str, List[NodeInstance]]:
+    """Layout split: process name -> its node instances (start order kept), loop processes
+    first."""
+    out: Dict[str, List[NodeInstance]] = {}
+    for inst in chosen:
+        out.setdefault(process_of(inst, scenario), []).append(inst)
+    return dict(sorted(out.items(), key=lambda kv: (kv[0] not in LOOP_PROCESSES, kv[0])))

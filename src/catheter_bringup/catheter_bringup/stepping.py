@@ -4,13 +4,14 @@ EventsExecutor). A mixin of `catheter_bringup.runner.ScenarioRunner`, which owns
 these methods use (nodes, executor, bus, timers, recorder, scenario)."""
 from __future__ import annotations
 
-import gc
 import time
 
 from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.rclpy_adapter import (fire_timer, set_time, spin_ready, timer_due_in_ns,
-                                            timer_ready)
+                                            timer_ready, wrap_timer_callback)
+from catheter_bringup.realtime import (GcWatch, latency_stats, quiet_gc, reset_priority,
+                                       set_fifo_priority, set_nice, stream_stats)
 
 #: ns, real time with the local bus: how often DDS is polled for subscriptions outside the bus
 #: (the image worker's 30 Hz topics). One poll builds an rclpy wait set, 0.3-1.4 ms measured:
@@ -127,7 +128,10 @@ class Stepping:
         msg.clock.nanosec = t_ns % 1_000_000_000
         for ts in self.time_sources:
             set_time(ts, msg)
-        self.clock_pub.publish(msg)
+        # /clock for tools outside the run (the nodes' time is set directly): a DDS publish
+        # per step costs ~20-50 us, so only while someone listens
+        if self.clock_pub.get_subscription_count() > 0:
+            self.clock_pub.publish(msg)
 
     def _rescan(self):
         if self.sink is not None:
@@ -137,18 +141,68 @@ class Stepping:
                 self.counter.wrap_node(node)
         self._track()
 
+    def _wait_go(self) -> None:
+        """A worker: wait until the run's other processes are ready (the go file exists)."""
+        import os
+        while self.go_file and not os.path.exists(self.go_file):
+            if self.stop_requested:
+                raise KeyboardInterrupt
+            time.sleep(0.02)
+
     def _run_realtime(self, bar):
+        from catheter_bringup.scenario import LINK_TOPICS, LOOP_PROCESSES, VISION_NICE
+        self._wait_go()
+        self._loop_t0 = time.perf_counter()
+        info = self.realtime_info = {'process': self.process, 'scheduling': 'SCHED_OTHER'}
+        prio = int(self.scenario.get('realtime_priority', 0))
+        # the processes whose loops run at 1 kHz: the master and slave workers, or the one
+        # process that holds every loop (not a recorder-only or vision process)
+        loops = self.process in LOOP_PROCESSES or (self.process == 'main' and self.nodes
+                                                    and not self.events_bus)
+        fifo = set_fifo_priority(prio, self.log) if prio > 0 and loops else None
+        if fifo:
+            info['scheduling'] = fifo
+        old_nice = None
+        if prio > 0 and self.process == 'vision':
+            old_nice = set_nice(VISION_NICE, self.log)
+            if old_nice is not None:
+                info['scheduling'] = f'SCHED_OTHER nice {VISION_NICE}'
         # everything alive now (nodes, models, earlier runs' garbage) out of the collector's
         # sight: a full collection of a big heap inside the 1 kHz loop stalled it 55 ms (in
-        # the benchmark, after lockstep runs in the same process); young collections remain
-        gc.collect()
-        gc.freeze()
+        # the benchmark, after lockstep runs in the same process); young collections remain,
+        # fewer of them (threshold raised)
+        if self.bus is not None:
+            # per stream: when it was published (rate, period) and the image -> tip force
+            # latency, measured where they happen (a recorder in another process may miss some)
+            from catheter_common import topics as T
+            self.bus.times = {}
+            self.bus.latency_topics = {T.TIP_WRENCH}
+            self.bus.stamp_topics = set(LINK_TOPICS) if self.children is None else set()
+            self.bus.wall_ns = time.time_ns
+        undo = quiet_gc()
+        watch = GcWatch().start()
         try:
             return self._run_realtime_inner(bar)
         finally:
-            gc.unfreeze()
+            watch.stop()
+            undo()
+            if fifo:
+                reset_priority()
+            if old_nice is not None:
+                set_nice(old_nice, self.log)
+            info['gc'] = watch.summary()
+            info['loop_s'] = time.perf_counter() - self._loop_t0
+            if self.bus is not None and self.bus.times is not None:
+                info['streams'] = {t: stream_stats(v) for t, v in self.bus.times.items()
+                                   if len(v) >= 10}
+                info['latency'] = {t: latency_stats(v) for t, v in self.bus.latency.items()}
+                info['link_sent'] = {t: list(v) for t, v in self.bus.sent.items()}
+                info['link_taken'] = {t: list(v) for t, v in self.bus.taken.items()}
+                self.bus.times = None
 
     def _run_realtime_inner(self, bar):
+        if self.bus is not None and self.events_bus:
+            return self._run_realtime_events(bar)
         if self.bus is not None:
             return self._run_realtime_local(bar)
         sc = self.scenario
@@ -170,6 +224,8 @@ class Stepping:
             self._sim_reached = min(el, sc['duration'])
             if now >= next_scan:
                 self._rescan()
+                if self.sink is not None and self.child_nodes and self.sink.discover():
+                    self._track()
                 next_scan = now + 200_000_000
             if bar is not None and el - last >= 0.1:
                 bar.update(round(min(el, sc['duration']) - last, 3))
@@ -226,6 +282,46 @@ class Stepping:
             if wait > 60_000:
                 time.sleep((wait - 50_000) * 1e-9)   # wake a little early: sleep overshoots
         return 0, self._sim_reached
+
+    def _run_realtime_events(self, bar):
+        """Real time in a worker process: the EventsExecutor fires the timers on the system
+        clock (an rcl timer is due a whole number of periods after its start, so lateness
+        never accumulates) and takes what DDS delivers from the other processes; what a
+        callback publishes reaches this process's subscribers through the bus at once."""
+        sc = self.scenario
+        clock = self.runner_node.get_clock()
+        start = clock.now().nanoseconds
+        end = start + int(sc['duration'] * 1e9)
+        self._sim_reached = 0.0
+        self._time_timers()
+        next_scan = start + 200_000_000
+        spin = self.executor.spin_once
+        while True:
+            now = clock.now().nanoseconds
+            if now >= end:
+                break
+            if self.stop_requested:
+                raise KeyboardInterrupt
+            spin(timeout_sec=min(0.05, (end - now) * 1e-9))
+            if now >= next_scan:
+                self._now_ns = now
+                self._sim_reached = min((now - start) * 1e-9, sc['duration'])
+                self._rescan()
+                self._time_timers()
+                next_scan = now + 200_000_000
+        self._sim_reached = min((clock.now().nanoseconds - start) * 1e-9, sc['duration'])
+        return 0, self._sim_reached
+
+    def _time_timers(self) -> None:
+        """Events loop: each timer's callback timed into the bus's per-node cost (its own
+        work, without the deliveries its publishes cause)."""
+        done = self.__dict__.setdefault('_timed_timers', set())
+        for tmr in self._timers:
+            if id(tmr) in done:
+                continue
+            done.add(id(tmr))
+            owner = self._timer_owner.get(id(tmr), '?')
+            wrap_timer_callback(tmr, lambda f, _o=owner, _b=self.bus: (lambda: _b.timed(_o, f)))
 
     def _spin_external(self, limit: int = 50) -> None:
         """Handle what DDS delivered to subscriptions outside the bus (the worker's topics)."""

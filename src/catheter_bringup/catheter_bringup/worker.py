@@ -1,69 +1,180 @@
-"""The worker process of a split real-time run: the image pipeline nodes (tens of ms per frame)
-run in a second `run_scenario` process so they never hold up the 1 kHz loops; messages
-between the two go through DDS."""
+"""The worker processes of a multi-process real-time run. Each is a `run_scenario --only
+<nodes>` process on the same scenario; messages between the processes go through DDS.
+
+- layout one (``realtime_processes: 2``): the image pipeline nodes (tens of ms per frame) in
+  one worker, so they never hold up the 1 kHz loops of the runner's process;
+- layout split: one worker per process of `catheter_bringup.scenario.PROCESSES` (master,
+  slave, vision), the runner's process only records.
+
+At its end each worker writes a JSON report (what it published and took from DDS per topic,
+its callback cost, GC pauses, the scheduling it got), which `Workers.reports` collects."""
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
 import sys
 import tempfile
 import time
-from typing import Callable, List, Optional
+from typing import Callable, Dict, List, Optional
 
 import yaml
 
 
 class Worker:
-    """Starts `run_scenario --only <nodes>` on the scenario and stops it with SIGINT."""
+    """Starts `run_scenario --only <nodes> --process <name>` on the scenario; stopped with
+    SIGINT."""
 
-    def __init__(self, scenario: dict, nodes: List[str], log: Callable[[str], None]):
+    def __init__(self, scenario: dict, nodes: List[str], log: Callable[[str], None],
+                 name: str = 'vision'):
         self.nodes = list(nodes)
+        self.name = name
         self.log = log
         sc = dict(scenario)
         sc.pop('source', None)
-        fd, self._yaml = tempfile.mkstemp(suffix='.yaml', prefix='worker_')
+        fd, self._yaml = tempfile.mkstemp(suffix='.yaml', prefix=f'worker_{name}_')
         with os.fdopen(fd, 'w') as f:
             yaml.safe_dump(sc, f)
+        fd, self._report = tempfile.mkstemp(suffix='.json', prefix=f'worker_{name}_')
+        os.close(fd)
+        #: created by `go()`: the worker starts its loop then (after the recorder subscribed)
+        self._go = self._report[:-5] + '.go'
         cmd = [sys.executable, '-m', 'catheter_bringup.run_scenario', self._yaml, '--mode',
                'realtime', '--no-record', '--quiet', '--only', ','.join(self.nodes),
-               '--duration', str(scenario['duration'] + 30.0)]
+               '--process', name, '--report', self._report, '--go', self._go,
+               '--duration', str(scenario['duration'] + 60.0)]
         self._log_file = tempfile.TemporaryFile(mode='w+')
         self.proc: Optional[subprocess.Popen] = subprocess.Popen(
             cmd, stdout=subprocess.DEVNULL, stderr=self._log_file, text=True)
-        self.log(f'[run] image pipeline in a worker process (pid {self.proc.pid}): '
-                 f'{", ".join(self.nodes)}')
+        self.log(f'[run] {name} worker process (pid {self.proc.pid}): {", ".join(self.nodes)}')
 
-    def wait_in_graph(self, node_names: Callable[[], List[str]], timeout: float = 60.0) -> bool:
-        """Wait until the worker's nodes are in the ROS graph; False (and the worker is
-        stopped) if it exited first."""
-        t_end = time.monotonic() + timeout
-        while time.monotonic() < t_end:
-            if set(self.nodes) <= set(node_names()):
-                return True
-            if self.proc.poll() is not None:
-                self._log_file.seek(0)
-                err = self._log_file.read()[-2000:]
-                self.log(f'[run] worker process exited ({self.proc.returncode}): {err}')
-                self.proc = None
-                self._cleanup()
-                return False
-            time.sleep(0.1)
+    def exited(self) -> bool:
+        """True (and the reason logged) if the process ended on its own."""
+        if self.proc is None or self.proc.poll() is None:
+            return False
+        self.log(f'[run] {self.name} process exited ({self.proc.returncode}): {self.stderr()}')
         return True
 
-    def stop(self) -> None:
+    def stderr(self) -> str:
+        self._log_file.seek(0)
+        return self._log_file.read()[-2000:]
+
+    def go(self) -> None:
+        with open(self._go, 'w'):
+            pass
+
+    def interrupt(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout=10)
-            except Exception:  # noqa: BLE001
-                self.proc.kill()
-                self.proc.wait()
-        self.proc = None
-        self._cleanup()
 
-    def _cleanup(self) -> None:
+    def running(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def kill(self) -> None:
+        if self.running():
+            self.proc.kill()
+            self.proc.wait()
+
+    def report(self) -> Optional[dict]:
+        """The worker's report, once it has exited (None if it wrote none)."""
         try:
-            os.unlink(self._yaml)
-        except OSError:
-            pass
+            with open(self._report) as f:
+                text = f.read()
+            return json.loads(text) if text.strip() else None
+        except (OSError, ValueError):
+            return None
+
+    def cleanup(self) -> None:
+        for p in (self._yaml, self._report, self._go):
+            try:
+                os.unlink(p)
+            except OSError:
+                pass
+
+
+class Workers:
+    """The worker processes of one run: started together, waited for together, stopped
+    together (SIGINT to all, then wait), reports collected."""
+
+    def __init__(self, scenario: dict, groups: Dict[str, List[str]],
+                 log: Callable[[str], None]):
+        self.log = log
+        self.workers = [Worker(scenario, nodes, log, name) for name, nodes in groups.items()]
+        self.reports: Dict[str, dict] = {}
+        #: after `stop`: per link topic and receiving process, sent / taken / lost by DDS
+        self.link: Dict[str, dict] = {}
+
+    @property
+    def nodes(self) -> List[str]:
+        return [n for w in self.workers for n in w.nodes]
+
+    def wait_in_graph(self, node_names: Callable[[], List[str]], timeout: float = 90.0) -> bool:
+        """Wait until every worker's nodes are in the ROS graph; False (and all workers
+        stopped) if one exited first."""
+        t_end = time.monotonic() + timeout
+        want = set(self.nodes)
+        while time.monotonic() < t_end:
+            if want <= set(node_names()):
+                return True
+            if any(w.exited() for w in self.workers):
+                self.stop(lambda: None)
+                return False
+            time.sleep(0.1)
+        self.log(f'[run] workers not in the graph after {timeout:g} s: '
+                 f'{sorted(want - set(node_names()))}')
+        return True
+
+    def go(self) -> None:
+        """Let every worker start its loop."""
+        for w in self.workers:
+            w.go()
+
+    def interrupt(self) -> None:
+        """SIGINT to every worker (they stop their loops, report and exit)."""
+        for w in self.workers:
+            w.interrupt()
+
+    def stop(self, spin: Callable[[], None], timeout: float = 15.0) -> None:
+        """SIGINT to every worker, then `spin()` (the recorder takes what is in flight) until
+        all have exited; a worker still running after `timeout` s is killed."""
+        for w in self.workers:
+            w.interrupt()
+        t_end = time.monotonic() + timeout
+        while any(w.running() for w in self.workers) and time.monotonic() < t_end:
+            spin()
+        for w in self.workers:
+            if w.running():
+                self.log(f'[run] {w.name} process did not stop: killed')
+                w.kill()
+            rep = w.report()
+            if rep is not None:
+                self.reports[w.name] = rep
+            w.cleanup()
+        self.workers = []
+        self.link = self._link_loss()
+
+    def _link_loss(self) -> Dict[str, dict]:
+        """Per link topic and receiving process: what DDS lost between the processes
+        (`catheter_bringup.realtime.link_loss`); the stamp lists leave the reports."""
+        from catheter_bringup.realtime import link_loss
+        sent, taken = {}, {}
+        for name, rep in self.reports.items():
+            rt = rep.get('realtime') or {}
+            for t, v in (rt.pop('link_sent', None) or {}).items():
+                sent[t] = v
+            for t, v in (rt.pop('link_taken', None) or {}).items():
+                taken.setdefault(t, {})[name] = v
+        return {f'{t} -> {proc}': link_loss(sent[t], v)
+                for t in sorted(sent) for proc, v in sorted(taken.get(t, {}).items())}
+
+    def published(self) -> Dict[str, int]:
+        out: Dict[str, int] = {}
+        for rep in self.reports.values():
+            for t, n in rep.get('published', {}).items():
+                out[t] = out.get(t, 0) + int(n)
+        return out
+
+    def cost(self) -> Dict[str, dict]:
+        return {node: c for rep in self.reports.values()
+                for node, c in rep.get('cost', {}).items()}

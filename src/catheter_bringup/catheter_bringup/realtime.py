@@ -1,0 +1,193 @@
+"""Process-level settings of a real-time run (no rclpy): OS scheduling priority for the
+processes that run 1 kHz loops, the garbage collector kept out of the loop, and a record of
+the collector's pauses.
+
+- `set_fifo_priority`: SCHED_FIFO for every thread of the process (the loop, the DDS receive
+  threads, the executor's timer thread), so other work on the machine cannot preempt them.
+  Needs root or CAP_SYS_NICE (or an ``rtprio`` limit in /etc/security/limits.conf); when not
+  permitted it leaves the scheduling as it is and says so in one log line.
+- `set_nice`: a negative nice value for the vision process: more CPU share than the
+  machine's other work without preempting the loops (a SCHED_FIFO vision process rendering
+  800x800 frames pushed the real-time tasks into the kernel's RT throttling: 68 ms stalls
+  of the 1 kHz loops, measured).
+- `quiet_gc`: everything alive at start-up frozen out of the collector's sight (a full
+  collection of a big heap inside the loop stalled it 55 ms), the young-generation
+  threshold raised (fewer, slightly longer young collections), undone afterwards.
+- `GcWatch`: counts and times every collection (gc.callbacks) while a run is in its loop.
+"""
+from __future__ import annotations
+
+import gc
+import os
+import time
+from typing import Callable, Dict, List, Optional
+
+
+def set_fifo_priority(priority: int, log: Callable[[str], None] = print) -> Optional[str]:
+    """Put every thread of this process under SCHED_FIFO at `priority` (1..99). Returns the
+    policy now in force ('SCHED_FIFO <p>') or None when not permitted or not available
+    (scheduling unchanged, one log line). Threads created later inherit it."""
+    if isinstance(priority, bool) or not isinstance(priority, int) or not 1 <= priority <= 99:
+        raise ValueError(f'priority must be an int in 1..99, got {priority!r}')
+    if not hasattr(os, 'sched_setscheduler'):
+        log('[run] SCHED_FIFO not available on this OS: normal scheduling')
+        return None
+    try:
+        tids = [int(t) for t in os.listdir('/proc/self/task')]
+    except OSError:
+        tids = [0]
+    param = os.sched_param(priority)
+    try:
+        for tid in tids:
+            try:
+                os.sched_setscheduler(tid, os.SCHED_FIFO, param)
+            except ProcessLookupError:       # a thread that ended meanwhile
+                continue
+    except PermissionError:
+        log(f'[run] SCHED_FIFO priority {priority} not permitted (needs root, CAP_SYS_NICE or '
+            'an rtprio limit): normal scheduling')
+        return None
+    return f'SCHED_FIFO {priority}'
+
+
+def reset_priority() -> None:
+    """Every thread back to SCHED_OTHER (the run's process goes on, e.g. a test)."""
+    if not hasattr(os, 'sched_setscheduler'):
+        return
+    try:
+        tids = [int(t) for t in os.listdir('/proc/self/task')]
+    except OSError:
+        tids = [0]
+    for tid in tids:
+        try:
+            os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+        except OSError:
+            continue
+
+
+def set_nice(nice: int, log: Callable[[str], None] = print) -> Optional[int]:
+    """Give every thread of this process the nice value `nice` (-20..19; negative = more CPU
+    share under SCHED_OTHER, it never preempts SCHED_FIFO loops and does not count against
+    the kernel's real-time throttling). Returns the previous nice value of the calling
+    thread, or None when not permitted (one log line, unchanged)."""
+    if isinstance(nice, bool) or not isinstance(nice, int) or not -20 <= nice <= 19:
+        raise ValueError(f'nice must be an int in -20..19, got {nice!r}')
+    try:
+        tids = [int(t) for t in os.listdir('/proc/self/task')]
+    except OSError:
+        tids = [0]
+    old = os.getpriority(os.PRIO_PROCESS, 0)
+    try:
+        for tid in tids:
+            try:
+                os.setpriority(os.PRIO_PROCESS, tid, nice)
+            except ProcessLookupError:
+                continue
+    except PermissionError:
+        log(f'[run] nice {nice} not permitted (needs root or CAP_SYS_NICE): normal priority')
+        return None
+    return old
+
+
+#: young-generation collection threshold during a real-time loop (Python's default: 700)
+GC_THRESHOLD0 = 20_000
+
+
+def quiet_gc(threshold0: int = GC_THRESHOLD0) -> Callable[[], None]:
+    """Collect once, freeze what is alive, raise the young threshold; returns the undo."""
+    old = gc.get_threshold()
+    gc.collect()
+    gc.freeze()
+    gc.set_threshold(threshold0, old[1], old[2])
+
+    def undo():
+        gc.set_threshold(*old)
+        gc.unfreeze()
+    return undo
+
+
+class GcWatch:
+    """Times every garbage collection while installed (`start` / `stop`)."""
+
+    def __init__(self):
+        self.pauses: Dict[int, List[float]] = {0: [], 1: [], 2: []}
+        self._t0 = None
+
+    def _cb(self, phase, info):
+        if phase == 'start':
+            self._t0 = time.perf_counter()
+        elif self._t0 is not None:
+            self.pauses.setdefault(info.get('generation', 0), []).append(
+                time.perf_counter() - self._t0)
+            self._t0 = None
+
+    def start(self) -> 'GcWatch':
+        gc.callbacks.append(self._cb)
+        return self
+
+    def stop(self) -> None:
+        if self._cb in gc.callbacks:
+            gc.callbacks.remove(self._cb)
+
+    def summary(self) -> Dict[str, float]:
+        allp = [p for ps in self.pauses.values() for p in ps]
+        out = {f'gen{g}_count': len(ps) for g, ps in sorted(self.pauses.items())}
+        out['total_ms'] = 1e3 * sum(allp)
+        out['max_ms'] = 1e3 * max(allp) if allp else 0.0
+        return out
+
+
+def stream_stats(times_s, skip_fraction: float = 0.1) -> Dict[str, float]:
+    """Rate and period statistics of a stream from its publish times (s, increasing): the
+    first `skip_fraction` of the samples (start-up) left out. n, rate_hz, p50_ms, p99_ms,
+    max_ms; a stream with fewer than 3 samples left gives n and NaNs."""
+    import numpy as np
+    if not 0.0 <= skip_fraction < 1.0:
+        raise ValueError(f'skip_fraction must be in [0, 1), got {skip_fraction!r}')
+    t = np.asarray(times_s, dtype=float)
+    if t.ndim != 1 or not np.all(np.isfinite(t)):
+        raise ValueError('times_s must be a 1-D sequence of finite times')
+    t = t[int(len(t) * skip_fraction):]
+    nan = float('nan')
+    if t.size < 3:
+        return {'n': int(t.size), 'rate_hz': nan, 'p50_ms': nan, 'p99_ms': nan, 'max_ms': nan}
+    d = np.diff(t)
+    if np.any(d < 0):
+        raise ValueError('times_s must be non-decreasing')
+    span = t[-1] - t[0]
+    return {'n': int(t.size), 'rate_hz': float((t.size - 1) / span) if span > 0 else nan,
+            'p50_ms': float(np.percentile(d, 50) * 1e3),
+            'p99_ms': float(np.percentile(d, 99) * 1e3), 'max_ms': float(d.max() * 1e3)}
+
+
+def latency_stats(lat_s, skip: int = 2) -> Dict[str, float]:
+    """n, p50_ms, p99_ms, max_ms of latencies (s), the first `skip` left out (start-up)."""
+    import numpy as np
+    a = np.asarray(lat_s, dtype=float)[skip:]
+    if a.ndim != 1 or not np.all(np.isfinite(a)):
+        raise ValueError('lat_s must be a 1-D sequence of finite latencies')
+    nan = float('nan')
+    if a.size == 0:
+        return {'n': 0, 'p50_ms': nan, 'p99_ms': nan, 'max_ms': nan}
+    return {'n': int(a.size), 'p50_ms': float(np.percentile(a, 50) * 1e3),
+            'p99_ms': float(np.percentile(a, 99) * 1e3), 'max_ms': float(a.max() * 1e3)}
+
+
+def link_loss(sent_ns, taken_ns) -> Dict[str, int]:
+    """What DDS lost of a stream between two processes, from the header stamps (ns) the
+    publisher sent and those the subscriber took: counted inside the window both were
+    running, [max(first sent, first taken), min(last sent, last taken)], so a process that
+    started or stopped earlier is not charged. Returns sent, taken (distinct stamps of the
+    window that were sent) and lost."""
+    import numpy as np
+    s = np.asarray(sent_ns, dtype=np.int64)
+    t = np.asarray(taken_ns, dtype=np.int64)
+    if s.ndim != 1 or t.ndim != 1:
+        raise ValueError('sent_ns and taken_ns must be 1-D sequences of stamps')
+    if s.size == 0 or t.size == 0:
+        return {'sent': int(s.size), 'taken': int(t.size), 'lost': int(s.size) if t.size == 0
+                else 0}
+    lo, hi = max(s.min(), t.min()), min(s.max(), t.max())
+    sw = np.unique(s[(s >= lo) & (s <= hi)])
+    tw = np.intersect1d(np.unique(t[(t >= lo) & (t <= hi)]), sw)
+    return {'sent': int(sw.size), 'taken': int(tw.size), 'lost': int(sw.size - tw.size)}

@@ -1,0 +1,196 @@
+"""Process-level real-time settings and the figures a real-time run reports
+(catheter_bringup.realtime), and the bus's immediate delivery used by the worker processes:
+hand-checked values, invariants (hypothesis), bad input refused by name."""
+import gc
+import os
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from catheter_bringup import realtime as R
+
+
+def test_stream_stats_hand_checked():
+    s = R.stream_stats([0.0, 0.001, 0.002, 0.004], skip_fraction=0.0)
+    assert s['n'] == 4
+    assert s['rate_hz'] == pytest.approx(3 / 0.004)
+    assert s['p50_ms'] == pytest.approx(1.0)
+    assert s['p99_ms'] == pytest.approx(1.98)       # linear between the periods 1 and 2 ms
+    assert s['max_ms'] == pytest.approx(2.0)
+    # the start-up tenth is left out
+    t = np.r_[0.0, 0.5, np.arange(1.0, 1.0 + 18 * 0.001, 0.001)]
+    assert R.stream_stats(t)['max_ms'] == pytest.approx(1.0)
+    assert np.isnan(R.stream_stats([1.0, 2.0], 0.0)['rate_hz'])
+
+
+def test_stream_stats_refuses_bad_input():
+    with pytest.raises(ValueError, match='skip_fraction'):
+        R.stream_stats([0.0, 1.0, 2.0], skip_fraction=1.0)
+    with pytest.raises(ValueError, match='times_s'):
+        R.stream_stats([0.0, float('nan'), 2.0])
+    with pytest.raises(ValueError, match='times_s'):
+        R.stream_stats([0.0, 2.0, 1.0, 3.0], 0.0)
+
+
+def test_latency_stats_hand_checked():
+    s = R.latency_stats([5.0, 5.0, 0.010, 0.020, 0.030])   # the first two (start-up) left out
+    assert s['n'] == 3 and s['p50_ms'] == pytest.approx(20.0)
+    assert s['max_ms'] == pytest.approx(30.0)
+    assert R.latency_stats([1.0])['n'] == 0
+    with pytest.raises(ValueError, match='lat_s'):
+        R.latency_stats([0.0, 0.0, float('inf')])
+
+
+def test_link_loss_counts_inside_the_common_window():
+    sent = list(range(0, 100))
+    taken = [s for s in sent if s >= 10 and s not in (40, 41, 77)]   # started late, lost 3
+    assert R.link_loss(sent, taken) == {'sent': 90, 'taken': 87, 'lost': 3}
+    # the receiver stopped early: what it never waited for is not lost
+    assert R.link_loss(sent, sent[:50])['lost'] == 0
+    assert R.link_loss(sent, [])['lost'] == 100
+    with pytest.raises(ValueError, match='sent_ns'):
+        R.link_loss([[1, 2]], [1])
+
+
+@given(st.lists(st.integers(0, 10**6), min_size=1, max_size=200, unique=True),
+       st.sets(st.integers(0, 199)))
+def test_link_loss_invariants(sent, drop):
+    sent = sorted(sent)
+    taken = [s for k, s in enumerate(sent) if k not in drop]
+    r = R.link_loss(sent, taken)
+    assert 0 <= r['lost'] <= len(drop)
+    assert r['taken'] + r['lost'] == r['sent'] <= len(sent)
+    # duplicates delivered twice do not hide a loss
+    assert R.link_loss(sent, taken + taken) == r
+
+
+def test_fifo_priority_falls_back_with_one_log_line(monkeypatch):
+    def refuse(*_a):
+        raise PermissionError(1, 'Operation not permitted')
+    monkeypatch.setattr(os, 'sched_setscheduler', refuse)
+    logs = []
+    assert R.set_fifo_priority(10, logs.append) is None
+    assert len(logs) == 1 and 'not permitted' in logs[0] and 'normal scheduling' in logs[0]
+    with pytest.raises(ValueError, match='priority'):
+        R.set_fifo_priority(0)
+    with pytest.raises(ValueError, match='priority'):
+        R.set_fifo_priority(True)
+
+
+def test_fifo_priority_applies_to_every_thread_and_is_undone():
+    """Where permitted (root here): every thread of the process under SCHED_FIFO, and back."""
+    if os.geteuid() != 0:
+        pytest.skip('SCHED_FIFO needs root or CAP_SYS_NICE; the fallback is tested above')
+    import threading
+    import time
+    stop = threading.Event()
+    th = threading.Thread(target=stop.wait)
+    th.start()
+    try:
+        assert R.set_fifo_priority(3, print) == 'SCHED_FIFO 3'
+        assert os.sched_getscheduler(0) == os.SCHED_FIFO
+        assert os.sched_getscheduler(th.native_id) == os.SCHED_FIFO
+        R.reset_priority()
+        assert os.sched_getscheduler(0) == os.SCHED_OTHER
+        assert os.sched_getscheduler(th.native_id) == os.SCHED_OTHER
+    finally:
+        R.reset_priority()
+        stop.set()
+        th.join()
+        time.sleep(0)
+
+
+def test_quiet_gc_freezes_raises_the_threshold_and_undoes():
+    old = gc.get_threshold()
+    undo = R.quiet_gc(12345)
+    try:
+        assert gc.get_freeze_count() > 0
+        assert gc.get_threshold() == (12345,) + old[1:]
+    finally:
+        undo()
+    assert gc.get_threshold() == old and gc.get_freeze_count() == 0
+
+
+def test_gc_watch_times_a_collection():
+    w = R.GcWatch().start()
+    gc.collect()
+    w.stop()
+    s = w.summary()
+    assert s['gen2_count'] >= 1 and s['total_ms'] > 0 and s['max_ms'] <= s['total_ms']
+    gc.collect()
+    assert w.summary() == s                      # stopped: nothing more counted
+
+
+@pytest.mark.ros
+def test_immediate_bus_delivers_inside_publish_in_order(ros):
+    """Worker processes: a publish reaches this process's subscribers before publish()
+    returns (no executor turn), a publish made during delivery is delivered after the current
+    message, what DDS still delivers to a taken subscription arrives raw (not deserialised),
+    and a subscription nobody in the process publishes to is left to DDS and counted."""
+    from std_msgs.msg import String
+    from catheter_bringup.bus import LocalBus
+    from catheter_common.qos import QOS_DEFAULT
+    a, b, c = ros.node('imm_a'), ros.node('imm_b'), ros.node('imm_c')
+    pub_t = a.create_publisher(String, 'imm/t', QOS_DEFAULT)
+    pub_u = b.create_publisher(String, 'imm/u', QOS_DEFAULT)
+    order = []
+
+    def on_t(msg):
+        order.append('t:' + msg.data)
+        pub_u.publish(String(data=msg.data + '!'))
+        order.append('t-done')
+    sub_t = b.create_subscription(String, 'imm/t', on_t, QOS_DEFAULT)
+    seen_u = []
+    c.create_subscription(String, 'imm/u', lambda m: (order.append('u:' + m.data),
+                                                      seen_u.append(m)), QOS_DEFAULT)
+    a.create_subscription(String, 'imm/u', seen_u.append, QOS_DEFAULT)
+    ext = c.create_subscription(String, 'imm/ext', lambda m: order.append('ext'), QOS_DEFAULT)
+    bus = LocalBus(immediate=True)
+    for n in (a, b, c):
+        bus.wrap_publishers(n)
+    for n in (a, b, c):
+        bus.wrap_subscriptions(n)
+    assert sub_t.raw is True and ext.raw is False
+    pub_t.publish(String(data='x'))
+    assert order == ['t:x', 't-done', 'u:x!']
+    # one deserialised message for both subscribers of /imm/u (share), a copy each without
+    assert len(seen_u) == 2 and seen_u[0] is seen_u[1] and seen_u[0].data == 'x!'
+    bus.share = False
+    pub_u.publish(String(data='z'))
+    assert len(seen_u) == 4 and seen_u[2] is not seen_u[3] and seen_u[2] == seen_u[3]
+    assert bus.counts['/imm/t'] == 1 and bus.counts['/imm/u'] == 2
+    other = ros.node('imm_other').create_publisher(String, 'imm/ext', QOS_DEFAULT)
+    assert ros.spin_until(lambda: other.get_subscription_count() > 0, 10.0)
+    other.publish(String(data='y'))
+    assert ros.spin_until(lambda: bus.received.get('/imm/ext') == 1, 10.0)
+    assert order[-1] == 'ext'
+
+
+def test_nice_applies_to_every_thread_falls_back_and_refuses_bad_values(monkeypatch):
+    with pytest.raises(ValueError, match='nice'):
+        R.set_nice(-21)
+    with pytest.raises(ValueError, match='nice'):
+        R.set_nice(1.5)
+    old = os.getpriority(os.PRIO_PROCESS, 0)
+    import threading
+    stop = threading.Event()
+    th = threading.Thread(target=stop.wait)
+    th.start()
+    try:
+        assert R.set_nice(old + 1, print) == old             # raising nice is always allowed
+        assert os.getpriority(os.PRIO_PROCESS, 0) == old + 1
+        assert os.getpriority(os.PRIO_PROCESS, th.native_id) == old + 1
+    finally:
+        if os.geteuid() == 0:
+            R.set_nice(old, print)
+        stop.set()
+        th.join()
+
+    def refuse(*_a):
+        raise PermissionError(1, 'Operation not permitted')
+    monkeypatch.setattr(os, 'setpriority', refuse)
+    logs = []
+    assert R.set_nice(-5, logs.append) is None
+    assert len(logs) == 1 and 'not permitted' in logs[0]
