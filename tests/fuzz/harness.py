@@ -45,6 +45,10 @@ def _js(scale):
     return lambda p: S.build_joint_state(p, scale)
 
 
+def _cmd(scale):
+    return lambda p: S.build_master_command(p, scale)
+
+
 def _wrench(scale):
     return lambda p: S.build_wrench(p, scale)
 
@@ -69,14 +73,14 @@ class FuzzNode:
 
 FUZZ_NODES = {
     'ima_master_node': FuzzNode('ima_master_node', {
-        T.MASTER_COMMAND: Input(_js(0.1), ('commands', 'bad_command')),
+        T.MASTER_COMMAND: Input(_cmd(0.1), ('commands', 'bad_command')),
         T.MASTER_LINK_IMPEDANCE: Input(S.build_impedance, (
             'models_received', 'models_unchanged', 'bad_impedance', 'models_ignored_mode')),
         T.MASTER_LINK_FORCE: Input(_wrench(1.0), ('forces_received', 'bad_force',
                                                      'forces_ignored_mode')),
     }, params={'mode': 'ima'}),
     'dfr_master_node': FuzzNode('ima_master_node', {
-        T.MASTER_COMMAND: Input(_js(0.1), ('commands', 'bad_command')),
+        T.MASTER_COMMAND: Input(_cmd(0.1), ('commands', 'bad_command')),
         T.MASTER_LINK_IMPEDANCE: Input(S.build_impedance, (
             'models_received', 'models_unchanged', 'bad_impedance', 'models_ignored_mode')),
         T.MASTER_LINK_FORCE: Input(_wrench(1.0), ('forces_received', 'bad_force',
@@ -96,7 +100,7 @@ FUZZ_NODES = {
                                                'force_out_of_time', 'bad_slave_force')),
     }, params={'link.delay': 0.002, 'link.outages': [0.0, 0.0]}),
     'sim_slave_node': FuzzNode('sim_slave_node', {
-        T.MASTER_COMMAND: Input(_js(0.1), ('commands_received', 'bad_command',
+        T.MASTER_COMMAND: Input(_cmd(0.1), ('commands_received', 'bad_command',
                                                       'commands_before_start')),
     }, params={'link.delay': 0.002, 'link.outages': [0.0, 0.0]}),
     'camera_node': FuzzNode('camera_node', {

@@ -1,7 +1,10 @@
 """ROS 2 node `sim_slave_node`: the simulated patient side at 1 kHz.
 
-Subscribes  master/command     sensor_msgs/JointState (position[0] insertion m, position[1]
-                               rotation rad, optional), QOS_FAST. Every command goes through
+Subscribes  master/command     catheter_interfaces/MasterCommand (position: insertion m,
+                               rotation rad; velocity and acceleration are not used: the
+                               robot's own loop tracks the position), QOS_FAST. A command
+                               with a non-finite position or rotation is refused (counted,
+                               WARN). Every command goes through
                                the slave's side of the UDP-like link (delay, jitter, loss,
                                outages, latest wins); the robot follows the newest delivered
                                command and holds it while nothing new arrives.
@@ -26,12 +29,13 @@ from __future__ import annotations
 import math
 from dataclasses import fields
 
+from catheter_interfaces.msg import MasterCommand
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common import topics as T
-from catheter_common.checks import finite, first
+from catheter_common.checks import finite
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
@@ -149,7 +153,7 @@ class SimSlaveNode(Node):
         self.diag.count('bad_messages', 0)
         self.pub_js = self.create_publisher(JointState, T.relative(T.SLAVE_JOINT_STATE), QOS_FAST)
         self.pub_force = self.create_publisher(WrenchStamped, T.relative(T.SLAVE_FORCE), QOS_FAST)
-        self.sub = self.create_subscription(JointState, T.relative(T.MASTER_COMMAND),
+        self.sub = self.create_subscription(MasterCommand, T.relative(T.MASTER_COMMAND),
                                             self._on_command, QOS_FAST)
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self.diag.add_updater(self._stats_to_diag)
@@ -167,14 +171,13 @@ class SimSlaveNode(Node):
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _on_command(self, msg: JointState) -> None:
+    def _on_command(self, msg: MasterCommand) -> None:
         if self.t0 is None:
             self.diag.count('commands_before_start')
             return
-        pos = msg.position
         try:
-            x = first('position ([insertion m, rotation rad])', pos)
-            rot = finite('position[1]', pos[1]) if len(pos) > 1 else None
+            x = finite('position', msg.position)
+            rot = finite('rotation', msg.rotation)
         except ValueError as exc:
             self.diag.count('bad_commands')
             self.diag.bad_input('command', str(exc))
