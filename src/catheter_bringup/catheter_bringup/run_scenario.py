@@ -79,15 +79,6 @@ def summarize(res) -> str:
     return '\n'.join(lines)
 
 
-def record_run_start(runner) -> None:
-    """Write what the run is into its recording before the first step (``catheter_run_start``),
-    so the file of a run killed with SIGKILL still says it (recover_bag carries it over)."""
-    from catheter_bringup.scenario import run_start_info
-    rec = getattr(runner, 'recorder', None)
-    if rec is not None and not rec.closed:
-        rec.start(run_start_info(runner.scenario, runner.nodes))
-
-
 def install_stop_handlers(runner) -> dict:
     """Ctrl-C and SIGTERM ask the runner to stop: it finishes the current step, closes the
     recording (status interrupted) and returns. The handler only sets a flag: an exception
@@ -133,8 +124,7 @@ def main(args=None):
                             record=False if opts.no_record else None,
                             only=opts.only.split(',') if opts.only else None)
     install_stop_handlers(runner)
-    runner.setup()
-    record_run_start(runner)
+    runner.setup()                          # writes the run-start record into the bag
     res = runner.run()
     print(summarize(res), flush=True)
     return 1 if res.status == 'failed' else 0

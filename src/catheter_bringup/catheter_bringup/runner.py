@@ -38,7 +38,7 @@ from catheter_bringup.node_start import available_instances, start_node
 from catheter_bringup.rclpy_adapter import detach_clock
 from catheter_bringup.recorder import McapRecorder
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
-from catheter_bringup.scenario import load_scenario, resolve_nodes
+from catheter_bringup.scenario import load_scenario, resolve_nodes, run_start_info, scenario_text
 from catheter_bringup.stepping import Stepping
 from catheter_bringup.worker import Worker
 from catheter_common import qos as Q
@@ -257,6 +257,9 @@ class ScenarioRunner(Stepping):
             self.sink.now_ns = (lambda: self._now_ns) if lockstep else None
             self.sink.buffered = lockstep
             self._record_publishers()
+            # what the run is, in the file before the first step: a run killed with SIGKILL
+            # still says it (recover_bag carries it over; analyze reads it)
+            self.recorder.start(run_start_info(sc, self.nodes))
         self._track()
         if self.child_nodes:
             self._start_child()
@@ -384,7 +387,7 @@ class ScenarioRunner(Stepping):
                 'start_errors': self.start_errors,
                 'fallbacks': self.fallbacks,
                 'published': published,
-                'scenario_yaml': _scenario_text(self.scenario),
+                'scenario_yaml': scenario_text(self.scenario),
             })
         cost = self.bus.cost.summary(wall) if self.bus is not None else {}
         if self.child_nodes:
@@ -422,11 +425,6 @@ class ScenarioRunner(Stepping):
         if self.context is not None and self._own_context:
             rclpy.try_shutdown(context=self.context)
         self.context = None
-
-
-def _scenario_text(sc) -> str:
-    import yaml
-    return yaml.safe_dump({k: v for k, v in sc.items() if k != 'source'}, sort_keys=True)
 
 
 def run_scenario(scenario, **kwargs) -> RunResult:

@@ -88,8 +88,6 @@ REGISTRY: Dict[str, NodeSpec] = {s.executable: s for s in [
 ]}
 
 MODES = ('lockstep', 'realtime')
-#: the identifier's input when the scenario's force source is the image (force_source_node)
-SLAVE_JOINT_STATE_IMAGE = '/slave/joint_state_image'
 FORCE_SOURCES = ('load_cell', 'image')
 
 
@@ -263,7 +261,7 @@ def instances(scenario: Mapping, registry: Optional[Mapping[str, NodeSpec]] = No
     if image_source:
         reg['force_source_node'] = NodeSpec(
             'force_source_node', 'catheter_bringup.force_source_node',
-            consumes=(T.SLAVE_JOINT_STATE, T.TIP_WRENCH), produces=(SLAVE_JOINT_STATE_IMAGE,))
+            consumes=(T.SLAVE_JOINT_STATE, T.TIP_WRENCH), produces=(T.SLAVE_JOINT_STATE_IMAGE,))
     common = common_params(scenario)
     out: Dict[str, NodeInstance] = {}
     for name, spec in reg.items():
@@ -292,7 +290,7 @@ def instances(scenario: Mapping, registry: Optional[Mapping[str, NodeSpec]] = No
         # the identifier fits the image-based force: its joint state comes through the adapter
         ident = out['impedance_identifier_node']
         remap = dict(ident.remap)
-        remap[T.SLAVE_JOINT_STATE] = SLAVE_JOINT_STATE_IMAGE
+        remap[T.SLAVE_JOINT_STATE] = T.SLAVE_JOINT_STATE_IMAGE
         base = reg['impedance_identifier_node'] if ident.name in reg else ident.spec
         out[ident.name] = dataclasses.replace(ident, spec=base.remapped(remap), remap=remap)
     return out
