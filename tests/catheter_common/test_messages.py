@@ -81,6 +81,23 @@ def test_impedance_key_ignores_stamp_and_status_but_not_the_model():
         assert M.impedance_key(M.impedance_msg(a.copy(**change))) != key, change
 
 
+@pytest.mark.parametrize('field', ['x0', 'dx', 'sigma', 'v_s', 'beta', 'anchor_x', 'anchor_r'])
+def test_a_non_finite_unused_field_is_refused_too(field):
+    """A relay passes on only clean messages: NaN in a field a linear model does not use
+    (found by the node fuzz: sim_haptic_node relayed x0 = NaN to the master)."""
+    msg = M.impedance_msg(Impedance(0.1, 2.0, 3.0, 0.5))
+    setattr(msg, field, math.nan)
+    with pytest.raises(ValueError, match=f'msg\\.{field}'):
+        M.impedance_fields(msg)
+
+
+def test_tables_in_a_linear_model_are_refused():
+    msg = M.impedance_msg(Impedance(0.1, 2.0, 3.0, 0.5))
+    msg.c_table = [1.0, 2.0]
+    with pytest.raises(ValueError, match='c_table'):
+        M.impedance_fields(msg)
+
+
 def test_a_bad_table_value_is_named_by_its_index():
     msg = M.impedance_msg(Impedance(0.1, 2.0, 3.0, 0.5, True, x0=0.01, dx=0.005,
                                     S=[1, 2, 3], F=[4, 5, 6], B=[7, 8, 9], C=[1, 2, 3]))

@@ -182,7 +182,8 @@ def source(rig):
 HEALTHY = {
     'ima_master_node': ima, 'dfr_master_node': dfr, 'impedance_identifier_node': identifier,
     'sim_haptic_node': haptic, 'sim_slave_node': slave, 'camera_node': camera,
-    'force_estimator_node': estimator, 'fam_estimator_node': estimator, 'shape_node': shape,
+    'force_estimator_node': estimator, 'fam_estimator_node': estimator,
+    'hybrid_estimator_node': estimator, 'shape_node': shape,
     'fam_solver_node': fam,
     'force_source_node': source,
 }

@@ -158,17 +158,27 @@ def impedance_msg(model, stamp=None, frame_id: str = ''):
 def impedance_fields(msg) -> Dict[str, float]:
     """The ``Impedance.to_fields()`` dict carried by an ImpedanceModel message (its inverse:
     ``Impedance.from_fields(impedance_fields(msg))``). ValueError naming the field when the
-    message is inconsistent (unknown kind, tables of different lengths, non-finite values)."""
+    message is inconsistent (unknown kind, tables of different lengths, tables in a linear
+    model, a non-finite value in ANY field, used or not)."""
     kind = int(msg.kind)
     if kind not in (KIND_LINEAR, KIND_TABLE):
         raise ValueError(f'msg.kind must be 0 (linear) or 1 (table), got {kind}')
     d = {'m': finite('msg.m', msg.m), 'c': finite('msg.c', msg.c),
          'k': finite('msg.k', msg.k), 'offset': finite('msg.offset', msg.offset),
          'valid': 1.0 if msg.valid else 0.0, 'kind': float(kind)}
+    # every number of the message is finite, used or not: a relay passes on only messages
+    # that hold no NaN anywhere
+    scalars = dict(zip(TABLE_SCALARS, _finite_all(lambda i: f'msg.{TABLE_SCALARS[i]}',
+                                                  [getattr(msg, n) for n in TABLE_SCALARS])))
+    anchor = _finite_all(lambda i: f'msg.{ANCHOR_FIELDS[i]}',
+                         [getattr(msg, n) for n in ANCHOR_FIELDS])
     if msg.has_anchor:
-        for name in ANCHOR_FIELDS:
-            d[name] = finite(f'msg.{name}', getattr(msg, name))
+        d.update(zip(ANCHOR_FIELDS, anchor))
     if kind == KIND_LINEAR:
+        for _, attr in TABLES:
+            if len(getattr(msg, attr)):
+                raise ValueError(f'msg.{attr} must be empty for a linear model (kind 0), got '
+                                 f'{len(getattr(msg, attr))} nodes')
         return d
     tables = [getattr(msg, attr) for _, attr in TABLES]
     n = len(tables[0])
@@ -177,8 +187,7 @@ def impedance_fields(msg) -> Dict[str, float]:
     for (_, attr), t in zip(TABLES, tables):
         if len(t) != n:
             raise ValueError(f'msg.{attr} must have {n} nodes like s_table, got {len(t)}')
-    for name in TABLE_SCALARS:
-        d[name] = finite(f'msg.{name}', getattr(msg, name))
+    d.update(scalars)
     d['n'] = float(n)
     for (prefix, attr), t in zip(TABLES, tables):
         d.update(zip((f'{prefix}{i}' for i in range(n)),

@@ -15,8 +15,9 @@ Subscribes  /master/rendered_force  geometry_msgs/WrenchStamped (force.x N): the
             /slave/impedance (ImpedanceModel; a malformed one is refused), /slave/force
                                     sent into the master's side of the link (delay,
                                     jitter, loss, outages, latest wins; sim_slave.link.Link).
-Parameters: rate Hz; experiment (I | II) and seed of the scripted hand (held at its last
-position when the script ends); compliant_hand, hand_stiffness N/m, hand_damping N s/m;
+Parameters: rate Hz; experiment (I | II), operator.family (minjerk | sines | human: the
+motion family, impedance_master.operator) and seed of the scripted hand (held at its last position
+when the script ends); compliant_hand, hand_stiffness N/m, hand_damping N s/m;
 link.delay s, link.jitter s, link.loss, link.outages (flat start,length,... s after the
 first tick; the link.* parameters apply at run time to packets sent from then on, the
 others are fixed at start). Timer on the node clock (use_sim_time supported); a clock jump
@@ -40,7 +41,7 @@ from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import run_node
 from impedance_master.haptic import HapticDevice
-from impedance_master.operator import experiment_trajectory
+from impedance_master.operator import OPERATORS, experiment_trajectory
 from sim_slave.link import Link
 from sim_slave.sim_slave_node import link_config, link_params
 
@@ -55,6 +56,8 @@ PARAMS = table(
     Param('experiment', 'II', "scripted hand: thesis Experiment 'I' (20 s) or 'II' (12 s)",
           choices=('I', 'II')),
     Param('seed', 0, 'seed of the hand script, links and sensor noise', 0, 2 ** 31 - 1),
+    Param('operator.family', 'minjerk', 'the hand\'s motion family (impedance_master.'
+          'operator): minjerk (the thesis), sines, human', choices=tuple(OPERATORS)),
     Param('compliant_hand', False, 'spring-damper hand around the script (else rigid)'),
     Param('hand_stiffness', 300.0, 'compliant hand stiffness, N/m', 1.0, 1e5),
     Param('hand_damping', 15.0, 'compliant hand damping, N s/m', 0.0, 1e3),
@@ -75,7 +78,9 @@ class SimHapticNode(Node):
         self.seed = p['seed']
         compliant = p['compliant_hand']
         self.link_cfg = link_config(p.values)
-        self.traj = experiment_trajectory(self.experiment, seed=self.seed)
+        self.operator = p['operator.family']
+        self.traj = experiment_trajectory(self.experiment, seed=self.seed,
+                                          operator=self.operator)
         self.device = HapticDevice(dt=1.0 / self.rate,
                                    hand_stiffness=p['hand_stiffness'] if compliant else None,
                                    hand_damping=p['hand_damping'], seed=self.seed)
@@ -101,7 +106,8 @@ class SimHapticNode(Node):
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self.diag.add_updater(self._to_diag)
         self.get_logger().info(
-            f'haptic device at {self.rate:g} Hz, Experiment {self.experiment} hand (seed '
+            f'haptic device at {self.rate:g} Hz, Experiment {self.experiment} {self.operator} '
+            f'hand (seed '
             f'{self.seed}, {"compliant" if compliant else "rigid"}); link slave -> master: '
             f'{self.link_cfg.describe()}')
 

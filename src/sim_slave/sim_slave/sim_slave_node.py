@@ -15,7 +15,9 @@ Publishes   slave/joint_state  sensor_msgs/JointState, name [insertion, rotation
             /diagnostics       steps, commands received/delivered/lost/stale, bad commands,
                                overruns, tracking error; WARN during a link outage, after bad
                                commands and overruns
-Both outputs are stamped with the node clock and go out undelayed (the master's sim node
+The vessel is `vessel` (sim_slave.vessels, read only; choices in --help), its vessel.*
+fields and sensor noise overridable (sim_slave.node_params.vessel_from_params). Both outputs
+are stamped with the node clock and go out undelayed (the master's sim node
 applies its side of the link). Timer on the node clock: use_sim_time with a /clock publisher
 drives it in lockstep. Outage times are relative to the node's first timer tick. Topic names
 are relative (the node's namespace applies). The link parameters (link.*) apply at run time
@@ -41,10 +43,11 @@ from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import run_node
 from sim_slave.link import Link, LinkConfig
+from sim_slave.node_params import DEFAULT_VESSEL, VESSEL_CHOICES, vessel_from_params
 from sim_slave.robot import SlaveRobot
 from sim_slave.sensor import ForceSensor
 from sim_slave.slave import SlaveSimulation, default_rotation_axis
-from sim_slave.vessel import VesselModel, VesselParams
+from sim_slave.vessel import VesselParams
 
 JOINT_NAMES = ['insertion', 'rotation']
 
@@ -101,8 +104,13 @@ def link_config(values) -> LinkConfig:
 PARAMS = table(
     Param('rate', 1000.0, 'simulation and publishing rate, Hz', 10.0, 10000.0),
     Param('seed', 0, 'random seed (vessel phase, sensor noise, link)', 0, 2 ** 31 - 1),
+    Param('vessel', DEFAULT_VESSEL, 'the simulated vessel (sim_slave.vessels): phantom, '
+          'smooth_coulomb, stribeck_kv, stenosis, soft, stiff_wall; vessel.* and '
+          'sensor.noise_std values that differ from their (phantom) defaults override it',
+          choices=VESSEL_CHOICES),
     *link_params('master commands'),
-    Param('sensor.noise_std', 0.01, 'force sensor noise (std), N', 0.0, 1.0),
+    Param('sensor.noise_std', 0.01, 'force sensor noise (std), N (default: the vessel\'s own)',
+          0.0, 1.0),
     Param('sensor.bias', 0.0, 'force sensor bias, N', -10.0, 10.0),
     Param('robot.kp', 60.0, 'insertion axis position gain, 1/s', 0.1, 1000.0),
     Param('robot.max_speed', 0.1, 'insertion axis speed limit, m/s', 1e-4, 10.0),
@@ -128,12 +136,13 @@ class SimSlaveNode(Node):
         self.rate = p['rate']
         seed = p['seed']
         self.max_catchup = p['max_catchup_steps']
-        vessel_kw = {f.name: p['vessel.' + f.name] for f in fields(VesselParams)}
+        spec = vessel_from_params(p.values)
+        self.vessel_name = spec.name
         self.link = Link(link_config(p.values), seed=seed + 2)
         robot = SlaveRobot(rate=self.rate, kp=p['robot.kp'], max_speed=p['robot.max_speed'],
                            max_accel=p['robot.max_accel'], x0=p['robot.x0'])
-        self.sim = SlaveSimulation(vessel=VesselModel(VesselParams(**vessel_kw), seed=seed),
-                                   sensor=ForceSensor(noise_std=p['sensor.noise_std'],
+        self.sim = SlaveSimulation(vessel=spec.build(seed),
+                                   sensor=ForceSensor(noise_std=spec.noise_std,
                                                       bias=p['sensor.bias'], seed=seed + 1),
                                    robot=robot, rotation=default_rotation_axis(self.rate))
         self.x_cmd = robot.x
@@ -158,7 +167,8 @@ class SimSlaveNode(Node):
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self.diag.add_updater(self._stats_to_diag)
         self.get_logger().info(
-            f'simulating the slave at {self.rate:g} Hz: {self.sub.topic_name} -> link '
+            f'simulating the slave ({self.vessel_name} vessel) at {self.rate:g} Hz: '
+            f'{self.sub.topic_name} -> link '
             f'({self.link.config.describe()}) -> robot -> vessel -> sensor -> '
             f'{self.pub_js.topic_name}, {self.pub_force.topic_name}')
 
