@@ -20,6 +20,7 @@ goes on the wire through these helpers.
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Dict, Mapping, Sequence, Tuple
 
@@ -54,6 +55,9 @@ MODEL_FIELDS = tuple(n for n in ImpedanceModel.get_fields_and_field_types()
 def _finite_all(name, values) -> list:
     """`values` as a list of floats; ValueError naming the first that is not finite, as
     ``name(i)`` (one C-level pass when all are fine: the 1 kHz models carry ~70 numbers)."""
+    if type(values).__name__ == 'array' and values.typecode == 'd':   # a message's float64[]
+        if all(map(math.isfinite, values)):
+            return values.tolist()
     values = list(values)
     try:
         out = [float(v) for v in values]
@@ -190,9 +194,14 @@ def impedance_fields(msg) -> Dict[str, float]:
     d.update(scalars)
     d['n'] = float(n)
     for (prefix, attr), t in zip(TABLES, tables):
-        d.update(zip((f'{prefix}{i}' for i in range(n)),
-                     _finite_all(lambda i, a=attr: f'msg.{a}[{i}]', t)))
+        d.update(zip(_table_keys(prefix, n), _finite_all(lambda i, a=attr: f'msg.{a}[{i}]', t)))
     return d
+
+
+@functools.lru_cache(maxsize=64)
+def _table_keys(prefix: str, n: int) -> Tuple[str, ...]:
+    """('S0', 'S1', ...): the to_fields() names of a table's n nodes."""
+    return tuple(f'{prefix}{i}' for i in range(n))
 
 
 def impedance_key(msg) -> tuple:
