@@ -7,7 +7,8 @@ parameter changes), with the invariants of tests/fuzz checked at every output.
 
 Prints per node: messages sent (per input topic), refused as bad, outputs, non-finite floats
 in outputs (target 0), outputs over the limit (rendered force above the renderer's limit,
-or a tip force published for control points outside the estimator's envelope; target 0),
+a tip_wrench for an estimate that is not normal, a TipForceEstimate with a status that does
+not match the estimate, a force beyond the envelope or a bad covariance; target 0),
 crashes (a callback or timer that raised; target 0), messages not accounted for by exactly
 one diagnostics counter (target 0), parameter changes applied / refused; then the counters
 of core failures the nodes caught (a non-finite renderer output replaced by 0 N, an exception
@@ -50,12 +51,13 @@ CORE_COUNTERS = {'ima_master_node': 'nonfinite_outputs', 'dfr_master_node': 'non
 #: with bezier arcs, tens of ms an estimate by FAM inversion; robustness to them is in the
 #: tests, tests/fuzz)
 BENCH_PARAMS = {'fam_solver_node': {'arc_model': st.sampled_from(['clothoid', 'exact'])},
-                'force_estimator_node': {'method': st.sampled_from(['svr', 'mlp', 'bogus'])}}
+                'force_estimator_node': {'method': st.sampled_from(['svr', 'mlp', 'bogus']),
+                                         'fallback': st.just(False)}}
 
 
 #: messages per input topic where the default is too slow to run (FAM inversion: ~20 ms
 #: an estimate, 100 000 would take about half an hour)
-BENCH_PER_TOPIC = {'fam_estimator_node': 10_000}
+BENCH_PER_TOPIC = {'fam_estimator_node': 10_000, 'hybrid_estimator_node': 10_000}
 
 
 def fuzz_node(ros, key: str, per_topic: int, chunk: int = 100):
@@ -145,10 +147,12 @@ def _run_all(keys, per_topic, rows, core, speed) -> None:
 
 
 def _print_tables(per_topic, rows, core, speed) -> None:
-    print(f'\nNode fuzz: >= {per_topic} messages per input topic (fam_estimator_node, the '
-          f'force estimator in method fam: {min(per_topic, BENCH_PER_TOPIC["fam_estimator_node"])}'
-          '), invariants checked at every output (targets: non-finite 0, over limit 0, '
-          'crashes 0, unaccounted 0)')
+    slow = ', '.join(f'{k} {min(per_topic, n)}' for k, n in sorted(BENCH_PER_TOPIC.items()))
+    print(f'\nNode fuzz: >= {per_topic} messages per input topic (the FAM inversion, method '
+          f'fam and the learned models\' fallback: {slow}), invariants checked at every output '
+          '(targets: non-finite 0, over limit 0, crashes 0, unaccounted 0; over limit: a '
+          'rendered force above the limit, a tip_wrench of an estimate that is not normal, a '
+          'TipForceEstimate whose status, force or covariance is out of bounds)')
     hdr = ('node', 'sent', 'refused', 'outputs', 'non-finite', 'over limit', 'crashes',
            'unaccounted', 'params set/refused')
     w = max(len(r[0]) for r in rows) + 2

@@ -126,7 +126,7 @@ def test_force_error_uses_the_twin_reference_of_the_master_motion(tmp_path):
     """With /master/command recorded, the reference is impedance_master.metrics' twin vessel
     (sim_slave_node's seed and vessel parameters from the scenario) along the master's motion
     at t + delay, and the outage intervals are [start + d, start + length + 2 d)."""
-    from sensor_msgs.msg import JointState
+    from catheter_common.messages import master_command_msg
     from impedance_master.metrics import twin_reference
     from sim_slave.vessel import VesselParams
     delay, seed = 0.2, 5
@@ -144,14 +144,12 @@ def test_force_error_uses_the_twin_reference_of_the_master_motion(tmp_path):
     rec = McapRecorder(tmp_path / 't.mcap')
     rec.add_topic('/slave/force', 'geometry_msgs/msg/WrenchStamped')
     rec.add_topic('/master/rendered_force', 'geometry_msgs/msg/WrenchStamped')
-    rec.add_topic('/master/command', 'sensor_msgs/msg/JointState')
+    rec.add_topic('/master/command', 'catheter_interfaces/msg/MasterCommand')
     t0 = 100.0            # the experiment clock starts at the slave's first message
     for k in range(n):
         ns = int(round((t0 + t[k]) * 1e9))
-        js = JointState()
-        js.name = ['insertion', 'rotation']
-        js.position, js.velocity, js.effort = [x[k], 0.0], [xd[k], 0.0], [0.0, 0.0]
-        rec.write('/master/command', serialize_message(js), ns)
+        cmd = master_command_msg(x[k], xd[k], 0.0, stamp=ns)
+        rec.write('/master/command', serialize_message(cmd), ns)
         rec.write('/slave/force', serialize_message(_wrench(0.0, t0 + t[k])), ns)
         rec.write('/master/rendered_force',
                   serialize_message(_wrench(ref[k] + err[k], t0 + t[k])), ns)

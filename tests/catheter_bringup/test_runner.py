@@ -160,3 +160,34 @@ def test_realtime_split_runs_image_nodes_in_a_worker_process(tmp_path, make_scen
     # the worker's frames reached the main process's recorder through DDS
     assert res.recorded.get('/test/image', 0) >= 15
     assert res.recorded['/test/relayed'] > 150
+
+
+def test_setup_writes_the_run_start_record_before_the_first_step(tmp_path, make_scenario,
+                                                                 test_registry):
+    """Whoever drives the runner (run_scenario, scripts/run, a test), the file says what the
+    run is as soon as it exists: a run killed before its first step still carries its
+    scenario (read here from the unfinished file, as recover_bag does)."""
+    import yaml
+    from mcap.records import Metadata
+    from mcap.stream_reader import StreamReader
+    from catheter_bringup.recorder import RUN_START_METADATA
+    bag = tmp_path / 'started.mcap'
+    runner = ScenarioRunner(make_scenario(), bag=str(bag), registry=test_registry,
+                            progress=False)
+    runner.setup()
+    started = sorted(runner.nodes)
+    meta = []
+    try:
+        with open(bag, 'rb') as f:
+            for r in StreamReader(f, skip_magic=False).records:
+                if isinstance(r, Metadata):
+                    meta.append(r)
+    except Exception:  # noqa: BLE001 - an unfinished file ends in the middle of a record
+        pass
+    finally:
+        runner.close()
+    assert meta and meta[0].name == RUN_START_METADATA
+    info = meta[0].metadata
+    assert info['status'] == 'running' and info['scenario'] == runner.scenario['name']
+    assert yaml.safe_load(info['scenario_yaml'])['name'] == runner.scenario['name']
+    assert json.loads(info['nodes']) == started != []

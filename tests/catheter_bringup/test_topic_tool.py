@@ -124,3 +124,21 @@ def test_echo_format_and_rate_statistics():
     assert st['rate_hz'] == pytest.approx(1000 * 3 / 4) and st['max'] == pytest.approx(0.002)
     assert st['min'] == pytest.approx(0.001) and st['n'] == 3
     assert math.isnan(topic_tool.rate_stats([1.0])['rate_hz'])
+
+
+def test_echo_shows_the_typed_messages_field_by_field():
+    """catheter_topic echo on the graph's typed topics: the impedance model's scalars,
+    tables and anchor, the command's acceleration, the estimate's status and covariance."""
+    from catheter_common import messages as M
+    from impedance_master.impedance import Impedance
+    model = Impedance(0.1, 2.0, 3.0, 0.5, True, x0=0.01, dx=0.005, S=[1, 2], F=[4, 5],
+                      B=[7, 8], C=[1, 2], status='ok', anchor=(0.03, 0.01, 0.2, 1, 1.5, 0.25,
+                                                               -0.01))
+    lines = topic_tool.to_yaml(M.impedance_msg(model, stamp=5))
+    for want in ('kind: 1', 'c: 2.0', 's_table: [1.0, 2.0]', 'has_anchor: true',
+                 'anchor_f: 0.25', "status: 'ok'"):
+        assert want in lines, (want, lines)
+    assert 'acceleration: 0.4' in topic_tool.to_yaml(M.master_command_msg(0.03, 0.01, 0.4))
+    est = topic_tool.to_yaml(M.tip_force_msg((0.01, 0.02), [[1e-4, 0], [0, 4e-4]],
+                                             'unobservable_axial', 'fam_fallback', 0.0))
+    assert 'status: 4' in est and "method: 'fam_fallback'" in est

@@ -22,7 +22,8 @@ POS = st.floats(1e-6, 1e3, allow_nan=False)
 @st.composite
 def models(draw):
     base = dict(m=draw(FIN), c=draw(FIN), k=draw(FIN), offset=draw(FIN),
-                valid=draw(st.booleans()), status=draw(st.sampled_from(['ok', 'held', ''])))
+                valid=draw(st.booleans()), status=draw(st.sampled_from(['ok', 'held', ''])),
+                anchor=draw(st.none() | st.lists(FIN, min_size=7, max_size=7)))
     if draw(st.booleans()):
         return Impedance(**base)
     n = draw(st.integers(2, 40))
@@ -41,11 +42,68 @@ def test_impedance_round_trip_through_the_wire(model, t_ns):
     msg = _wire(M.impedance_msg(model, stamp=t_ns, frame_id='catheter_base'))
     assert M.stamp_ns(msg) == t_ns and msg.status == model.status
     assert msg.kind == model.kind
+    assert msg.has_anchor == (model.anchor is not None)
     fields = M.impedance_fields(msg)
     assert fields == model.to_fields()
     back = Impedance.from_fields(fields)
     for x, xd, xdd in ((0.0, 0.0, 0.0), (0.031, 0.02, -0.5), (0.2, -0.04, 1.0)):
         assert back.force(x, xd, xdd) == model.force(x, xd, xdd)
+
+
+def test_the_anchor_travels_field_by_field_and_is_the_cores_anchor():
+    """The message's anchor_* fields are the core's ANCHOR_FIELDS (one definition each side,
+    equal), each value lands in its own field, and a partial anchor is refused."""
+    assert M.ANCHOR_FIELDS == impedance.ANCHOR_FIELDS
+    vals = (0.031, 0.012, -0.4, 0.9, 1.2, 0.25, -0.01)
+    model = Impedance(0.1, 2.0, 3.0, 0.5, True, anchor=vals)
+    msg = _wire(M.impedance_msg(model))
+    assert msg.has_anchor
+    assert tuple(getattr(msg, n) for n in M.ANCHOR_FIELDS) == vals
+    assert Impedance.from_fields(M.impedance_fields(msg)).anchor == model.anchor
+    plain = _wire(M.impedance_msg(Impedance(0.1, 2.0, 3.0, 0.5)))
+    assert not plain.has_anchor and 'anchor_x' not in M.impedance_fields(plain)
+    fields = model.to_fields()
+    del fields['anchor_r']
+    with pytest.raises(ValueError, match='anchor_r'):
+        M.impedance_msg(fields)
+    msg.anchor_f = math.nan
+    with pytest.raises(ValueError, match='anchor_f'):
+        M.impedance_fields(msg)
+
+
+def test_impedance_key_ignores_stamp_and_status_but_not_the_model():
+    a = Impedance(0.1, 2.0, 3.0, 0.5, True, x0=0.01, dx=0.005, S=[1, 2], F=[4, 5],
+                  B=[7, 8], C=[10, 11], status='ok', anchor=(0, 0, 0, 0, 0, 0.1, 0))
+    key = M.impedance_key(M.impedance_msg(a, stamp=5))
+    assert M.impedance_key(M.impedance_msg(a.copy(status='at_rest'), stamp=9)) == key
+    for change in (dict(c=2.5), dict(valid=False), dict(C=[10, 11.5]),
+                   dict(anchor=(0, 0, 0, 0, 0, 0.2, 0)), dict(anchor=None), dict(sigma=1e-4)):
+        assert M.impedance_key(M.impedance_msg(a.copy(**change))) != key, change
+
+
+@pytest.mark.parametrize('field', ['x0', 'dx', 'sigma', 'v_s', 'beta', 'anchor_x', 'anchor_r'])
+def test_a_non_finite_unused_field_is_refused_too(field):
+    """A relay passes on only clean messages: NaN in a field a linear model does not use
+    (found by the node fuzz: sim_haptic_node relayed x0 = NaN to the master)."""
+    msg = M.impedance_msg(Impedance(0.1, 2.0, 3.0, 0.5))
+    setattr(msg, field, math.nan)
+    with pytest.raises(ValueError, match=f'msg\\.{field}'):
+        M.impedance_fields(msg)
+
+
+def test_tables_in_a_linear_model_are_refused():
+    msg = M.impedance_msg(Impedance(0.1, 2.0, 3.0, 0.5))
+    msg.c_table = [1.0, 2.0]
+    with pytest.raises(ValueError, match='c_table'):
+        M.impedance_fields(msg)
+
+
+def test_a_bad_table_value_is_named_by_its_index():
+    msg = M.impedance_msg(Impedance(0.1, 2.0, 3.0, 0.5, True, x0=0.01, dx=0.005,
+                                    S=[1, 2, 3], F=[4, 5, 6], B=[7, 8, 9], C=[1, 2, 3]))
+    msg.f_table[2] = math.inf
+    with pytest.raises(ValueError, match=r'msg\.f_table\[2\]'):
+        M.impedance_fields(msg)
 
 
 def test_impedance_table_fields_land_in_the_named_arrays():

@@ -185,3 +185,37 @@ def test_debug_overlay_draws_whatever_the_calibration_gives(shape_helpers):
     psi = np.array([[1e-150, 0.0, 0.0, 0.0], [0.0, 1e-150, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]])
     img = debug_overlay(frame, obs, psi)
     assert img.shape == (40, 60, 3) and img.dtype == np.uint8
+
+
+def test_node_defaults_for_foreign_images_and_plausibility_statuses_counted(ros, shape_helpers):
+    """Issue 11: the node's defaults are the flat-field segmentation and the Blazer's length
+    (the plausibility check); a frame refused by a check (here a 90 mm curve for a 65 mm
+    catheter: length_mismatch) is counted under its status and never published, and
+    length := 0 turns the check off."""
+    from catheter_bringup.rclpy_adapter import intercept_publish
+    from catheter_shape.sensor import CHECK_STATUSES
+    cam = SyntheticCamera(noise=2, seed=4)
+    node = ros.add(ShapeNode(context=ros.context, parameter_overrides=[
+        Parameter('psi', value=[float(x) for x in cam.psi.reshape(-1)]),
+        Parameter('base_px', value=[float(cam.base_px[0]), float(cam.base_px[1])])]))
+    assert node.sensor.method == 'flatfield' and node.params['length'] == 0.065
+    for s in CHECK_STATUSES:
+        assert node.diag.get('fail_' + s) == 0          # declared: shown from the start
+    probe = ros.node('shape_defaults_probe')
+    probe.create_subscription(PoseArray, T.CONTROL_POINTS, lambda m: None, Q.QOS_SENSOR)
+    assert ros.spin_until(lambda: node.pub_cp.get_subscription_count() > 0, 10.0)
+    out = []
+    intercept_publish(node.pub_cp, out.append)
+
+    def process(truth, sec):
+        node._on_image(_image(cam.render(truth).image, stamp_sec=sec))
+        node._process()
+    process(shape_helpers.arc(0.5), 1)
+    assert [m.header.stamp.sec for m in out] == [1], node._last_obs.status
+    process(shape_helpers.arc(0.5, length=0.09), 2)
+    assert node._last_obs.status == 'length_mismatch'
+    assert node.diag.get('fail_length_mismatch') == 1
+    assert [m.header.stamp.sec for m in out] == [1]
+    assert node.set_parameters([Parameter('length', value=0.0)])[0].successful
+    process(shape_helpers.arc(0.5, length=0.09), 3)
+    assert [m.header.stamp.sec for m in out] == [1, 3], node._last_obs.status

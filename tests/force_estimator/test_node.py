@@ -37,6 +37,10 @@ def _setup(ros, overrides):
     return node, pub, got, diags
 
 
+def far_seen(node):
+    return node.diag.get('status_out_of_domain') + node.diag.get('status_out_of_envelope')
+
+
 def _send_until(ros, pub, msg, got):
     """Publish (best effort) until a wrench with the message's stamp arrived."""
     sec = msg.header.stamp.sec
@@ -54,7 +58,7 @@ def _send_until(ros, pub, msg, got):
 def test_node_estimates_with_stamp_and_frame(ros, toy_models, toy_model_files, method):
     X = toy_models[0]
     node, pub, got, diags = _setup(ros, [
-        Parameter('method', value=method),
+        Parameter('method', value=method), Parameter('fallback', value=False),
         Parameter(f'{method}_model', value=str(toy_model_files[method]))])
     est = load_estimator(toy_model_files[method])
     cp = X[7].reshape(4, 3)
@@ -81,10 +85,10 @@ def test_node_estimates_with_stamp_and_frame(ros, toy_models, toy_model_files, m
     far[3, 1] += 0.2
     for _ in range(50):
         pub.publish(_msg(far, 13, 0))
-        if ros.spin_until(lambda: node.diag.get('out_of_envelope') >= 1, 0.2):
+        if ros.spin_until(lambda: far_seen(node) >= 1, 0.2):
             break
-    assert node.diag.get('out_of_envelope') >= 1
-    assert node.diag.level()[0] == 1 and 'envelope' in node.diag.level()[1]
+    assert far_seen(node) >= 1 and node.diag.get('withheld') >= 2       # NaN and far
+    assert node.diag.level()[0] == 1
     ros.spin_for(0.1)
     assert all(w.header.stamp.sec != 13 for w in got)
     # ... and the node keeps working
@@ -92,7 +96,7 @@ def test_node_estimates_with_stamp_and_frame(ros, toy_models, toy_model_files, m
     assert ros.spin_until(lambda: any(
         kv.key == 'bad_messages' for d in diags for s in d.status for kv in s.values), 5.0)
     keys = {kv.key for d in diags for s in d.status for kv in s.values}
-    assert {'estimates', 'estimates_rate_hz', 'out_of_envelope', 'method'} <= keys
+    assert {'estimates', 'estimates_rate_hz', 'withheld', 'status_ok', 'method'} <= keys
 
 
 def test_node_rejects_unknown_method(ros):
@@ -109,7 +113,8 @@ def test_node_rejects_model_of_wrong_kind(ros, toy_model_files):
 
 def test_node_defaults_use_the_shipped_svr(ros):
     node = NODE_CLASS(context=ros.context)
-    assert node.method == 'svr' and node.estimator.name == 'blazer-svr'
+    assert node.method == 'svr' and node.estimator.model.name == 'blazer-svr'
+    assert node.estimator.fam is not None           # the FAM inversion as fallback
 
 
 def test_node_fam_method(ros):
@@ -140,3 +145,81 @@ def test_node_idles_without_subscribers(ros, toy_models, toy_model_files):
         if ros.spin_until(lambda: node.diag.get('skipped_no_subscriber') > 0, 0.2):
             break
     assert node.diag.get('skipped_no_subscriber') > 0 and node.diag.get('estimates') == 0
+
+
+def _direct(ros, **params):
+    """The node with both outputs captured (callbacks called directly: no DDS)."""
+    from catheter_bringup.rclpy_adapter import intercept_publish
+    from catheter_interfaces.msg import TipForceEstimate
+    from catheter_common.topics import TIP_FORCE
+    node = NODE_CLASS(context=ros.context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in params.items()])
+    ros.add(node)
+    client = ros.node('fe_direct_client')
+    client.create_subscription(WrenchStamped, TIP_WRENCH, lambda m: None, QOS_SENSOR)
+    client.create_subscription(TipForceEstimate, TIP_FORCE, lambda m: None, QOS_SENSOR)
+    assert ros.spin_until(lambda: node.pub.get_subscription_count() > 0
+                          and node.pub_est.get_subscription_count() > 0, 10.0)
+    wrench, typed = [], []
+    intercept_publish(node.pub, wrench.append)
+    intercept_publish(node.pub_est, typed.append)
+    return node, wrench, typed
+
+
+def test_every_message_gets_a_typed_estimate_and_only_normal_ones_a_wrench(
+        ros, toy_models, toy_model_files):
+    """Issue 11 / 10 item 4: TipForceEstimate for EVERY input (status, covariance, method,
+    domain distance); tip_wrench only for normal estimates, equal to the estimate."""
+    from catheter_common.messages import TIP_FORCE_STATUS, tip_force_values
+    X = toy_models[0]
+    node, wrench, typed = _direct(ros, svr_model=str(toy_model_files['svr']), fallback=False)
+    cp = X[7].reshape(4, 3)
+    nan = cp.copy()
+    nan[2, 0] = np.nan
+    far = cp.copy()
+    far[3, 1] += 0.2
+    cases = [(_msg(cp, 1), 'ok'), (_msg(nan, 2), 'non_finite_input'),
+             (_msg(cp[:3], 3), 'out_of_domain'),
+             (_msg(cp, 4, frame='camera_optical_frame'), 'out_of_domain'),
+             (_msg(far, 5), 'out_of_domain')]
+    for msg, _ in cases:
+        node._on_points(msg)
+    assert len(typed) == len(cases)
+    for t, (msg, status) in zip(typed, cases):
+        v = tip_force_values(t)
+        assert t.header.stamp.sec == msg.header.stamp.sec
+        assert v['status_name'] == status, (msg.header.stamp.sec, v)
+        assert v['covariance'] is not None and v['method'] == 'svr'
+        assert np.all(np.isfinite(v['force'])) and v['domain_distance'] >= 0.0
+    assert typed[0].status == TIP_FORCE_STATUS['ok'] and typed[0].domain_distance == 0.0
+    assert all(t.domain_distance > 0.0 for t in typed[1:])
+    assert [w.header.stamp.sec for w in wrench] == [1]          # only the normal one
+    assert (wrench[0].wrench.force.x, wrench[0].wrench.force.y) == (typed[0].force.x,
+                                                                   typed[0].force.y)
+    d = node.diag
+    assert d.get('messages') == 5 and d.get('estimates') == 1 and d.get('withheld') == 2
+    assert d.get('bad_messages') == 3                     # NaN, 3 poses, wrong frame
+    assert d.get('status_ok') == 1 and d.get('status_non_finite_input') == 1
+
+
+def test_the_fam_fallback_answers_what_the_learned_model_does_not_cover(
+        ros, toy_model_files):
+    """svr + fallback (the default): a real Blazer shape far outside the toy model's domain
+    is answered by the FAM inversion, published with method fam_fallback."""
+    from catheter_shape import fit_bezier
+    from catheter_common.messages import tip_force_values
+    from fam_solver import Catheter, Loads, solve_fam
+    node, wrench, typed = _direct(ros, svr_model=str(toy_model_files['svr']), n_arcs=12)
+    cl = solve_fam(Catheter(length=0.065, ei=6e-5), Loads(tip_force=(0.0, 0.12)),
+                   n_arcs=12).centerline(200)
+    node._on_points(_msg(fit_bezier(np.c_[cl, np.zeros(len(cl))], degree=3), 31))
+    v = tip_force_values(typed[-1])
+    assert node.last.method == 'fam_fallback' and v['method'] == 'fam_fallback'
+    assert v['status_name'] in ('ok', 'unobservable_axial')
+    assert abs(v['force'][1] - 0.12) < 0.01 and abs(v['force'][0]) < 0.01
+    assert wrench and wrench[-1].wrench.force.y == v['force'][1]
+    # fallback off at run time: the same input is the toy model's, withheld
+    assert node.set_parameters([Parameter('fallback', value=False)])[0].successful
+    node._on_points(_msg(fit_bezier(np.c_[cl, np.zeros(len(cl))], degree=3), 32))
+    assert node.last.method == 'svr' and not node.last.normal
+    assert wrench[-1].header.stamp.sec == 31

@@ -6,6 +6,7 @@ import math
 import numpy as np
 from geometry_msgs.msg import Point, Pose, PoseArray, WrenchStamped
 from rclpy.parameter import Parameter
+from catheter_interfaces.msg import ImpedanceModel, MasterCommand
 from sensor_msgs.msg import JointState
 
 from catheter_common import topics as T
@@ -31,11 +32,13 @@ def _count(rig, topic=None):
     return rig.counts.get(T.resolve(topic, rig.node.get_namespace()), 0)
 
 
-def _good_linear_model(valid=1.0):
-    m = JointState()
-    m.name = ['m', 'c', 'k', 'offset', 'valid', 'kind']
-    m.position = [0.0, 2.0, 5.0, 0.01, valid, 0.0]
-    return m
+def _good_linear_model(valid=True):
+    return ImpedanceModel(m=0.0, c=2.0, k=5.0, offset=0.01, valid=bool(valid),
+                          kind=ImpedanceModel.KIND_LINEAR)
+
+
+def _cmd(x, xd, xdd=0.0):
+    return MasterCommand(position=x, velocity=xd, acceleration=xdd)
 
 
 def _wrench(fx, fy=0.0):
@@ -70,7 +73,7 @@ def _finite_last(rig, topic):
 def ima(rig):
     reset_params(rig)
     n = _count(rig)
-    rig.feed(T.MASTER_COMMAND, _js(0.03, 0.01))
+    rig.feed(T.MASTER_COMMAND, _cmd(0.03, 0.01))
     rig.feed(T.MASTER_LINK_IMPEDANCE, _good_linear_model())
     rig.tick(5)
     assert _count(rig) > n
@@ -114,7 +117,7 @@ def haptic(rig):
 def slave(rig):
     reset_params(rig)
     n = _count(rig, T.SLAVE_JOINT_STATE)
-    rig.feed(T.MASTER_COMMAND, _js(0.02, 0.0))
+    rig.feed(T.MASTER_COMMAND, _cmd(0.02, 0.0))
     rig.tick(5)
     assert _count(rig, T.SLAVE_JOINT_STATE) >= n + 5
 
@@ -179,7 +182,8 @@ def source(rig):
 HEALTHY = {
     'ima_master_node': ima, 'dfr_master_node': dfr, 'impedance_identifier_node': identifier,
     'sim_haptic_node': haptic, 'sim_slave_node': slave, 'camera_node': camera,
-    'force_estimator_node': estimator, 'fam_estimator_node': estimator, 'shape_node': shape,
+    'force_estimator_node': estimator, 'fam_estimator_node': estimator,
+    'hybrid_estimator_node': estimator, 'shape_node': shape,
     'fam_solver_node': fam,
     'force_source_node': source,
 }

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import random
 
+from catheter_interfaces.msg import ImpedanceModel, MasterCommand
 from geometry_msgs.msg import Point, Pose, PoseArray, WrenchStamped
 from hypothesis import strategies as st
 from sensor_msgs.msg import Image, JointState
@@ -135,42 +136,59 @@ def build_image(p: Pick, max_side: int = 48) -> Image:
     return m
 
 
-_IMP_NAMES = ['m', 'c', 'k', 'offset', 'valid', 'kind', 'x0', 'dx', 'sigma', 'v_s', 'beta',
-              'n', 'S0', 'S1', 'F0', 'F1', 'B0', 'B1', 'C0', 'C1', 'bogus', '']
+def build_master_command(p: Pick, scale: float = 0.1) -> MasterCommand:
+    """catheter_interfaces/MasterCommand: position, velocity, acceleration and rotation, each
+    plausible or from the pool (NaN, inf, 1e308, ...)."""
+    m = MasterCommand()
+    m.header.frame_id = p.choice(FRAMES)
+    m.header.stamp.sec = p.r.randrange(2 ** 31)
+    m.position = p.value(scale)
+    m.velocity = p.value(scale)
+    m.acceleration = p.value(scale * 10)
+    m.rotation = p.choice([0.0, 0.0, p.value(3.0)])
+    return m
 
 
-def build_impedance(p: Pick) -> JointState:
-    """sensor_msgs/JointState used as the impedance model's named values: well-formed linear
-    and table models with any values, and malformed ones (missing or unknown names,
-    name/position lengths that differ)."""
-    m = JointState()
-    form = p.choice(['linear', 'linear', 'linear', 'table', 'garbage'])
+def build_impedance(p: Pick) -> ImpedanceModel:
+    """catheter_interfaces/ImpedanceModel: well-formed linear and table models (with and
+    without an anchor) with any values, and malformed ones (an unknown kind, tables of
+    different lengths or too short for a table model, a grid spacing <= 0, non-finite
+    values anywhere, over-long tables and status strings)."""
+    m = ImpedanceModel()
+    m.header.frame_id = p.choice(FRAMES)
+    m.header.stamp.sec = p.r.randrange(2 ** 31)
+    form = p.choice(['linear', 'linear', 'linear', 'table', 'table', 'garbage'])
+    m.m, m.c, m.k, m.offset = p.value(0.1), p.value(5.0), p.value(20.0), p.value(0.5)
+    m.valid = p.choice([True, True, True, False])
+    m.status = p.choice(['ok', 'held', '', 'x' * 300])
     if form == 'linear':
-        names = ['m', 'c', 'k', 'offset', 'valid', 'kind']
-        vals = [p.value(0.1), p.value(5.0), p.value(20.0), p.value(0.5),
-                p.choice([1.0, 1.0, 1.0, 0.0, math.nan]), p.choice([0.0, 0.0, 0.0, 3.0])]
+        m.kind = p.choice([0, 0, 0, 3])
     elif form == 'table':
-        n = p.choice([2, 3, 4])
-        names = ['m', 'c', 'k', 'offset', 'valid', 'kind', 'x0', 'dx', 'sigma', 'v_s', 'beta',
-                 'n']
-        vals = [p.value(0.1), p.value(5.0), p.value(20.0), p.value(0.5), 1.0, 1.0,
-                p.value(0.05), p.choice([0.005, 0.01, 0.0, -1.0]), 3e-4, 0.002, 0.5,
-                float(p.choice([n, n, n + 1, 0]))]
-        for t in 'SFBC':
-            for i in range(n):
-                names.append(f'{t}{i}')
-                vals.append(p.value(1.0))
+        n = p.choice([2, 3, 4, 4, 40])
+        m.kind = 1
+        m.x0, m.dx = p.value(0.05), p.choice([0.005, 0.01, 0.0, -1.0, p.value(0.01)])
+        m.sigma, m.v_s, m.beta = (p.choice([3e-4, 3e-4, 0.0, p.value(1e-3)]),
+                                  p.choice([0.002, 0.002, 0.0, p.value(0.01)]),
+                                  p.choice([0.5, 0.5, p.value(1.0)]))
+        lengths = [n] * 4 if p.r.random() < 0.85 else [p.choice([0, 1, n, n + 1]) for _ in 'SFBC']
+        m.s_table, m.f_table, m.b_table, m.c_table = ([p.value(1.0) for _ in range(k)]
+                                                      for k in lengths)
     else:
-        names = [p.choice(_IMP_NAMES) for _ in range(p.r.randrange(9))]
-        vals = p.values(10.0, lengths=range(10))
-    m.name = names
-    m.position = vals
+        m.kind = p.choice([0, 1, 2, 255])
+        m.x0, m.dx, m.sigma, m.v_s, m.beta = (p.value(1.0) for _ in range(5))
+        m.s_table, m.f_table, m.b_table, m.c_table = (p.values(10.0, lengths=range(6))
+                                                      for _ in range(4))
+    if p.r.random() < 0.4:
+        m.has_anchor = True
+        m.anchor_x, m.anchor_xd, m.anchor_xdd = p.value(0.05), p.value(0.05), p.value(1.0)
+        m.anchor_z1, m.anchor_z2 = p.value(1.0), p.value(1.5)
+        m.anchor_f, m.anchor_r = p.value(0.5), p.value(0.05)
     return m
 
 
 BUILDERS = {'joint_state': build_joint_state, 'wrench': build_wrench,
             'pose_array': build_pose_array, 'image': build_image,
-            'impedance': build_impedance}
+            'impedance': build_impedance, 'master_command': build_master_command}
 
 
 def messages(builder, *args):

@@ -24,7 +24,7 @@ from rclpy.parameter import Parameter
 
 from catheter_common import topics as T
 from harness import Rig, events
-from healthy import _good_linear_model, _js, feed_clean_samples
+from healthy import _cmd, _good_linear_model, _js, feed_clean_samples
 
 pytestmark = [pytest.mark.ros, pytest.mark.core_dependent]
 
@@ -44,7 +44,7 @@ def _last_force(rig, topic=T.MASTER_RENDERED_FORCE):
 
 def _model_msg(m, c, k, offset=0.0):
     msg = _good_linear_model()
-    msg.position = [m, c, k, offset, 1.0, 0.0]
+    msg.m, msg.c, msg.k, msg.offset = m, c, k, offset
     return msg
 
 
@@ -66,12 +66,12 @@ def test_renderer_recovers_after_an_absurd_model(ros, poison):
         rig.feed(T.MASTER_LINK_IMPEDANCE, _model_msg(1e308, -1e308, 2.0))
         rig.feed(T.MASTER_COMMAND, _command(0.03, 2.0, 2.0))
     else:
-        rig.feed(T.MASTER_COMMAND, _js(0.03, 0.0))
+        rig.feed(T.MASTER_COMMAND, _cmd(0.03, 0.0))
         rig.feed(T.MASTER_LINK_IMPEDANCE, _model_msg(0.0, 0.0, 1e300))
     rig.tick(50)
     good = _model_msg(0.0, 2.0, 3.0, 0.0)          # 0.09 N at x = 30 mm, at rest
     rig.feed(T.MASTER_LINK_IMPEDANCE, good)
-    rig.feed(T.MASTER_COMMAND, _js(0.03, 0.0))
+    rig.feed(T.MASTER_COMMAND, _cmd(0.03, 0.0))
     rig.tick(1000)                                  # 1 s of good data
     f = _last_force(rig)
     assert math.isfinite(f) and abs(f - 0.09) < 0.01, f'rendered {f} N, the model says 0.09 N'
@@ -80,9 +80,7 @@ def test_renderer_recovers_after_an_absurd_model(ros, poison):
 
 
 def _command(x, xd, xdd):
-    m = _js(x, xd)
-    m.effort = [xdd, 0.0]        # /master/command carries the acceleration in effort
-    return m
+    return _cmd(x, xd, xdd)
 
 
 def _identifier_force(node, x=0.03, xd=0.02):

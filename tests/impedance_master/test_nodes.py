@@ -1,16 +1,20 @@
 """In-process tests of the three impedance_master nodes (private ROS context per test)."""
+import copy
 import math
 
 import pytest
 from geometry_msgs.msg import WrenchStamped
 from rclpy.parameter import Parameter
+from catheter_interfaces.msg import ImpedanceModel, MasterCommand
 from sensor_msgs.msg import JointState
 
-from catheter_common.topics import (IMPEDANCE_FIELDS, MASTER_COMMAND, MASTER_LINK_FORCE,
+from catheter_common import messages as M
+from catheter_common.messages import impedance_fields, impedance_msg, master_command_msg
+from catheter_common.topics import (MASTER_COMMAND, MASTER_LINK_FORCE,
                                     MASTER_LINK_IMPEDANCE, MASTER_RENDERED_FORCE, SLAVE_FORCE,
                                     SLAVE_IMPEDANCE, SLAVE_JOINT_STATE)
 from catheter_common.qos import QOS_FAST
-from impedance_master.ima_master_node import ImaMasterNode, fields_from_msg
+from impedance_master.ima_master_node import ImaMasterNode
 from impedance_master.impedance import Impedance
 from impedance_master.impedance_identifier_node import ImpedanceIdentifierNode
 from impedance_master.sim_haptic_node import MASTER_HAND_FORCE, SimHapticNode
@@ -28,20 +32,12 @@ def collect(node, msg_type, topic):
     return got
 
 
-def impedance_msg(imp):
-    d = imp.to_fields()
-    m = JointState()
-    m.name = list(d)
-    m.position = list(d.values())
-    return m
-
-
-def test_identifier_node_publishes_named_models_and_survives_bad_messages(ros):
+def test_identifier_node_publishes_typed_models_and_survives_bad_messages(ros):
     node = ros.add(ImpedanceIdentifierNode(
         context=ros.context, parameter_overrides=params(identifier='thesis', window=0.1,
                                                         publish_rate=100.0)))
     probe = ros.node('probe_ident')
-    got = collect(probe, JointState, SLAVE_IMPEDANCE)
+    got = collect(probe, ImpedanceModel, SLAVE_IMPEDANCE)
     pub = probe.create_publisher(JointState, SLAVE_JOINT_STATE, QOS_FAST)
     assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
     bad = JointState()
@@ -68,11 +64,35 @@ def test_identifier_node_publishes_named_models_and_survives_bad_messages(ros):
 
     assert ros.spin_until(feed, 30.0)
     msg = got[-1]
-    assert tuple(msg.name[:5]) == IMPEDANCE_FIELDS
+    assert msg.kind == ImpedanceModel.KIND_LINEAR and len(msg.s_table) == 0
     assert msg.header.frame_id == 'catheter_base'
-    imp = Impedance.from_fields(fields_from_msg(msg))
+    assert msg.status == node.model.status != ''
+    imp = Impedance.from_fields(impedance_fields(msg))
     assert imp.kind == 0 and imp.valid
     assert node.diag.get('bad_messages') >= 2
+
+
+def test_identifier_node_converts_a_model_once_and_resends_it_restamped(ros):
+    """The 1 kHz re-send of a held model reuses its message (new stamp, the model's current
+    status); a new model object is converted anew, anchor included."""
+    from catheter_bringup.rclpy_adapter import intercept_publish
+    node = ros.add(ImpedanceIdentifierNode(context=ros.context))
+    probe = ros.node('probe_ident_cache')
+    collect(probe, ImpedanceModel, SLAVE_IMPEDANCE)
+    assert ros.spin_until(lambda: node.pub.get_subscription_count() > 0, 10.0)
+    out = []
+    intercept_publish(node.pub, lambda m: out.append(copy.deepcopy(m)))
+    node.model = Impedance(0.1, 2.0, 3.0, 0.5, status='ok', anchor=(0.03, 0.01, 0, 1, 1.2,
+                                                                    0.2, 0.01))
+    node._publish()
+    node.model.status = 'at_rest'            # what the history identifier does when it holds
+    node._publish()
+    node.model = node.model.copy(c=2.5, anchor=None)
+    node._publish()
+    assert [m.status for m in out] == ['ok', 'at_rest', 'at_rest']
+    assert [m.c for m in out] == [2.0, 2.0, 2.5]
+    assert [m.has_anchor for m in out] == [True, True, False] and out[0].anchor_f == 0.2
+    assert M.stamp_ns(out[0]) <= M.stamp_ns(out[1]) <= M.stamp_ns(out[2])
 
 
 def test_ima_master_node_renders_the_model_on_the_local_command(ros):
@@ -80,24 +100,21 @@ def test_ima_master_node_renders_the_model_on_the_local_command(ros):
         mode='ima', rate=200.0, blend_time=0.0, max_rate=1e6)))
     probe = ros.node('probe_ima')
     got = collect(probe, WrenchStamped, MASTER_RENDERED_FORCE)
-    pub_cmd = probe.create_publisher(JointState, MASTER_COMMAND, QOS_FAST)
-    pub_imp = probe.create_publisher(JointState, MASTER_LINK_IMPEDANCE, QOS_FAST)
+    pub_cmd = probe.create_publisher(MasterCommand, MASTER_COMMAND, QOS_FAST)
+    pub_imp = probe.create_publisher(ImpedanceModel, MASTER_LINK_IMPEDANCE, QOS_FAST)
     assert ros.spin_until(lambda: pub_imp.get_subscription_count() > 0 and got, 10.0)
     assert got[-1].wrench.force.x == 0.0                     # no model yet
-    imp = Impedance(0.0, 2.0, 5.0, 0.01)
-    expect = imp.force(0.03, 0.01, 0.0)
+    imp = Impedance(0.5, 2.0, 5.0, 0.01)
+    expect = imp.force(0.03, 0.01, 0.4)      # the acceleration travels in the command
 
     def send():
-        cmd = JointState()
-        cmd.position, cmd.velocity, cmd.effort = [0.03, 0.0], [0.01, 0.0], [0.0, 0.0]
-        pub_cmd.publish(cmd)
+        pub_cmd.publish(master_command_msg(0.03, 0.01, 0.4))
         pub_imp.publish(impedance_msg(imp))
         return got and abs(got[-1].wrench.force.x - expect) < 1e-9
 
     assert ros.spin_until(send, 10.0)
-    bad = JointState()
-    bad.name = ['m', 'c']
-    bad.position = [1.0]
+    bad = impedance_msg(imp)
+    bad.kind = ImpedanceModel.KIND_TABLE           # a table model without tables
     pub_imp.publish(bad)
     ros.spin_until(lambda: node.diag.get('bad_messages') > 0, 5.0)
     assert node.diag.get('bad_messages') == 1
@@ -134,17 +151,25 @@ def test_sim_haptic_node_commands_and_delays_the_slave_streams(ros):
     node = ros.add(SimHapticNode(context=ros.context, parameter_overrides=params(
         rate=200.0, **{'link.delay': 0.3, 'link.outages': [0.0, 0.0]})))
     probe = ros.node('probe_haptic')
-    cmds = collect(probe, JointState, MASTER_COMMAND)
+    cmds = collect(probe, MasterCommand, MASTER_COMMAND)
     hand = collect(probe, WrenchStamped, MASTER_HAND_FORCE)
     delivered = collect(probe, WrenchStamped, MASTER_LINK_FORCE)
-    imps = collect(probe, JointState, MASTER_LINK_IMPEDANCE)
+    imps = collect(probe, ImpedanceModel, MASTER_LINK_IMPEDANCE)
     pub_f = probe.create_publisher(WrenchStamped, SLAVE_FORCE, QOS_FAST)
-    pub_i = probe.create_publisher(JointState, SLAVE_IMPEDANCE, QOS_FAST)
+    pub_i = probe.create_publisher(ImpedanceModel, SLAVE_IMPEDANCE, QOS_FAST)
     pub_r = probe.create_publisher(WrenchStamped, MASTER_RENDERED_FORCE, QOS_FAST)
     assert ros.spin_until(lambda: len(cmds) > 5 and pub_f.get_subscription_count() > 0, 10.0)
     c = cmds[-1]
-    assert c.name[0] == 'insertion' and 0.0 <= c.position[0] <= 0.06
-    assert len(c.effort) == 2 and c.header.frame_id == 'catheter_base'
+    assert 0.0 <= c.position <= 0.06 and c.rotation == 0.0
+    assert c.header.frame_id == 'catheter_base'
+    # the handle's state travels whole, acceleration included (the script moves after 0.4 s)
+    from catheter_bringup.rclpy_adapter import intercept_publish
+    sent = []
+    orig = intercept_publish(node.pub_cmd, lambda m: (sent.append((m, node.last)), orig(m)))
+    node.t0 -= 1.0
+    assert ros.spin_until(lambda: len(sent) > 5, 10.0)
+    assert all((m.position, m.velocity, m.acceleration) == (s.x, s.xd, s.xdd) for m, s in sent)
+    assert all(m.acceleration != 0.0 for m, _ in sent)
     w = WrenchStamped()
     w.wrench.force.x = 0.123
     t_send = node.get_clock().now()
@@ -154,7 +179,7 @@ def test_sim_haptic_node_commands_and_delays_the_slave_streams(ros):
     waited = (node.get_clock().now() - t_send).nanoseconds * 1e-9
     assert waited >= 0.3 - 0.02                      # not before the link's delay
     assert delivered[-1].wrench.force.x == 0.123
-    assert Impedance.from_fields(fields_from_msg(imps[-1])).c == 1.0
+    assert Impedance.from_fields(impedance_fields(imps[-1])).c == 1.0
     # the device tracks the rendered force at the hand
     r = WrenchStamped()
     r.wrench.force.x = 0.2
@@ -199,7 +224,7 @@ def test_sim_haptic_node_runs_in_lockstep_with_a_clock(ros):
     node = ros.add(SimHapticNode(context=ros.context, parameter_overrides=params(
         use_sim_time=True, **{'link.outages': [0.0, 0.0]})))
     probe = ros.node('probe_clock')
-    cmds = collect(probe, JointState, MASTER_COMMAND)
+    cmds = collect(probe, MasterCommand, MASTER_COMMAND)
     clock = probe.create_publisher(Clock, CLOCK, QOS_DEFAULT)
     assert ros.spin_until(lambda: clock.get_subscription_count() > 0
                           and node.pub_cmd.get_subscription_count() > 0, 10.0)

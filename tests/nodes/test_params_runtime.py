@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import Point, Pose, PoseArray, WrenchStamped
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import JointState
 
 from catheter_bringup.rclpy_adapter import intercept_publish
 from catheter_common import topics as T
+from catheter_common.messages import impedance_msg, master_command_msg
 from catheter_common.qos import QOS_FAST, QOS_SENSOR
 
 from node_cases import NODE_MODULES, make_node
@@ -89,13 +89,9 @@ def test_limit_applies_to_the_rendered_force_within_one_tick(ros):
     probe.create_subscription(WrenchStamped, T.MASTER_RENDERED_FORCE, lambda m: None, QOS_FAST)
     assert ros.spin_until(lambda: node.pub.get_subscription_count() > 0, 10.0)
     out = capture(node.pub)
-    cmd = JointState(position=[0.05], velocity=[0.0], effort=[0.0])
-    node._on_command(cmd)
+    node._on_command(master_command_msg(0.05, 0.0, 0.0))
     imp = Impedance(0.0, 0.0, 30.0, 0.0)                # 1.5 N at 50 mm
-    msg = JointState()
-    d = imp.to_fields()
-    msg.name, msg.position = list(d), list(d.values())
-    node._on_impedance(msg)
+    node._on_impedance(impedance_msg(imp))
     node._render()
     assert out[-1].wrench.force.x == pytest.approx(1.5)
     res = set_param(node, 'limit', 0.5)

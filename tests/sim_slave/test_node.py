@@ -5,6 +5,7 @@ import pytest
 from geometry_msgs.msg import WrenchStamped
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
+from catheter_interfaces.msg import MasterCommand
 from sensor_msgs.msg import JointState
 
 from catheter_common.topics import (CLOCK, FRAME_CATHETER_BASE, MASTER_COMMAND, SLAVE_FORCE,
@@ -25,7 +26,7 @@ class Rig:
         self.node = ros.add(SimSlaveNode(context=ros.context, parameter_overrides=overrides))
         self.peer = ros.node('sim_slave_test_peer')
         self.clock = self.peer.create_publisher(Clock, CLOCK, QOS_DEFAULT)
-        self.cmd = self.peer.create_publisher(JointState, MASTER_COMMAND, QOS_FAST)
+        self.cmd = self.peer.create_publisher(MasterCommand, MASTER_COMMAND, QOS_FAST)
         self.js, self.force = [], []
         self.peer.create_subscription(JointState, SLAVE_JOINT_STATE, self.js.append, QOS_FAST)
         self.peer.create_subscription(WrenchStamped, SLAVE_FORCE, self.force.append, QOS_FAST)
@@ -36,7 +37,8 @@ class Rig:
                                        and self.clock.get_subscription_count() > 0), 10.0)
 
     def step(self, command=None):
-        """Advance the clock by 1 ms, then (optionally) publish a command stamped at that time."""
+        """Advance the clock by 1 ms, then (optionally) publish a command (insertion m,
+        rotation rad) stamped at that time."""
         self.ms += 1
         c = Clock()
         c.clock.sec, c.clock.nanosec = divmod(self.ms * 1_000_000, 1_000_000_000)
@@ -44,10 +46,9 @@ class Rig:
         n_js = len(self.js)
         self.ros.spin_until(lambda: len(self.js) > n_js, 2.0)   # the tick of this ms
         if command is not None:
-            m = JointState()
+            m = MasterCommand()
             m.header.stamp = c.clock
-            m.name = ['insertion', 'rotation']
-            m.position = list(command)
+            m.position, m.rotation = command
             n = self.node.diag.get('commands_received') + self.node.diag.get('bad_commands')
             self.cmd.publish(m)
             self.ros.spin_until(lambda: self.node.diag.get('commands_received')
@@ -96,7 +97,7 @@ def test_outage_holds_the_last_command_and_bad_messages_are_counted(ros):
         rig.step((0.02 * (k + 1) / 400, 0.0))          # a ramp to 20 mm in 0.4 s
         if k == 50:
             rig.step((math.nan, 0.0))
-            rig.step(())
+            rig.step((0.01, math.inf))
     for _ in range(250):
         rig.step((0.02, 0.0))
     st = rig.node.link.stats

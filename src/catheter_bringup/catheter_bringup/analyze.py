@@ -91,9 +91,10 @@ def _t0(rec: Recording) -> float:
 
 
 def twin_vessel(scenario: dict):
-    """(VesselParams, seed) of the run's sim_slave_node (scenario parameters over the
-    defaults): what the twin reference of `impedance_master.metrics` is built with."""
-    from sim_slave.vessel import VesselParams
+    """(VesselSpec, seed) of the run's sim_slave_node (its vessel, parameters over the
+    defaults; `sim_slave.node_params.vessel_from_params`, as the node builds it): what the
+    twin reference of `impedance_master.metrics` is built with."""
+    from sim_slave.node_params import vessel_from_params
     params = {}
     try:
         from catheter_bringup.scenario import instances, validate_scenario
@@ -102,8 +103,7 @@ def twin_vessel(scenario: dict):
             params = inst.params
     except (ValueError, KeyError):
         params = {}
-    kw = {k[len('vessel.'):]: float(v) for k, v in params.items() if k.startswith('vessel.')}
-    return VesselParams(**kw), int(params.get('seed', scenario.get('seed', 0)) or 0)
+    return vessel_from_params(params), int(params.get('seed', scenario.get('seed', 0)) or 0)
 
 
 def _master_reference(rec: Recording, sc: dict, t0: float, delay: float):

@@ -26,8 +26,6 @@ from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST, QOS_SENSOR
 from catheter_common.ros_node import run_node
 
-#: (re-exported: the topic's one definition is catheter_common.topics)
-SLAVE_JOINT_STATE_IMAGE = T.SLAVE_JOINT_STATE_IMAGE
 COMPONENTS = ('magnitude', 'x', 'y')
 
 PARAMS = table(

@@ -62,12 +62,10 @@ def main(argv=None):
     print(f"== {sc['name']}: {sc.get('description', '')}  [{why}]", flush=True)
     runner = ScenarioRunner(sc, bag=a.bag, mode=a.mode, duration=a.duration, progress=True,
                             log=lambda m: print(m, flush=True))
-    from catheter_bringup.run_scenario import (install_stop_handlers, record_run_start,
-                                               restore_handlers)
+    from catheter_bringup.run_scenario import install_stop_handlers, restore_handlers
     old = install_stop_handlers(runner)
     try:
-        runner.setup()
-        record_run_start(runner)
+        runner.setup()                      # writes the run-start record into the bag
         res = runner.run()
     finally:
         restore_handlers(old)

@@ -88,15 +88,6 @@ def summarize(res) -> str:
     return '\n'.join(lines)
 
 
-def record_run_start(runner) -> None:
-    """Write what the run is into its recording before the first step (``catheter_run_start``),
-    so the file of a run killed with SIGKILL still says it (recover_bag carries it over)."""
-    from catheter_bringup.scenario import run_start_info
-    rec = getattr(runner, 'recorder', None)
-    if rec is not None and not rec.closed:
-        rec.start(run_start_info(runner.scenario, runner.nodes))
-
-
 def install_stop_handlers(runner) -> dict:
     """Ctrl-C and SIGTERM ask the runner to stop: it finishes the current step, closes the
     recording (status interrupted) and returns. The handler only sets a flag: an exception
@@ -150,7 +141,6 @@ def main(args=None):
         print(f'run_scenario: {exc}', file=sys.stderr)
         runner.close()
         return 2 if isinstance(exc, ValueError) else 1
-    record_run_start(runner)
     res = runner.run()
     if opts.report:
         write_report(opts.report, opts.process, res)

@@ -42,7 +42,7 @@ from catheter_bringup.rclpy_adapter import detach_clock
 from catheter_bringup.recorder import McapRecorder
 from catheter_bringup.result import RunResult  # noqa: F401  (re-exported: part of the API)
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
-from catheter_bringup.scenario import load_scenario, resolve_nodes, scenario_text
+from catheter_bringup.scenario import load_scenario, resolve_nodes, run_start_info, scenario_text
 from catheter_bringup.stepping import Stepping
 from catheter_bringup.worker import Workers
 from catheter_common import qos as Q
@@ -263,6 +263,9 @@ class ScenarioRunner(Stepping):
             self.sink.now_ns = (lambda: self._now_ns) if lockstep else None
             self.sink.buffered = lockstep
             self._record_publishers()
+            # what the run is, in the file before the first step: a run killed with SIGKILL
+            # still says it (recover_bag carries it over; analyze reads it)
+            self.recorder.start(run_start_info(sc, self.nodes))
         self._track()
         if self.child_groups:
             self._start_children()

@@ -11,7 +11,9 @@ A scenario file::
     seed: 7
     force_source: load_cell   # load_cell | image  (force the identifier fits)
     link: {delay: 0.2, jitter: 0.0, loss: 0.0, outages: [[4.0, 1.0], [8.0, 1.0]]}
-    operator: {trajectory: experiment_ii}
+    operator: {trajectory: experiment_ii, family: minjerk}   # family: minjerk | sines | human
+    vessel: phantom           # sim_slave.vessels: phantom, smooth_coulomb, stribeck_kv,
+                              # stenosis, soft, stiff_wall (sim nodes and analyze's twin)
     outputs: [/master/rendered_force, /slave/force]   # what the scene consumes
     lockstep_transport: local # local: in-process bus (fast, deterministic) | dds: via DDS
     realtime_transport: local # the same choice for real-time runs
@@ -85,7 +87,7 @@ REGISTRY: Dict[str, NodeSpec] = {s.executable: s for s in [
              produces=(T.CONTROL_POINTS, T.SHAPE), kind='vision'),
     NodeSpec('force_estimator_node', 'force_estimator.force_estimator_node',
              consumes=(T.CONTROL_POINTS,),
-             produces=(T.TIP_WRENCH,), kind='vision'),
+             produces=(T.TIP_WRENCH, T.TIP_FORCE), kind='vision'),
     NodeSpec('fam_solver_node', 'fam_solver.fam_solver_node',
              consumes=(T.TIP_LOAD,),
              produces=(T.SHAPE, T.SHAPE_MARKER), kind='vision'),
@@ -109,8 +111,6 @@ LOOP_PROCESSES = ('master', 'slave')
 #: nice value of the vision process when the loops run under SCHED_FIFO: more CPU share than
 #: the machine's other work (30 frames/s must keep up), never ahead of the 1 kHz loops
 VISION_NICE = -10
-#: the identifier's input when the scenario's force source is the image (force_source_node)
-SLAVE_JOINT_STATE_IMAGE = '/slave/joint_state_image'
 FORCE_SOURCES = ('load_cell', 'image')
 
 
@@ -211,6 +211,16 @@ def validate_scenario(data: Mapping) -> dict:
     link['outages'] = clean
     s['link'] = link
     s['operator'] = dict(s.get('operator') or {})
+    from impedance_master.operator import OPERATORS
+    s['operator'].setdefault('family', 'minjerk')
+    if s['operator']['family'] not in OPERATORS:
+        raise ValueError(f'scenario.operator.family must be one of {tuple(OPERATORS)}, got '
+                         f'{s["operator"]["family"]!r}')
+    from sim_slave.node_params import DEFAULT_VESSEL, VESSEL_CHOICES
+    s.setdefault('vessel', DEFAULT_VESSEL)
+    if s['vessel'] not in VESSEL_CHOICES:
+        raise ValueError(f'scenario.vessel must be one of {VESSEL_CHOICES}, got '
+                         f'{s["vessel"]!r}')
     outs = s.get('outputs') or []
     if not isinstance(outs, (list, tuple)) or not all(isinstance(t, str) for t in outs):
         raise ValueError(f'scenario.outputs must be a list of topic names, got {outs!r}')
@@ -270,13 +280,15 @@ def run_start_info(scenario: Mapping, nodes) -> Dict[str, object]:
 def common_params(scenario: Mapping) -> Dict[str, object]:
     """Parameters every node gets (a node ignores those it does not declare): the seed, the
     link (``link.delay``, ``link.jitter``, ``link.loss``, ``link.outages`` as a flat list
-    start, length, ...), the operator (``operator.<key>``), the identification force source,
-    then the scenario's ``global_params``."""
+    start, length, ...), the operator (``operator.<key>``: ``operator.family`` is
+    sim_haptic_node's), the vessel (``vessel``: the sim nodes'), the identification force
+    source, then the scenario's ``global_params``."""
     link = scenario['link']
     flat = [float(x) for o in link['outages'] for x in o] or [0.0, 0.0]
     p = {'seed': int(scenario['seed']), 'link.delay': float(link['delay']),
          'link.jitter': float(link['jitter']), 'link.loss': float(link['loss']),
-         'link.outages': flat, 'force_source': scenario['force_source']}
+         'link.outages': flat, 'force_source': scenario['force_source'],
+         'vessel': scenario['vessel']}
     for k, v in scenario['operator'].items():
         p[f'operator.{k}'] = v
     p.update(scenario['global_params'])
@@ -292,7 +304,7 @@ def instances(scenario: Mapping, registry: Optional[Mapping[str, NodeSpec]] = No
     if image_source:
         reg['force_source_node'] = NodeSpec(
             'force_source_node', 'catheter_bringup.force_source_node',
-            consumes=(T.SLAVE_JOINT_STATE, T.TIP_WRENCH), produces=(SLAVE_JOINT_STATE_IMAGE,))
+            consumes=(T.SLAVE_JOINT_STATE, T.TIP_WRENCH), produces=(T.SLAVE_JOINT_STATE_IMAGE,))
     common = common_params(scenario)
     out: Dict[str, NodeInstance] = {}
     for name, spec in reg.items():
@@ -321,7 +333,7 @@ def instances(scenario: Mapping, registry: Optional[Mapping[str, NodeSpec]] = No
         # the identifier fits the image-based force: its joint state comes through the adapter
         ident = out['impedance_identifier_node']
         remap = dict(ident.remap)
-        remap[T.SLAVE_JOINT_STATE] = SLAVE_JOINT_STATE_IMAGE
+        remap[T.SLAVE_JOINT_STATE] = T.SLAVE_JOINT_STATE_IMAGE
         base = reg['impedance_identifier_node'] if ident.name in reg else ident.spec
         out[ident.name] = dataclasses.replace(ident, spec=base.remapped(remap), remap=remap)
     return out

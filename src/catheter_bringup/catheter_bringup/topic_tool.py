@@ -94,6 +94,9 @@ def to_yaml(msg, full: bool = False, indent: str = '') -> List[str]:
             else:
                 lines.append(f'{indent}{name}: {[_scalar(v) for v in seq]}')
             continue
+        if isinstance(value, bool):                  # YAML's spelling, as ros2 topic echo
+            lines.append(f'{indent}{name}: {"true" if value else "false"}')
+            continue
         lines.append(f'{indent}{name}: {_scalar(value)!r}' if isinstance(value, str)
                      else f'{indent}{name}: {_scalar(value)}')
     return lines

@@ -3,7 +3,8 @@ objects (no rclpy: only the generated message classes).
 
 - ``/slave/impedance``, ``/master/link/impedance``: `ImpedanceModel` <-> the dict of
   ``impedance_master.impedance.Impedance.to_fields()`` / ``Impedance.from_fields()``
-  (`impedance_msg`, `impedance_fields`);
+  (`impedance_msg`, `impedance_fields`), the anchor ('anchor_x', ... 'anchor_r') included;
+  `impedance_key` tells whether two messages carry the same model (stamp ignored);
 - ``/catheter/tip_wrench`` estimate: `TipForceEstimate` from force + covariance + status +
   method (`tip_force_msg`) and back to plain values (`tip_force_values`);
 - ``/master/command``: `MasterCommand` from position, velocity, acceleration, rotation
@@ -19,6 +20,8 @@ goes on the wire through these helpers.
 """
 from __future__ import annotations
 
+import functools
+import math
 from typing import Dict, Mapping, Sequence, Tuple
 
 from catheter_interfaces.msg import ImpedanceModel, MasterCommand, TipForceEstimate
@@ -39,6 +42,32 @@ TABLES = (('S', 's_table'), ('F', 'f_table'), ('B', 'b_table'), ('C', 'c_table')
 TABLE_SCALARS = ('x0', 'dx', 'sigma', 'v_s', 'beta')
 #: ImpedanceModel.kind values
 KIND_LINEAR, KIND_TABLE = int(ImpedanceModel.KIND_LINEAR), int(ImpedanceModel.KIND_TABLE)
+#: the anchor's fields, in message order: the same names in Impedance.to_fields() and in the
+#: message (read from the .msg, the one place they are defined: 'anchor_x', ..., 'anchor_r')
+ANCHOR_FIELDS = tuple(n for n in ImpedanceModel.get_fields_and_field_types()
+                      if n.startswith('anchor_'))
+#: the message fields that define the model (all but the header and the identifier's status
+#: text, which Impedance.from_fields does not use): `impedance_key`
+MODEL_FIELDS = tuple(n for n in ImpedanceModel.get_fields_and_field_types()
+                     if n not in ('header', 'status'))
+
+
+def _finite_all(name, values) -> list:
+    """`values` as a list of floats; ValueError naming the first that is not finite, as
+    ``name(i)`` (one C-level pass when all are fine: the 1 kHz models carry ~70 numbers)."""
+    if type(values).__name__ == 'array' and values.typecode == 'd':   # a message's float64[]
+        if all(map(math.isfinite, values)):
+            return values.tolist()
+    values = list(values)
+    try:
+        out = [float(v) for v in values]
+        ok = all(map(math.isfinite, out))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        for i, v in enumerate(values):
+            finite(name(i), v)
+    return out
 
 
 def stamp_msg(stamp=None):
@@ -111,42 +140,75 @@ def impedance_msg(model, stamp=None, frame_id: str = ''):
             missing = [k for k in keys if k not in fields]
             if missing:
                 raise ValueError(f'model is missing the field {missing[0]!r} (table model)')
-            setattr(msg, attr, [finite(f'model {k}', fields[k]) for k in keys])
+            setattr(msg, attr, _finite_all(lambda i, p=prefix: f'model {p}{i}',
+                                           [fields[k] for k in keys]))
     else:
         for name in ('sigma', 'v_s', 'beta'):
             value = getattr(model, name, None) if not isinstance(model, Mapping) \
                 else fields.get(name)
             if value is not None:
                 setattr(msg, name, finite(f'model {name}', value))
+    present = [n for n in ANCHOR_FIELDS if n in fields]
+    if present:
+        if len(present) != len(ANCHOR_FIELDS):
+            missing = [n for n in ANCHOR_FIELDS if n not in fields]
+            raise ValueError(f'model is missing the field {missing[0]!r} (anchored model)')
+        msg.has_anchor = True
+        for name in ANCHOR_FIELDS:
+            setattr(msg, name, finite(f'model {name}', fields[name]))
     return msg
 
 
 def impedance_fields(msg) -> Dict[str, float]:
     """The ``Impedance.to_fields()`` dict carried by an ImpedanceModel message (its inverse:
     ``Impedance.from_fields(impedance_fields(msg))``). ValueError naming the field when the
-    message is inconsistent (unknown kind, tables of different lengths, non-finite values)."""
+    message is inconsistent (unknown kind, tables of different lengths, tables in a linear
+    model, a non-finite value in ANY field, used or not)."""
     kind = int(msg.kind)
     if kind not in (KIND_LINEAR, KIND_TABLE):
         raise ValueError(f'msg.kind must be 0 (linear) or 1 (table), got {kind}')
     d = {'m': finite('msg.m', msg.m), 'c': finite('msg.c', msg.c),
          'k': finite('msg.k', msg.k), 'offset': finite('msg.offset', msg.offset),
          'valid': 1.0 if msg.valid else 0.0, 'kind': float(kind)}
+    # every number of the message is finite, used or not: a relay passes on only messages
+    # that hold no NaN anywhere
+    scalars = dict(zip(TABLE_SCALARS, _finite_all(lambda i: f'msg.{TABLE_SCALARS[i]}',
+                                                  [getattr(msg, n) for n in TABLE_SCALARS])))
+    anchor = _finite_all(lambda i: f'msg.{ANCHOR_FIELDS[i]}',
+                         [getattr(msg, n) for n in ANCHOR_FIELDS])
+    if msg.has_anchor:
+        d.update(zip(ANCHOR_FIELDS, anchor))
     if kind == KIND_LINEAR:
+        for _, attr in TABLES:
+            if len(getattr(msg, attr)):
+                raise ValueError(f'msg.{attr} must be empty for a linear model (kind 0), got '
+                                 f'{len(getattr(msg, attr))} nodes')
         return d
-    tables = [list(getattr(msg, attr)) for _, attr in TABLES]
+    tables = [getattr(msg, attr) for _, attr in TABLES]
     n = len(tables[0])
     if n < 2:
         raise ValueError(f'msg.s_table must have >= 2 nodes for a table model, got {n}')
     for (_, attr), t in zip(TABLES, tables):
         if len(t) != n:
             raise ValueError(f'msg.{attr} must have {n} nodes like s_table, got {len(t)}')
-    for name in TABLE_SCALARS:
-        d[name] = finite(f'msg.{name}', getattr(msg, name))
+    d.update(scalars)
     d['n'] = float(n)
     for (prefix, attr), t in zip(TABLES, tables):
-        for i, v in enumerate(t):
-            d[f'{prefix}{i}'] = finite(f'msg.{attr}[{i}]', v)
+        d.update(zip(_table_keys(prefix, n), _finite_all(lambda i, a=attr: f'msg.{a}[{i}]', t)))
     return d
+
+
+@functools.lru_cache(maxsize=64)
+def _table_keys(prefix: str, n: int) -> Tuple[str, ...]:
+    """('S0', 'S1', ...): the to_fields() names of a table's n nodes."""
+    return tuple(f'{prefix}{i}' for i in range(n))
+
+
+def impedance_key(msg) -> tuple:
+    """The model an ImpedanceModel carries, as a comparable tuple (`MODEL_FIELDS`: every
+    field but the header and the status text): equal keys, the same model (an identifier
+    re-sending a held model)."""
+    return tuple(getattr(msg, n) for n in MODEL_FIELDS)
 
 
 # ------------------------------------------------------------------ tip force estimate
@@ -236,6 +298,7 @@ def master_command_values(msg) -> Tuple[float, float, float, float]:
                  for name in ('position', 'velocity', 'acceleration', 'rotation'))
 
 
-__all__ = ['TIP_FORCE_STATUS', 'TIP_FORCE_METHODS', 'KIND_LINEAR', 'KIND_TABLE', 'stamp_msg',
-           'stamp_ns', 'impedance_msg', 'impedance_fields', 'tip_force_msg', 'tip_force_values',
+__all__ = ['TIP_FORCE_STATUS', 'TIP_FORCE_METHODS', 'KIND_LINEAR', 'KIND_TABLE', 'ANCHOR_FIELDS',
+           'stamp_msg', 'stamp_ns', 'impedance_msg', 'impedance_fields', 'impedance_key',
+           'tip_force_msg', 'tip_force_values',
            'master_command_msg', 'master_command_values']

@@ -26,17 +26,23 @@ FAM_SHAPE = '/catheter/fam/shape'
 FAM_SHAPE_MARKER = '/catheter/fam/shape_marker'  # visualization_msgs/Marker of FAM_SHAPE
 #: former name of FAM_SHAPE_MARKER (kept until every user says FAM_SHAPE_MARKER)
 SHAPE_MARKER = FAM_SHAPE_MARKER
-TIP_WRENCH = '/catheter/tip_wrench'            # geometry_msgs/WrenchStamped (estimated tip force)
+#: geometry_msgs/WrenchStamped: the estimated tip force, NORMAL estimates only (what controllers
+#: and the force source use)
+TIP_WRENCH = '/catheter/tip_wrench'
+#: catheter_interfaces/TipForceEstimate: EVERY estimate with its covariance, domain status,
+#: method and domain distance (force_estimator_node)
+TIP_FORCE = '/catheter/tip_force'
 SHAPE_DEBUG_IMAGE = '/catheter/debug_image'    # sensor_msgs/Image overlay (only while subscribed)
 #: sensor_msgs/JointState (insertion m, rotation rad; effort N)
 SLAVE_JOINT_STATE = '/slave/joint_state'
 #: /slave/joint_state with the insertion effort taken from the image-based tip force
 #: (force_source_node; the identifier's input when a scenario says force_source: image)
 SLAVE_JOINT_STATE_IMAGE = '/slave/joint_state_image'
-#: sensor_msgs/JointState used as stamped named float64 values
+#: catheter_interfaces/ImpedanceModel: the identified environment model
 SLAVE_IMPEDANCE = '/slave/impedance'
 SLAVE_FORCE = '/slave/force'                   # geometry_msgs/WrenchStamped
-MASTER_COMMAND = '/master/command'             # sensor_msgs/JointState
+#: catheter_interfaces/MasterCommand: position, velocity, acceleration of the master handle
+MASTER_COMMAND = '/master/command'
 MASTER_RENDERED_FORCE = '/master/rendered_force'  # geometry_msgs/WrenchStamped
 # The simulated UDP-like link: each side's sim node receives the other side's streams through
 # its side of the link (delay, jitter, loss, outages, latest-wins) and republishes what was
@@ -50,7 +56,8 @@ CAMERA_TIP_FORCE_TRUTH = '/camera/tip_force_truth'
 DIAGNOSTICS = '/diagnostics'                   # diagnostic_msgs/DiagnosticArray
 CLOCK = '/clock'                               # rosgraph_msgs/Clock
 
-# Names of the values carried in /slave/impedance (JointState.name, values in JointState.position).
+# The base names of impedance_master.impedance.Impedance.to_fields() (the model's scalar fields;
+# on the wire: catheter_interfaces/ImpedanceModel, converted by catheter_common.messages).
 IMPEDANCE_FIELDS = ('m', 'c', 'k', 'offset', 'valid')
 
 #: ROS-wide topics: absolute in every namespace (ROS tools look for them there)

@@ -8,7 +8,12 @@ Publishes   catheter/control_points   geometry_msgs/PoseArray, 4 poses base -> t
             catheter/shape            nav_msgs/Path (the centreline MEASURED in the image; the
                                       FAM model's is catheter/fam/shape), only while subscribed
             catheter/debug_image      sensor_msgs/Image bgr8 overlay, only while subscribed
-            /diagnostics              WARN after frames without a catheter shape and bad images
+            /diagnostics              WARN after frames without a catheter shape and bad images;
+                                      fail_<status> counts every refused frame by its status
+                                      (catheter_shape.STATUSES, the plausibility checks
+                                      outside_frame, tip_out_of_view, bad_tip, base_mismatch,
+                                      ambiguous_base, length_mismatch, folded, poor_fit
+                                      included): only ok frames are published
 
 Frames are never queued: the callback keeps only the newest frame and a timer on the node
 clock (period `period`) processes it; a frame replaced before it was processed counts as
@@ -57,7 +62,14 @@ PARAMS = table(
           dynamic=True),
     Param('background_file', '', 'optional PNG of the scene without the catheter (background '
           'removal)', dynamic=True),
-    Param('method', 'fixed', 'threshold method', choices=tuple(METHODS), dynamic=True),
+    Param('method', 'flatfield', 'segmentation: flatfield (divisive flat-field, independent of '
+          'the illumination; the default), fixed (the thesis: subtractive flat-field and '
+          '`threshold`), otsu, adaptive', choices=tuple(METHODS), dynamic=True),
+    Param('length', 0.065, 'catheter length from the clamp for the plausibility check, m (a '
+          'centreline longer than length * (1 + length_tolerance) is refused as '
+          'length_mismatch); 0 = not checked', 0.0, 2.0, dynamic=True),
+    Param('length_tolerance', 0.025, 'relative tolerance of the length check', 0.0, 1.0,
+          dynamic=True),
     Param('period', 0.005, 'processing timer period, s (node clock): the newest frame is '
           'processed, older unprocessed ones are dropped', 0.001, 1.0, dynamic=True),
     Param('path_poses', 100, 'largest number of poses in catheter/shape', 2, 10000,
@@ -69,7 +81,7 @@ PARAMS = table(
           choices=('none', 'point', 'tangent'), dynamic=True),
 )
 _SENSOR_KEYS = {'psi', 'threshold', 'base_px', 'background_file', 'method', 'degree',
-                'base_constraint'}
+                'base_constraint', 'length', 'length_tolerance'}
 
 
 def _yaw_quaternion(yaw: float):
@@ -199,7 +211,8 @@ class ShapeNode(Node):
         self._last_obs = None
         self.get_logger().info(
             f'shape_node: {self.sub.topic_name} -> {self.pub_cp.topic_name}, '
-            f'{self.pub_path.topic_name}; threshold {p["threshold"]} ({p["method"]}), base_px '
+            f'{self.pub_path.topic_name}; {p["method"]} segmentation, length '
+            f'{p["length"] or "not checked"}, base_px '
             f'{self.sensor.base_px}, background '
             f'{"yes" if self.sensor.background is not None else "no"}, '
             f'{self.sensor._m_per_px * 1e3:.4f} mm/px')
@@ -228,7 +241,8 @@ class ShapeNode(Node):
         psi = np.asarray(values['psi'], dtype=float).reshape(3, 4)
         sensor = ShapeSensor(psi, threshold=values['threshold'], background=background,
                              base_px=base, method=values['method'], degree=values['degree'],
-                             base_constraint=constraint)
+                             base_constraint=constraint, length=values['length'] or None,
+                             length_tolerance=values['length_tolerance'])
         return sensor, psi
 
     def _apply_params(self, changes, values) -> None:

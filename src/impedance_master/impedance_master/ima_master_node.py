@@ -1,10 +1,10 @@
 """ROS 2 node `ima_master_node` (master side): renders the desired force for the haptic device.
 
-Subscribes  master/command         sensor_msgs/JointState, the LOCAL master trajectory:
-                                   position[0] x m, velocity[0] m/s, effort[0] x'' m/s^2
-                                   (sim_haptic_node's documented use of effort). QOS_FAST.
-            master/link/impedance  the slave's model as delivered by the link (named values,
-                                   see impedance_identifier_node). QOS_FAST.
+Subscribes  master/command         catheter_interfaces/MasterCommand, the LOCAL master
+                                   trajectory: position x m, velocity m/s, acceleration
+                                   x'' m/s^2. QOS_FAST.
+            master/link/impedance  catheter_interfaces/ImpedanceModel, the slave's model as
+                                   delivered by the link. QOS_FAST.
             master/link/force      geometry_msgs/WrenchStamped, the slave's force as delivered
                                    (force.x N). QOS_FAST.
 Publishes   master/rendered_force  geometry_msgs/WrenchStamped, force.x = desired force N
@@ -30,13 +30,14 @@ from __future__ import annotations
 
 import math
 
+from catheter_interfaces.msg import ImpedanceModel, MasterCommand
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
 
 from catheter_common import topics as T
-from catheter_common.checks import finite, first
+from catheter_common.checks import finite
 from catheter_common.diagnostics import ERROR, WARN, Diagnostics
+from catheter_common.messages import impedance_fields, impedance_key, master_command_values
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import run_node
@@ -68,14 +69,6 @@ PARAMS = table(
 #: the renderer settings that only the default mode has (ima_thesis renders Eq. 35 as the
 #: thesis does: no blending, no slew limit, no passivity controller)
 _IMA_ONLY = ('blend_time', 'max_rate', 'passivity', 'fallback_time')
-
-
-def fields_from_msg(msg: JointState) -> dict:
-    """Named values of an impedance message (ValueError on a malformed message)."""
-    if len(msg.name) != len(msg.position):
-        raise ValueError(f'name ({len(msg.name)}) and position ({len(msg.position)}) '
-                         'must have the same length')
-    return dict(zip(msg.name, msg.position))
 
 
 def set_core_limit(renderer, limit: float) -> bool:
@@ -111,17 +104,16 @@ class ImaMasterNode(Node):
         self.renderer.stale_time = p['stale_after']
         self.state = None            # (x, xd, xdd) of the local trajectory
         self._t_state = None         # node-clock ns of the last command
-        self._last_values = None
-        self._last_names = None
+        self._last_key = None        # impedance_key of the last model parsed
         self._last_imp = None
         self.diag = Diagnostics(self)
         for k in ('rendered', 'bad_messages', 'nonfinite_outputs', 'clamped_outputs'):
             self.diag.count(k, 0)
         self.pub = self.create_publisher(WrenchStamped, T.relative(T.MASTER_RENDERED_FORCE),
                                          QOS_FAST)
-        self.create_subscription(JointState, T.relative(T.MASTER_COMMAND), self._on_command,
+        self.create_subscription(MasterCommand, T.relative(T.MASTER_COMMAND), self._on_command,
                                  QOS_FAST)
-        self.create_subscription(JointState, T.relative(T.MASTER_LINK_IMPEDANCE),
+        self.create_subscription(ImpedanceModel, T.relative(T.MASTER_LINK_IMPEDANCE),
                                  self._on_impedance, QOS_FAST)
         self.create_subscription(WrenchStamped, T.relative(T.MASTER_LINK_FORCE), self._on_force,
                                  QOS_FAST)
@@ -147,11 +139,9 @@ class ImaMasterNode(Node):
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
 
-    def _on_command(self, msg: JointState) -> None:
+    def _on_command(self, msg: MasterCommand) -> None:
         try:
-            x = first('position', msg.position)
-            xd = first('velocity', msg.velocity, 0.0)
-            xdd = first('effort (acceleration)', msg.effort, 0.0)
+            x, xd, xdd, _rot = master_command_values(msg)
         except ValueError as exc:
             self.diag.bad_input('command', str(exc))
             return
@@ -159,25 +149,25 @@ class ImaMasterNode(Node):
         self._t_state = self._now_ns()
         self.diag.count('commands')
 
-    def _on_impedance(self, msg: JointState) -> None:
+    def _on_impedance(self, msg: ImpedanceModel) -> None:
         if self.mode == 'dfr':
             self.diag.count('models_ignored_mode')
             return
-        values = list(msg.position)
-        if values == self._last_values and list(msg.name) == self._last_names:
+        key = impedance_key(msg)
+        if key == self._last_key:
             # the identifier re-sends a held model: offered again (no parsing), which tells
             # the renderer it is fresh
             self.diag.count('models_unchanged')
             self.renderer.set_impedance(self._last_imp)
             return
         try:
-            imp = Impedance.from_fields(fields_from_msg(msg))
+            imp = Impedance.from_fields(impedance_fields(msg))
         except ValueError as exc:
             self.diag.bad_input('impedance', str(exc))
             return
         if self.mode == 'ima_thesis' and imp.kind != 0:
             imp = Impedance(imp.m, imp.c, imp.k, imp.offset, imp.valid)
-        self._last_values, self._last_names, self._last_imp = values, list(msg.name), imp
+        self._last_key, self._last_imp = key, imp
         self.diag.count('models_received')
         if not self.renderer.set_impedance(imp):
             self.diag.count('models_ignored_invalid')

@@ -5,10 +5,11 @@ Subscribes  slave/joint_state  sensor_msgs/JointState: position[0] insertion m, 
                                m/s (the thesis identifier differentiates x when it is absent;
                                the default one refuses such a message), effort[0] measured
                                insertion force N. QOS_FAST.
-Publishes   slave/impedance    sensor_msgs/JointState used as stamped named float64 values:
-                               name = Impedance.to_fields() names (first 'm', 'c', 'k',
-                               'offset', 'valid'), position = values; header.frame_id
-                               catheter_base. At `publish_rate` Hz, QOS_FAST, while subscribed.
+Publishes   slave/impedance    catheter_interfaces/ImpedanceModel: the model (kind, m, c, k,
+                               offset, valid, grid and tables, anchor, the identifier's
+                               status; catheter_common.messages.impedance_msg of
+                               Impedance.to_fields()); header.frame_id catheter_base. At
+                               `publish_rate` Hz, QOS_FAST, while subscribed.
             /diagnostics       samples, bad messages, published models, held estimates
                                (status at_rest / ill_conditioned), solves, identifier status;
                                WARN while no model exists or the model is held, ERROR when it
@@ -26,12 +27,14 @@ identification is impedance_master.identification.
 """
 from __future__ import annotations
 
+from catheter_interfaces.msg import ImpedanceModel
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common import topics as T
 from catheter_common.checks import first
 from catheter_common.diagnostics import ERROR, WARN, Diagnostics
+from catheter_common.messages import impedance_msg
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import run_node
@@ -83,7 +86,9 @@ class ImpedanceIdentifierNode(Node):
         self._ill_since = None       # node-clock ns since when the status is ill_conditioned
         self.diag = Diagnostics(self)
         self.diag.count('bad_messages', 0)
-        self.pub = self.create_publisher(JointState, T.relative(T.SLAVE_IMPEDANCE), QOS_FAST)
+        self._msg = None             # the message of _published_model (re-stamped when held)
+        self.pub = self.create_publisher(ImpedanceModel, T.relative(T.SLAVE_IMPEDANCE),
+                                         QOS_FAST)
         self.sub = self.create_subscription(JointState, T.relative(T.SLAVE_JOINT_STATE),
                                             self._on_state, QOS_FAST)
         self.timer = self.create_timer(1.0 / self.publish_rate, self._publish)
@@ -128,12 +133,14 @@ class ImpedanceIdentifierNode(Node):
     def _publish(self) -> None:
         if self.model is None or self.pub.get_subscription_count() == 0:
             return
-        fields = self.model.to_fields()
-        msg = JointState()
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.header.frame_id = T.FRAME_CATHETER_BASE
-        msg.name = list(fields)
-        msg.position = list(fields.values())
+        stamp = self.get_clock().now().to_msg()
+        if self.model is not self._published_model or self._msg is None:
+            # a new model: converted once (a held model is re-sent re-stamped)
+            self._msg = impedance_msg(self.model, stamp, T.FRAME_CATHETER_BASE)
+            self._published_model = self.model
+        msg = self._msg
+        msg.header.stamp = stamp
+        msg.status = self.model.status
         self.pub.publish(msg)
         self.diag.count('published')
 

@@ -1,21 +1,23 @@
 """ROS 2 node `sim_haptic_node` (master side): the simulated haptic device, the operator's
 scripted hand and the master's side of the UDP-like link, stepped at `rate` Hz.
 
-Publishes   master/command          sensor_msgs/JointState, name [insertion, rotation],
-                                    position [x m, 0], velocity [x' m/s, 0], effort
-                                    [x'' m/s^2, 0] (effort carries the ACCELERATION of the
-                                    handle, used by the IMA renderer). QOS_FAST.
-            /master/link/impedance  /slave/impedance messages as delivered by the link.
+Publishes   master/command          catheter_interfaces/MasterCommand: position x m,
+                                    velocity x' m/s, acceleration x'' m/s^2 of the handle
+                                    (used by the IMA renderer), rotation 0 rad. QOS_FAST.
+            /master/link/impedance  /slave/impedance messages (catheter_interfaces/
+                                    ImpedanceModel) as delivered by the link.
             /master/link/force      /slave/force messages as delivered by the link.
             /master/hand_force      geometry_msgs/WrenchStamped, force.x = force at the
                                     operator's hand N (for metrics and plots). QOS_FAST.
             /diagnostics            ticks, overruns, bad messages, link counters, last force.
 Subscribes  /master/rendered_force  geometry_msgs/WrenchStamped (force.x N): the desired force
                                     the device's Eq. 36 PID loop tracks (0 until received).
-            /slave/impedance, /slave/force  sent into the master's side of the link (delay,
+            /slave/impedance (ImpedanceModel; a malformed one is refused), /slave/force
+                                    sent into the master's side of the link (delay,
                                     jitter, loss, outages, latest wins; sim_slave.link.Link).
-Parameters: rate Hz; experiment (I | II) and seed of the scripted hand (held at its last
-position when the script ends); compliant_hand, hand_stiffness N/m, hand_damping N s/m;
+Parameters: rate Hz; experiment (I | II), operator.family (minjerk | sines | human: the
+motion family, impedance_master.operator) and seed of the scripted hand (held at its last position
+when the script ends); compliant_hand, hand_stiffness N/m, hand_damping N s/m;
 link.delay s, link.jitter s, link.loss, link.outages (flat start,length,... s after the
 first tick; the link.* parameters apply at run time to packets sent from then on, the
 others are fixed at start). Timer on the node clock (use_sim_time supported); a clock jump
@@ -27,24 +29,24 @@ from __future__ import annotations
 
 import math
 
+from catheter_interfaces.msg import ImpedanceModel, MasterCommand
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
 
 from catheter_common import topics as T
 from catheter_common.checks import all_finite
 from catheter_common.diagnostics import WARN, Diagnostics
+from catheter_common.messages import impedance_fields, master_command_msg
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import run_node
 from impedance_master.haptic import HapticDevice
-from impedance_master.operator import experiment_trajectory
+from impedance_master.operator import OPERATORS, experiment_trajectory
 from sim_slave.link import Link
 from sim_slave.sim_slave_node import link_config, link_params
 
 #: force at the operator's hand (re-exported for the tests and tools that import it here)
 MASTER_HAND_FORCE = T.MASTER_HAND_FORCE
-JOINT_NAMES = ['insertion', 'rotation']
 #: N, the largest desired force the simulated device accepts (its motor saturates far below;
 #: a bigger value is a renderer fault and is refused, the last force is kept)
 MAX_DESIRED_FORCE = 100.0
@@ -54,6 +56,8 @@ PARAMS = table(
     Param('experiment', 'II', "scripted hand: thesis Experiment 'I' (20 s) or 'II' (12 s)",
           choices=('I', 'II')),
     Param('seed', 0, 'seed of the hand script, links and sensor noise', 0, 2 ** 31 - 1),
+    Param('operator.family', 'minjerk', 'the hand\'s motion family (impedance_master.'
+          'operator): minjerk (the thesis), sines, human', choices=tuple(OPERATORS)),
     Param('compliant_hand', False, 'spring-damper hand around the script (else rigid)'),
     Param('hand_stiffness', 300.0, 'compliant hand stiffness, N/m', 1.0, 1e5),
     Param('hand_damping', 15.0, 'compliant hand damping, N s/m', 0.0, 1e3),
@@ -74,7 +78,9 @@ class SimHapticNode(Node):
         self.seed = p['seed']
         compliant = p['compliant_hand']
         self.link_cfg = link_config(p.values)
-        self.traj = experiment_trajectory(self.experiment, seed=self.seed)
+        self.operator = p['operator.family']
+        self.traj = experiment_trajectory(self.experiment, seed=self.seed,
+                                          operator=self.operator)
         self.device = HapticDevice(dt=1.0 / self.rate,
                                    hand_stiffness=p['hand_stiffness'] if compliant else None,
                                    hand_damping=p['hand_damping'], seed=self.seed)
@@ -86,20 +92,22 @@ class SimHapticNode(Node):
         self.diag = Diagnostics(self)
         self.diag.count('bad_messages', 0)
         rel = T.relative
-        self.pub_cmd = self.create_publisher(JointState, rel(T.MASTER_COMMAND), QOS_FAST)
-        self.pub_imp = self.create_publisher(JointState, rel(T.MASTER_LINK_IMPEDANCE), QOS_FAST)
+        self.pub_cmd = self.create_publisher(MasterCommand, rel(T.MASTER_COMMAND), QOS_FAST)
+        self.pub_imp = self.create_publisher(ImpedanceModel, rel(T.MASTER_LINK_IMPEDANCE),
+                                             QOS_FAST)
         self.pub_force = self.create_publisher(WrenchStamped, rel(T.MASTER_LINK_FORCE), QOS_FAST)
         self.pub_hand = self.create_publisher(WrenchStamped, rel(T.MASTER_HAND_FORCE), QOS_FAST)
         self.create_subscription(WrenchStamped, rel(T.MASTER_RENDERED_FORCE), self._on_rendered,
                                  QOS_FAST)
-        self.create_subscription(JointState, rel(T.SLAVE_IMPEDANCE), self._on_impedance,
+        self.create_subscription(ImpedanceModel, rel(T.SLAVE_IMPEDANCE), self._on_impedance,
                                  QOS_FAST)
         self.create_subscription(WrenchStamped, rel(T.SLAVE_FORCE), self._on_slave_force,
                                  QOS_FAST)
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self.diag.add_updater(self._to_diag)
         self.get_logger().info(
-            f'haptic device at {self.rate:g} Hz, Experiment {self.experiment} hand (seed '
+            f'haptic device at {self.rate:g} Hz, Experiment {self.experiment} {self.operator} '
+            f'hand (seed '
             f'{self.seed}, {"compliant" if compliant else "rigid"}); link slave -> master: '
             f'{self.link_cfg.describe()}')
 
@@ -147,12 +155,9 @@ class SimHapticNode(Node):
             return
         self.diag.count(key + '_sent')
 
-    def _on_impedance(self, msg: JointState) -> None:
-        if len(msg.name) != len(msg.position):
-            self.diag.bad_input('impedance', 'name and position lengths differ')
-            return
+    def _on_impedance(self, msg: ImpedanceModel) -> None:
         try:
-            all_finite('position', msg.position)
+            impedance_fields(msg)        # a model the master could not read is not sent
         except ValueError as exc:
             self.diag.bad_input('impedance', str(exc))
             return
@@ -186,14 +191,13 @@ class SimHapticNode(Node):
         self.diag.count('ticks')
         st = stamp.to_msg()
         if self.pub_cmd.get_subscription_count() > 0:
-            js = JointState()
-            js.header.stamp = st
-            js.header.frame_id = T.FRAME_CATHETER_BASE
-            js.name = JOINT_NAMES
-            js.position = [s.x, 0.0]
-            js.velocity = [s.xd, 0.0]
-            js.effort = [s.xdd, 0.0]
-            self.pub_cmd.publish(js)
+            try:
+                cmd = master_command_msg(s.x, s.xd, s.xdd, 0.0, st, T.FRAME_CATHETER_BASE)
+            except ValueError as exc:     # a device state that is not finite is not sent
+                self.diag.count('nonfinite_commands')
+                self.diag.event('nonfinite_command', WARN, f'command not sent: {exc}')
+            else:
+                self.pub_cmd.publish(cmd)
         if self.pub_hand.get_subscription_count() > 0:
             w = WrenchStamped()
             w.header.stamp = st

@@ -19,7 +19,6 @@ Thin: the physics (tip force, FAM, drawing) is in sim_slave.camera.TipCamera.
 from __future__ import annotations
 
 import math
-from dataclasses import fields
 
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
@@ -33,6 +32,7 @@ from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST, QOS_SENSOR
 from catheter_common.ros_node import run_node
 from sim_slave.camera import BLAZER_EI, BLAZER_LENGTH, DEFAULT_CAMERA, TipCamera
+from sim_slave.node_params import DEFAULT_VESSEL, VESSEL_CHOICES, vessel_from_params
 from sim_slave.vessel import VesselParams
 
 #: the tip force each frame was drawn with (re-exported for the tests that import it here)
@@ -53,6 +53,8 @@ PARAMS = table(
     Param('camera.base_px', [float(b) for b in DEFAULT_CAMERA['base_px']],
           'pixel (u, v) of the clamp (catheter_base origin)', numbers=True, length=2),
     Param('camera.noise', 4.0, 'image noise std, grey levels', 0.0, 100.0),
+    Param('vessel', DEFAULT_VESSEL, 'the simulated vessel (sim_slave.vessels, as '
+          'sim_slave_node): its wall gives the tip force', choices=VESSEL_CHOICES),
     Param('background_file', '', 'if set, the background frame (no catheter) is written here '
           'as PNG at start, for the shape node\'s background removal'),
     *(Param('vessel.' + f, float(getattr(VesselParams(), f)),
@@ -72,9 +74,8 @@ class CameraNode(Node):
         width, height = p['camera.width'], p['camera.height']
         base_px = p['camera.base_px']
         bg_file = p['background_file']
-        defaults = VesselParams()
-        vp = VesselParams(**{f.name: p.values.get('vessel.' + f.name, getattr(defaults, f.name))
-                             for f in fields(VesselParams)})
+        # the wall of the same vessel as sim_slave_node's (its vessel.wall_* overridable)
+        vp = vessel_from_params(p.values).params
         self.camera = TipCamera(vp, force_angle=p['tip_force_angle'], length=p['catheter.length'],
                                 ei=p['catheter.ei'], n_arcs=p['n_arcs'],
                                 camera=dict(width=width, height=height,

@@ -1,7 +1,10 @@
 """ROS 2 node `sim_slave_node`: the simulated patient side at 1 kHz.
 
-Subscribes  master/command     sensor_msgs/JointState (position[0] insertion m, position[1]
-                               rotation rad, optional), QOS_FAST. Every command goes through
+Subscribes  master/command     catheter_interfaces/MasterCommand (position: insertion m,
+                               rotation rad; velocity and acceleration are not used: the
+                               robot's own loop tracks the position), QOS_FAST. A command
+                               with a non-finite position or rotation is refused (counted,
+                               WARN). Every command goes through
                                the slave's side of the UDP-like link (delay, jitter, loss,
                                outages, latest wins); the robot follows the newest delivered
                                command and holds it while nothing new arrives.
@@ -12,7 +15,9 @@ Publishes   slave/joint_state  sensor_msgs/JointState, name [insertion, rotation
             /diagnostics       steps, commands received/delivered/lost/stale, bad commands,
                                overruns, tracking error; WARN during a link outage, after bad
                                commands and overruns
-Both outputs are stamped with the node clock and go out undelayed (the master's sim node
+The vessel is `vessel` (sim_slave.vessels, read only; choices in --help), its vessel.*
+fields and sensor noise overridable (sim_slave.node_params.vessel_from_params). Both outputs
+are stamped with the node clock and go out undelayed (the master's sim node
 applies its side of the link). Timer on the node clock: use_sim_time with a /clock publisher
 drives it in lockstep. Outage times are relative to the node's first timer tick. Topic names
 are relative (the node's namespace applies). The link parameters (link.*) apply at run time
@@ -26,21 +31,23 @@ from __future__ import annotations
 import math
 from dataclasses import fields
 
+from catheter_interfaces.msg import MasterCommand
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from catheter_common import topics as T
-from catheter_common.checks import finite, first
+from catheter_common.checks import finite
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import run_node
 from sim_slave.link import Link, LinkConfig
+from sim_slave.node_params import DEFAULT_VESSEL, VESSEL_CHOICES, vessel_from_params
 from sim_slave.robot import SlaveRobot
 from sim_slave.sensor import ForceSensor
 from sim_slave.slave import SlaveSimulation, default_rotation_axis
-from sim_slave.vessel import VesselModel, VesselParams
+from sim_slave.vessel import VesselParams
 
 JOINT_NAMES = ['insertion', 'rotation']
 
@@ -97,8 +104,13 @@ def link_config(values) -> LinkConfig:
 PARAMS = table(
     Param('rate', 1000.0, 'simulation and publishing rate, Hz', 10.0, 10000.0),
     Param('seed', 0, 'random seed (vessel phase, sensor noise, link)', 0, 2 ** 31 - 1),
+    Param('vessel', DEFAULT_VESSEL, 'the simulated vessel (sim_slave.vessels): phantom, '
+          'smooth_coulomb, stribeck_kv, stenosis, soft, stiff_wall; vessel.* and '
+          'sensor.noise_std values that differ from their (phantom) defaults override it',
+          choices=VESSEL_CHOICES),
     *link_params('master commands'),
-    Param('sensor.noise_std', 0.01, 'force sensor noise (std), N', 0.0, 1.0),
+    Param('sensor.noise_std', 0.01, 'force sensor noise (std), N (default: the vessel\'s own)',
+          0.0, 1.0),
     Param('sensor.bias', 0.0, 'force sensor bias, N', -10.0, 10.0),
     Param('robot.kp', 60.0, 'insertion axis position gain, 1/s', 0.1, 1000.0),
     Param('robot.max_speed', 0.1, 'insertion axis speed limit, m/s', 1e-4, 10.0),
@@ -124,12 +136,13 @@ class SimSlaveNode(Node):
         self.rate = p['rate']
         seed = p['seed']
         self.max_catchup = p['max_catchup_steps']
-        vessel_kw = {f.name: p['vessel.' + f.name] for f in fields(VesselParams)}
+        spec = vessel_from_params(p.values)
+        self.vessel_name = spec.name
         self.link = Link(link_config(p.values), seed=seed + 2)
         robot = SlaveRobot(rate=self.rate, kp=p['robot.kp'], max_speed=p['robot.max_speed'],
                            max_accel=p['robot.max_accel'], x0=p['robot.x0'])
-        self.sim = SlaveSimulation(vessel=VesselModel(VesselParams(**vessel_kw), seed=seed),
-                                   sensor=ForceSensor(noise_std=p['sensor.noise_std'],
+        self.sim = SlaveSimulation(vessel=spec.build(seed),
+                                   sensor=ForceSensor(noise_std=spec.noise_std,
                                                       bias=p['sensor.bias'], seed=seed + 1),
                                    robot=robot, rotation=default_rotation_axis(self.rate))
         self.x_cmd = robot.x
@@ -149,12 +162,13 @@ class SimSlaveNode(Node):
         self.diag.count('bad_messages', 0)
         self.pub_js = self.create_publisher(JointState, T.relative(T.SLAVE_JOINT_STATE), QOS_FAST)
         self.pub_force = self.create_publisher(WrenchStamped, T.relative(T.SLAVE_FORCE), QOS_FAST)
-        self.sub = self.create_subscription(JointState, T.relative(T.MASTER_COMMAND),
+        self.sub = self.create_subscription(MasterCommand, T.relative(T.MASTER_COMMAND),
                                             self._on_command, QOS_FAST)
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self.diag.add_updater(self._stats_to_diag)
         self.get_logger().info(
-            f'simulating the slave at {self.rate:g} Hz: {self.sub.topic_name} -> link '
+            f'simulating the slave ({self.vessel_name} vessel) at {self.rate:g} Hz: '
+            f'{self.sub.topic_name} -> link '
             f'({self.link.config.describe()}) -> robot -> vessel -> sensor -> '
             f'{self.pub_js.topic_name}, {self.pub_force.topic_name}')
 
@@ -167,14 +181,13 @@ class SimSlaveNode(Node):
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _on_command(self, msg: JointState) -> None:
+    def _on_command(self, msg: MasterCommand) -> None:
         if self.t0 is None:
             self.diag.count('commands_before_start')
             return
-        pos = msg.position
         try:
-            x = first('position ([insertion m, rotation rad])', pos)
-            rot = finite('position[1]', pos[1]) if len(pos) > 1 else None
+            x = finite('position', msg.position)
+            rot = finite('rotation', msg.rotation)
         except ValueError as exc:
             self.diag.count('bad_commands')
             self.diag.bad_input('command', str(exc))
