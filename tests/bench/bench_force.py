@@ -19,6 +19,10 @@ estimates/s beside scikit-learn's predict of the same model; FAM inversion cold 
 beside the forward-difference Jacobian in the same run); the thesis experiment; training.
 
 Run: scripts/bench force   (or python tests/bench/bench_force.py [--n 100])
+
+Fresh held-out draws (issue 11, second round): `python tests/bench/bench_force.py --seed 100`
+draws new shapes and new style parameters (style rngs 100 + 100 k); fixed before that
+round's development and run once at its end: the figures that count.
 """
 from __future__ import annotations
 
