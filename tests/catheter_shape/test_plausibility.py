@@ -1,5 +1,6 @@
 """Never ok when wrong: the plausibility checks (catheter_shape.plausibility) on exact
 shapes, and the sensor's refusals with a status saying which check failed."""
+import cv2
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -233,3 +234,43 @@ def test_ok_means_inside_the_frame_and_the_length(theta, length, du, dv, use_bg)
         gap = np.hypot(*(obs.pixels[0] - bp))
         assert gap <= (s.base_tolerance * s.width_px if obs.base_cut else 1e-9)
         assert np.isfinite(obs.control_points).all()
+
+
+def _paint_bar(img, p, q, width, factor):
+    """Darken a bar of the frame (a moved wire or vessel the background frame lacks)."""
+    m = np.zeros(img.shape, np.uint8)
+    cv2.line(m, p, q, 1, width)
+    out = img.astype(np.float32)
+    out[m > 0] *= factor
+    return np.clip(out, 0, 255).astype(img.dtype)
+
+
+def test_a_dark_object_apart_from_the_catheter_is_ignored_when_the_catheter_is_whole(
+        cam, shape_helpers):
+    """Issue 11 (round two): a catheter-wide dark bar the background frame lacks, away from
+    the catheter: with the length configured, the whole catheter at the clamp is measured;
+    without the length the frame is refused as before."""
+    f = cam.render(shape_helpers.arc(0.6))
+    img = _paint_bar(f.image, (40, 400), (600, 440), 16, 0.4)
+    obs = ShapeSensor(f.psi, background=f.background, base_px=cam.base_px,
+                      length=L).process(img)
+    assert obs.ok, (obs.status, obs.message)
+    assert shape_helpers.dist(obs.points, f.centerline_m).mean() < 0.1e-3
+    no_len = ShapeSensor(f.psi, background=f.background, base_px=cam.base_px).process(img)
+    assert no_len.status == 'multiple_objects'
+
+
+def test_a_catheter_broken_beyond_max_gap_is_not_ok_even_when_the_piece_is_ignored(
+        cam, shape_helpers):
+    """The tip piece beyond a gap wider than max_gap is a second object apart from the
+    clamp: the piece at the clamp is not the whole catheter, so the frame is refused."""
+    f = cam.render(shape_helpers.arc(0.3))
+    img = f.image.copy()
+    px = f.centerline_px
+    k = int(0.6 * len(px))
+    m = np.zeros(img.shape, np.uint8)
+    cv2.circle(m, tuple(int(x) for x in np.rint(px[k])), 20, 1, -1)     # a 6 mm gap
+    img[m > 0] = f.background[m > 0]
+    obs = ShapeSensor(f.psi, background=f.background, base_px=cam.base_px,
+                      length=L).process(img)
+    assert obs.status == 'multiple_objects' and not obs.ok

@@ -249,7 +249,8 @@ class ShapeSensor:
         tm['threshold'] = t2 - t1
         min_area = max(8.0, 0.5 * self.min_length / self._m_per_px * w_px)
         seg = catheter_component(mask, min_area=min_area, max_gap_px=self.max_gap / self._m_per_px,
-                                 width_px=w_px, base_px=self.base_px)
+                                 width_px=w_px, base_px=self.base_px,
+                                 apart_ok=self.length is not None)
         t3 = time.perf_counter()
         tm['component'] = t3 - t2
         if seg.status != 'ok':
@@ -276,6 +277,12 @@ class ShapeSensor:
         status, message, length = self._check_shape(px, gray.shape)
         if status != 'ok':
             return fail(status, message, tm, t0, length=length)
+        if seg.apart and length < self.length * (1.0 - self.length_tolerance):
+            # another dark object was left out because it does not touch the clamp: that is
+            # only safe when the object at the clamp is the whole catheter
+            return fail('multiple_objects', f'a second dark object apart from the one at the '
+                        f'clamp, which is {1e3 * length:.1f} mm long: not the whole '
+                        f'{1e3 * self.length:.1f} mm catheter', tm, t0, length=length)
         return self._fit(px, seg, cl, tm, t0, t5, length, contrast)
 
     def _ends(self, cl, score, level, shape, half_contrast):
