@@ -274,3 +274,32 @@ def test_a_catheter_broken_beyond_max_gap_is_not_ok_even_when_the_piece_is_ignor
     obs = ShapeSensor(f.psi, background=f.background, base_px=cam.base_px,
                       length=L).process(img)
     assert obs.status == 'multiple_objects' and not obs.ok
+
+
+def test_a_path_cut_at_a_sheath_is_joined_to_the_clamp_point(shape_helpers):
+    """Regression (issue 11, round two; the style benchmark's worst clinical frame): the
+    catheter bends hard right after an introducer sheath, the skeleton of sheath and
+    catheter together passes 0.6 widths from the clamp pixel; the path used to start at the
+    cut, 1.5 mm along the catheter with a hook (Bezier deviation 1.94 mm, p0 1.9 mm off).
+    The part near the cut is now dropped and the clamp point joined."""
+    from catheter_shape import bezier_eval
+    from catheter_shape.styles import render_style
+    from fam_solver import Catheter, solve_fam_batch
+    b = solve_fam_batch(Catheter(length=L, ei=6e-5), np.array([[-0.25010505, 0.03076626]]),
+                        np.zeros(1), n_arcs=24)
+    c = b.centerlines(400)[0]
+    rng = np.random.default_rng()
+    rng.bit_generator.state = {'bit_generator': 'PCG64', 'state': {
+        'state': 238259321414434237987760887071813931520,
+        'inc': 272805706557021918735839566777376432947}, 'has_uint32': 0,
+        'uinteger': 2908709255}
+    f = render_style('clinical', c, rng=rng)
+    obs = ShapeSensor(f.psi, background=f.background, base_px=f.base_px, length=L).process(
+        f.image)
+    assert obs.ok and obs.base_cut, (obs.status, obs.message)
+    assert np.linalg.norm(obs.points[0, :2]) < 0.1e-3
+    assert np.linalg.norm(obs.control_points[0, :2]) < 1.2e-3        # was 1.9 mm
+    dist_to_polyline = shape_helpers.dist
+    cur = bezier_eval(obs.control_points[:, :2], np.linspace(0.0, 1.0, 400))
+    dev = max(dist_to_polyline(cur, f.truth_m).max(), dist_to_polyline(f.truth_m, cur).max())
+    assert dev < 1.2e-3

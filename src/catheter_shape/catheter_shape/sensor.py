@@ -23,6 +23,8 @@ __all__ = ['Observation', 'ShapeSensor', 'STATUSES', 'CHECK_STATUSES']
 
 #: how much of the skeleton is dropped at the base before its end is restored (widths)
 BASE_TRIM = 0.5
+#: ... and of a path cut at the clamp (the clamp in the mask), from the cut (widths)
+BASE_TRIM_CUT = 1.0
 
 #: the statuses of the plausibility checks (a frame that fails one is never ok)
 CHECK_STATUSES = ('outside_frame', 'tip_out_of_view', 'bad_tip', 'base_mismatch',
@@ -317,25 +319,26 @@ class ShapeSensor:
                                          'catheter does not enter from the border')
         b0 = px[0]
         gap = float(np.hypot(*(b0 - bp)))
+        trim = BASE_TRIM * w_px
         if cl.base_cut:
-            # the path ran through the clamp and was cut at its pixel nearest base_px: start
-            # it at the calibrated clamp point itself. The catheter's axis passes through the
-            # clamp point: a path that only passes near it (one width or more) runs beside
-            # it, and cutting there would drop a piece of the catheter.
+            # the path ran through the clamp and was cut at its pixel nearest base_px. The
+            # catheter's axis passes through the clamp point: a path that only passes near
+            # it (one width or more) runs beside it, and cutting there would drop a piece
+            # of the catheter. Nearer, the skeleton there is the axis of the clamp and
+            # catheter together (a sheath wider than the catheter pulls it aside): drop
+            # the part within BASE_TRIM_CUT widths and join the clamp point as below.
             if gap > min(1.0, self.base_tolerance) * w_px:
                 return px, 'base_mismatch', (f'the catheter passes {gap:.1f} px from the clamp '
                                              f'pixel base_px (> 1 width)')
-            if gap <= 0.5 * w_px:
-                px = np.vstack([bp, px[1:]])
-            return px, 'ok', ''
-        if gap > self.base_tolerance * w_px:
+            trim = BASE_TRIM_CUT * w_px
+        elif gap > self.base_tolerance * w_px:
             return px, 'base_mismatch', (f'the catheter starts {gap:.1f} px from the clamp '
                                          f'pixel base_px (> {self.base_tolerance:g} widths)')
         # the clamp point is calibrated and the clamped catheter leaves it along +x of
         # catheter_base: join it to the skeleton (which stops about half a width short,
         # and curls there) by a quadratic tangent to +x at the clamp
         sk = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(px, axis=0).T))])
-        px = px[sk >= min(BASE_TRIM * w_px, 0.5 * sk[-1])]
+        px = px[sk >= min(trim, 0.5 * sk[-1])]
         q2 = px[0]
         gap = float(np.hypot(*(q2 - bp)))
         q1 = bp + 0.5 * gap * self._ex_px
