@@ -404,7 +404,9 @@ class ShapeSensor:
         s_all = np.interp(np.arange(n), sel, fit.params)
         s_loc = _newton_params(ctrl2, p2, s_all, 3)
         d = _dist(ctrl2, p2, s_loc)
-        far = d > 3.0 * (np.median(d) + 1e-12)
+        # a local foot point can be a wrong local minimum only far from the curve: check
+        # those globally (points within half a pixel cannot change the checks)
+        far = d > max(3.0 * float(np.median(d)), 0.5 * self._m_per_px)
         if far.any():
             s_g = _project_global(ctrl2, p2[far], 8 * (self.degree + 1), 4)
             d[far] = np.minimum(d[far], _dist(ctrl2, p2[far], s_g))
