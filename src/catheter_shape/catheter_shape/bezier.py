@@ -210,47 +210,30 @@ def _anchored(s: np.ndarray) -> np.ndarray:
     return s
 
 
-def _horner(A: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """sum_j A[j] s^j for power coefficients A (m, D) at parameters s (N,) -> (N, D)."""
-    if A.shape[0] == 1:
-        return np.repeat(A, s.shape[0], axis=0)
-    out = np.multiply.outer(s, A[-1])
-    out += A[-2]
-    for j in range(A.shape[0] - 3, -1, -1):
-        out *= s[:, None]
-        out += A[j]
-    return out
-
-
 def _newton_params(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, steps: int,
                    s0: Optional[np.ndarray] = None, mu: float = 0.0) -> np.ndarray:
     """Newton steps on (c(s) - p) . c'(s) + mu (s - s0) = 0 for every point, clamped to
     [0, 1] (mu = 0: the orthogonal foot point; mu > 0: held towards s0).
-    Evaluated in the power basis by Horner's rule (a few numpy calls per step: this is the
-    hot loop)."""
+    Evaluated in the power basis (a few numpy calls per step: this is the hot loop)."""
     n = ctrl.shape[0] - 1
     k = np.arange(n + 1)
     A = _bez2pow(n) @ ctrl
     A1 = A[1:] * k[1:, None]                           # c'(s)  = sum_j A1[j] s^j
     A2 = A1[1:] * k[1:n, None]                         # c''(s) = sum_j A2[j] s^j
-    s = np.array(s, dtype=float)
-    step = np.empty_like(s)
     for _ in range(steps):
-        r = _horner(A, s)
-        r -= p
-        c1 = _horner(A1, s)
+        S = np.vander(s, n + 1, increasing=True)
+        r = S @ A - p
+        c1 = S[:, :n] @ A1
         g = np.einsum('ij,ij->i', c1, c1)
         f = np.einsum('ij,ij->i', r, c1)
-        fp = g + np.einsum('ij,ij->i', r, _horner(A2, s)) if n >= 2 else g.copy()
+        fp = g + np.einsum('ij,ij->i', r, S[:, :n - 1] @ A2) if n >= 2 else g
         if mu > 0:
-            f += mu * (s - s0)
-            fp += mu
+            f = f + mu * (s - s0)
+            fp = fp + mu
         # a Newton step where the objective is locally convex, none otherwise
         ok = fp > 1e-12 * g + 1e-300
-        step.fill(0.0)
-        np.divide(f, fp, out=step, where=ok)
-        s -= step
-        np.clip(s, 0.0, 1.0, out=s)
+        step = np.divide(f, fp, out=np.zeros_like(f), where=ok)
+        s = np.clip(s - step, 0.0, 1.0)
     return s
 
 
@@ -263,8 +246,7 @@ def _project_global(c: np.ndarray, p: np.ndarray, samples: int, steps: int) -> n
 
 
 def _dist(c: np.ndarray, p: np.ndarray, s: np.ndarray) -> np.ndarray:
-    r = _horner(_bez2pow(c.shape[0] - 1) @ c, np.asarray(s, dtype=float))
-    r -= p
+    r = np.vander(s, c.shape[0], increasing=True) @ (_bez2pow(c.shape[0] - 1) @ c) - p
     return np.sqrt(np.einsum('ij,ij->i', r, r))
 
 
