@@ -92,6 +92,16 @@ def run_style(style, cls, frames, seed):
         t0 = time.perf_counter()
         cv2.GaussianBlur(f.image, (0, 0), 2.0)
         blur_ms.append(1e3 * (time.perf_counter() - t0))
+        if len(f.truth_m) < 2:
+            # nothing of the catheter in the image (a clamp outside and the tube beside the
+            # frame): every ok is a false ok
+            for bg in (True, False):
+                obs = ShapeSensor(f.psi, background=f.background if bg else None,
+                                  base_px=f.base_px, length=L).process(f.image)
+                out[bg]['status'][obs.status] += 1
+                if obs.ok:
+                    out[bg]['wrong'].append((style, bg, 'no catheter in view', obs.status))
+            continue
         truth = densify(f.truth_m)
         tree = cKDTree(truth)
         b = fit_bezier_detailed(f.truth_m, 3, refine=30, correction='orthogonal')
