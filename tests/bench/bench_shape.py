@@ -14,6 +14,12 @@ used for tuning are marked. Then statuses, stage timings beside same-run referen
 (full-frame skeletonize, the thesis's chord-length fit) and control-point jitter.
 
     python tests/bench/bench_shape.py [--frames 200] [--seed 0]
+    python tests/bench/bench_shape.py --fresh      # the fresh held-out draws (see below)
+
+`--fresh` runs every style on FRESH draws: new shapes (seed 9100) and new randomised style
+parameters and geometry (seeds 100-104, frames/5 per seed, one rng per style and seed), a
+set that was fixed before the second round of development (issue 11) and not run until its
+design was final: its tables are the held-out figures that count.
 """
 from __future__ import annotations
 
@@ -66,18 +72,36 @@ def med(x):
     return float(np.median(x)) if len(x) else float('nan')
 
 
+FRESH_SEEDS = (100, 101, 102, 103, 104)
+FRESH_SHAPES_SEED = 9100
+
+
 def run_style(style, cls, frames, seed):
     rng = np.random.default_rng(seed)
     out = {bg: dict(rows=[], status=Counter(), wrong=[], n_view=0, ok_view=0)
            for bg in (True, False)}
     blur_ms, render_ms, best = [], [], []
-    for c in cls[:frames]:
+    for i, c in enumerate(cls[:frames]):
+        if isinstance(seed, tuple):          # fresh draws: one rng per seed, frames/len each
+            if i % -(-frames // len(seed)) == 0:
+                rng = np.random.default_rng([seed[i // -(-frames // len(seed))],
+                                             STYLES.index(style)])
         t0 = time.perf_counter()
         f = render_style(style, c, rng=rng)
         render_ms.append(1e3 * (time.perf_counter() - t0))
         t0 = time.perf_counter()
         cv2.GaussianBlur(f.image, (0, 0), 2.0)
         blur_ms.append(1e3 * (time.perf_counter() - t0))
+        if len(f.truth_m) < 2:
+            # nothing of the catheter in the image (a clamp outside and the tube beside the
+            # frame): every ok is a false ok
+            for bg in (True, False):
+                obs = ShapeSensor(f.psi, background=f.background if bg else None,
+                                  base_px=f.base_px, length=L).process(f.image)
+                out[bg]['status'][obs.status] += 1
+                if obs.ok:
+                    out[bg]['wrong'].append((style, bg, 'no catheter in view', obs.status))
+            continue
         truth = densify(f.truth_m)
         tree = cKDTree(truth)
         b = fit_bezier_detailed(f.truth_m, 3, refine=30, correction='orthogonal')
@@ -176,9 +200,16 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--frames', type=int, default=200, help='frames per style')
     ap.add_argument('--seed', type=int, default=0)
+    ap.add_argument('--fresh', action='store_true',
+                    help='the fresh held-out draws (style seeds 100-104, new shapes) only')
     a = ap.parse_args()
     t_all = time.perf_counter()
-    cls = blazer_centerlines(max(a.frames, 200) + 50, a.seed + 11)
+    cls = blazer_centerlines(max(a.frames, 200) + 50,
+                             FRESH_SHAPES_SEED if a.fresh else a.seed + 11)
+    if a.fresh:
+        print('# FRESH HELD-OUT DRAWS: every style with new randomised parameters (seeds '
+              f'{FRESH_SEEDS}) and new shapes (seed {FRESH_SHAPES_SEED}); not used in '
+              'development')
     print(f'# catheter_shape benchmark: {len(STYLES)} camera styles x {a.frames} frames '
           f'(640x480), Blazer shapes 0-0.3 N at every angle; sensor given psi, base_px, '
           f'length 65 mm')
@@ -188,7 +219,8 @@ def main():
     for k, style in enumerate(STYLES):
         rng_seed = 1000 * (a.seed + 1) + k
         order = np.random.default_rng(rng_seed).permutation(len(cls))
-        results[style] = run_style(style, cls[order], a.frames, rng_seed)
+        results[style] = run_style(style, cls[order], a.frames,
+                                   FRESH_SEEDS if a.fresh else rng_seed)
     total_frames = sum(results[s][0][True]['status'].total() for s in STYLES)
     for bg in (True, False):
         rows = []
@@ -234,8 +266,9 @@ def main():
               ('style', 'frames', 'mean centreline err mm', 'median tip err mm'), rows)
     print(f'\nrender time per frame (the benchmark camera, not the sensor): median '
           f'{med([x for s in STYLES for x in results[s][2]]):.1f} ms')
-    stage_table(cls, a.seed + 5)
-    jitter(cls, a.seed + 6)
+    if not a.fresh:
+        stage_table(cls, a.seed + 5)
+        jitter(cls, a.seed + 6)
     print(f'\nbench time {time.perf_counter() - t_all:.0f} s; load average at the end: '
           f'{" ".join(f"{x:.1f}" for x in os.getloadavg())} (2 cores)')
 

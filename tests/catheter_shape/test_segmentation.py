@@ -88,3 +88,18 @@ def test_a_long_wire_elsewhere_is_not_a_second_catheter():
     assert seg.status == 'ok' and seg.area < 5000
     _bar(m, (20, 200), (300, 230), 15)
     assert catheter_component(m, 50, 20, 15.0, base_px=(20.0, 60.0)).status == 'multiple_objects'
+
+
+def test_a_tube_apart_from_the_clamp_is_left_out_only_when_asked():
+    """apart_ok: a second catheter-thick object that does not touch the component at the
+    clamp is left out and counted (the sensor then demands the whole catheter's length);
+    without the clamp pixel on the catheter it still fails the frame."""
+    m = np.zeros((300, 500), np.uint8)
+    _bar(m, (20, 60), (300, 60), 15)
+    _bar(m, (20, 200), (300, 230), 15)
+    seg = catheter_component(m.copy(), 50, 20, 15.0, base_px=(20.0, 60.0), apart_ok=True)
+    assert seg.status == 'ok' and seg.apart == 1 and seg.n_objects == 2
+    assert not seg.mask[150 - seg.offset[1]:].any()           # the other tube is not kept
+    assert catheter_component(m.copy(), 50, 20, 15.0, apart_ok=True).status == 'multiple_objects'
+    assert catheter_component(m.copy(), 50, 20, 15.0, base_px=(450.0, 150.0),
+                              apart_ok=True).status == 'multiple_objects'

@@ -132,7 +132,9 @@ def _component_at(labels, stats, order, bu, bv, reach, min_area):
 class Segmentation:
     """The catheter's component: mask (uint8 0/1) of the region of interest at offset
     (u0, v0) of the full frame; area in pixels; n_objects = large components seen;
-    bridged = gaps joined; status 'ok' or the reason it failed."""
+    bridged = gaps joined; apart = large catheter-thick objects left out because they do
+    not touch the component at the clamp (only with `apart_ok`; the caller must decide
+    whether the kept object is the whole catheter); status 'ok' or the reason it failed."""
     status: str
     mask: Optional[np.ndarray] = None
     offset: Tuple[int, int] = (0, 0)
@@ -140,6 +142,7 @@ class Segmentation:
     n_objects: int = 0
     bridged: int = 0
     message: str = ''
+    apart: int = 0
 
 
 def to_uint8(gray: np.ndarray) -> np.ndarray:
@@ -149,7 +152,8 @@ def to_uint8(gray: np.ndarray) -> np.ndarray:
 
 def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
                        width_px: float, second_ratio: float = 0.25,
-                       max_fill: float = 0.5, base_px=None) -> Segmentation:
+                       max_fill: float = 0.5, base_px=None,
+                       apart_ok: bool = False) -> Segmentation:
     """Clean a binary mask and keep the catheter: the component at the clamp pixel base_px
     (when given and inside the frame; else the largest) plus fragments within max_gap_px of
     it that are at least 1.5 widths long and as thick as a catheter (`THICK`; joined by the
@@ -158,7 +162,12 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
     as thick as a catheter and of at least second_ratio of the kept one's area remains (two
     catheters, or a piece of this one too far away), 'no_catheter'
     when the kept one is below min_area pixels, 'bad_segmentation' when more than max_fill
-    of the frame is dark."""
+    of the frame is dark.
+
+    apart_ok: when the kept component is the one at base_px (the clamp), a second object
+    does not fail the frame: it is left out and counted in `apart` (a wire or a vessel that
+    moved since the background frame is as dark as a catheter but does not touch the clamp);
+    the caller refuses the frame unless the kept object is the whole catheter (its length)."""
     H, W = mask.shape
     u0, v0, w, h = cv2.boundingRect(mask)
     if w == 0 or h == 0:
@@ -181,11 +190,13 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
     areas = stats[1:, cv2.CC_STAT_AREA]
     order = np.argsort(areas)[::-1] + 1
     main = int(order[0])
+    at_base = False
     if base_px is not None and 0 <= base_px[0] <= W - 1 and 0 <= base_px[1] <= H - 1:
         near = _component_at(labels, stats, order, base_px[0] - u0, base_px[1] - v0,
                              2.0 * width_px, min_area)
         if near is not None:
             main = near
+            at_base = True
             order = np.concatenate([[main], order[order != main]])
     if stats[main, cv2.CC_STAT_AREA] < min_area:
         return Segmentation('no_catheter', area=int(stats[main, cv2.CC_STAT_AREA]),
@@ -193,6 +204,7 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
                                     f' < {min_area:.0f}')
     keep = [main]
     bars = []
+    apart = 0
     frag_min = max(4.0, 0.5 * width_px * width_px)
     for k in order[1:]:
         a = stats[k, cv2.CC_STAT_AREA]
@@ -230,7 +242,9 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
         if not joined and a >= second_ratio * stats[main, cv2.CC_STAT_AREA]:
             if thick is None:
                 thick = _thickness(labels[y:y + fh, x:x + fw] == k) >= THICK * width_px
-            if thick:           # a thin line (a wire) is not a second catheter
+            if thick and apart_ok and at_base:
+                apart += 1
+            elif thick:         # a thin line (a wire) is not a second catheter
                 return Segmentation('multiple_objects', n_objects=2,
                                     message=f'a second dark object of {a} px beside one of '
                                             f'{stats[main, cv2.CC_STAT_AREA]} px')
@@ -239,4 +253,4 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
     for hull in bars:
         cv2.fillConvexPoly(out, hull, 1)
     return Segmentation('ok', mask=out, offset=(u0, v0), area=int(out.sum()),
-                        n_objects=1, bridged=len(bars))
+                        n_objects=1 + apart, bridged=len(bars), apart=apart)

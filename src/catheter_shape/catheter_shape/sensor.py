@@ -23,6 +23,8 @@ __all__ = ['Observation', 'ShapeSensor', 'STATUSES', 'CHECK_STATUSES']
 
 #: how much of the skeleton is dropped at the base before its end is restored (widths)
 BASE_TRIM = 0.5
+#: ... and of a path cut at the clamp (the clamp in the mask), from the cut (widths)
+BASE_TRIM_CUT = 1.0
 
 #: the statuses of the plausibility checks (a frame that fails one is never ok)
 CHECK_STATUSES = ('outside_frame', 'tip_out_of_view', 'bad_tip', 'base_mismatch',
@@ -249,7 +251,8 @@ class ShapeSensor:
         tm['threshold'] = t2 - t1
         min_area = max(8.0, 0.5 * self.min_length / self._m_per_px * w_px)
         seg = catheter_component(mask, min_area=min_area, max_gap_px=self.max_gap / self._m_per_px,
-                                 width_px=w_px, base_px=self.base_px)
+                                 width_px=w_px, base_px=self.base_px,
+                                 apart_ok=self.length is not None)
         t3 = time.perf_counter()
         tm['component'] = t3 - t2
         if seg.status != 'ok':
@@ -276,6 +279,12 @@ class ShapeSensor:
         status, message, length = self._check_shape(px, gray.shape)
         if status != 'ok':
             return fail(status, message, tm, t0, length=length)
+        if seg.apart and length < self.length * (1.0 - self.length_tolerance):
+            # another dark object was left out because it does not touch the clamp: that is
+            # only safe when the object at the clamp is the whole catheter
+            return fail('multiple_objects', f'a second dark object apart from the one at the '
+                        f'clamp, which is {1e3 * length:.1f} mm long: not the whole '
+                        f'{1e3 * self.length:.1f} mm catheter', tm, t0, length=length)
         return self._fit(px, seg, cl, tm, t0, t5, length, contrast)
 
     def _ends(self, cl, score, level, shape, half_contrast):
@@ -310,25 +319,26 @@ class ShapeSensor:
                                          'catheter does not enter from the border')
         b0 = px[0]
         gap = float(np.hypot(*(b0 - bp)))
+        trim = BASE_TRIM * w_px
         if cl.base_cut:
-            # the path ran through the clamp and was cut at its pixel nearest base_px: start
-            # it at the calibrated clamp point itself. The catheter's axis passes through the
-            # clamp point: a path that only passes near it (one width or more) runs beside
-            # it, and cutting there would drop a piece of the catheter.
+            # the path ran through the clamp and was cut at its pixel nearest base_px. The
+            # catheter's axis passes through the clamp point: a path that only passes near
+            # it (one width or more) runs beside it, and cutting there would drop a piece
+            # of the catheter. Nearer, the skeleton there is the axis of the clamp and
+            # catheter together (a sheath wider than the catheter pulls it aside): drop
+            # the part within BASE_TRIM_CUT widths and join the clamp point as below.
             if gap > min(1.0, self.base_tolerance) * w_px:
                 return px, 'base_mismatch', (f'the catheter passes {gap:.1f} px from the clamp '
                                              f'pixel base_px (> 1 width)')
-            if gap <= 0.5 * w_px:
-                px = np.vstack([bp, px[1:]])
-            return px, 'ok', ''
-        if gap > self.base_tolerance * w_px:
+            trim = BASE_TRIM_CUT * w_px
+        elif gap > self.base_tolerance * w_px:
             return px, 'base_mismatch', (f'the catheter starts {gap:.1f} px from the clamp '
                                          f'pixel base_px (> {self.base_tolerance:g} widths)')
         # the clamp point is calibrated and the clamped catheter leaves it along +x of
         # catheter_base: join it to the skeleton (which stops about half a width short,
         # and curls there) by a quadratic tangent to +x at the clamp
         sk = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(px, axis=0).T))])
-        px = px[sk >= min(BASE_TRIM * w_px, 0.5 * sk[-1])]
+        px = px[sk >= min(trim, 0.5 * sk[-1])]
         q2 = px[0]
         gap = float(np.hypot(*(q2 - bp)))
         q1 = bp + 0.5 * gap * self._ex_px
@@ -394,7 +404,9 @@ class ShapeSensor:
         s_all = np.interp(np.arange(n), sel, fit.params)
         s_loc = _newton_params(ctrl2, p2, s_all, 3)
         d = _dist(ctrl2, p2, s_loc)
-        far = d > 3.0 * (np.median(d) + 1e-12)
+        # a local foot point can be a wrong local minimum only far from the curve: check
+        # those globally (points within half a pixel cannot change the checks)
+        far = d > max(3.0 * float(np.median(d)), 0.5 * self._m_per_px)
         if far.any():
             s_g = _project_global(ctrl2, p2[far], 8 * (self.degree + 1), 4)
             d[far] = np.minimum(d[far], _dist(ctrl2, p2[far], s_g))
