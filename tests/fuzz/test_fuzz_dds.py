@@ -44,7 +44,7 @@ def test_fuzz_messages_over_dds(ros, key):
         for _ in range(PER_TOPIC):
             before = sum(node.diag.get(k) for k in keys)
             pubs[topic].publish(inp.build(pick))
-            # best effort, depth 1: one message at a time, until the node took it
+            # one message at a time, until the node took it
             def taken(keys=keys, before=before):
                 return sum(node.diag.get(k) for k in keys) > before
             assert ros.spin_until(taken, 5.0), f'{topic}: message not taken'
