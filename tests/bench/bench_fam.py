@@ -86,6 +86,33 @@ def timed(fn, repeat):
     return float(np.median(walls)), float(np.median(cpus)), res
 
 
+def interleaved_cpu(jobs, rounds):
+    """CPU time [ms] of single calls of each job, robust to the other jobs on a shared machine.
+    Every round runs every job once, the order rotated and reversed from round to round (so a
+    burst of load hits different jobs each time); each job's figure is its MINIMUM over the
+    rounds (the least disturbed call: a statement about the code, not the machine). Also
+    returns the minima over the even and the odd rounds separately: their ratio is the noise
+    left in the figure. One warm-up call per job first (caches of arc constants)."""
+    keys = list(jobs)
+    for k in keys:
+        jobs[k]()
+    t = {k: [] for k in keys}
+    for r in range(rounds):
+        off = (r * len(keys)) // max(rounds, 1)
+        order = keys[off:] + keys[:off]
+        if r % 2:
+            order = order[::-1]
+        for k in order:
+            fn = jobs[k]
+            c0 = time.process_time()
+            fn()
+            t[k].append(time.process_time() - c0)
+    best = {k: min(v) * 1e3 for k, v in t.items()}
+    even = {k: min(v[0::2]) * 1e3 for k, v in t.items()}
+    odd = {k: min(v[1::2]) * 1e3 if len(v) > 1 else min(v) * 1e3 for k, v in t.items()}
+    return best, even, odd
+
+
 def bvp_solve(cat, loads, tol, guess=None):
     """scipy solve_bvp on the same rod ODE (dead tip load); initial guess: the small-deflection
     beam, or ``guess`` (a Shape: its angles and moments on 21 nodes)."""
