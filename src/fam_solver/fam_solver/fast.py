@@ -41,6 +41,9 @@ _FALLBACK_N = 12
 #: the direct attempt from the small-deflection start is given up after this many Newton
 #: iterations still far from a solution (max|r| > fast_newton.QUASI_ABOVE)
 _PATIENCE = 4
+#: a coarse solution that only starts a finer model is solved to this relative tolerance:
+#: resampled onto the fine arcs it is ~1e-3 off anyway (Newton's last step saved)
+_START_RTOL = 1e-7
 
 
 def _equal_arcs(n: int, L: float, EI: float):
@@ -122,7 +125,7 @@ def _coarse_start(n: int, L: float, EI: float, F: complex, m: float, follower: b
                   clothoid: bool, nc: int = COARSE_N) -> Optional[Tuple[np.ndarray, int, float]]:
     """The solution on nc arcs (this path) resampled onto n equal arcs, its iterations and
     tip angle; None when the coarse model is not solved on this path."""
-    coarse = fast_solve(nc, L, EI, F, m, follower, clothoid=clothoid)
+    coarse = fast_solve(nc, L, EI, F, m, follower, clothoid=clothoid, rtol=_START_RTOL)
     if coarse is None:
         return None
     return _resample(coarse[0], n), coarse[2], float(coarse[0].sum())
@@ -158,9 +161,12 @@ def _accepted(phi: np.ndarray, conv: bool, res: float, tip: complex, rtol: float
 
 def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool,
                initial: Optional[np.ndarray] = None, spacing: str = 'uniform',
-               clothoid: bool = False) -> Optional[Tuple]:
+               clothoid: bool = False, rtol: Optional[float] = None) -> Optional[Tuple]:
     """Whole single-case solve for tip loads (circular or clothoid arcs), or None when it is
     not accepted (the caller then uses the general path).
+
+    rtol: Newton's relative tolerance (None: 1e-12; the first pass of graded arcs 1e-9); a
+    coarse solution that only starts a finer model uses _START_RTOL.
 
     Returns phi, converged, iterations, residual, tip (complex), stable, fractions (None:
     equal arcs), clothoid rates (None for circular arcs)."""
@@ -193,7 +199,8 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
         phi0, it0 = _linear_start(base, float(base.sum()), F, m, follower, L, EI), 0
     # graded: this equal-arc solution only places the arcs; stop it at 1e-9 (an iterate error
     # ~1e-9 moves the tip of the graded solution by ~1e-12 L) -- saves one Newton step
-    rtol = 1e-9 if graded else 1e-12
+    if rtol is None:
+        rtol = 1e-9 if graded else 1e-12
     phi, conv, it, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, phi0, mi,
                                                       rtol=rtol, clothoid=cl,
                                                       patience=_PATIENCE if th_c is None else mi)

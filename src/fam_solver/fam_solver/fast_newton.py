@@ -23,7 +23,7 @@ _FAST_CACHE = {}
 #: model: dense ~ a + b N^2 + c N^3, banded ~ the coarse solve + d N; they cross at N ~ 80
 #: for both arc models and case sets, see the package README), so that the time per solve
 #: does not jump at the switch. The general path keeps ``linsolve.DENSE_MAX_N``.
-FAST_DENSE_MAX_N = 80
+FAST_DENSE_MAX_N = 64
 #: clothoid arcs: the rates' Jacobian terms are added once max|r| < this (rad); further out
 #: the circular-arc factors do as well and cost less
 QUASI_ABOVE = 1e-2
