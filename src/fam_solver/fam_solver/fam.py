@@ -110,6 +110,8 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
         if ex is not None:
             start = ex[0][None]
     phi, conv, iters, res, snapped = solve_cases(prob, 1, arc_model, start)
+    if start is not None:
+        iters = iters + ex[2]       # the circular-arc solve's iterations count too
     stable = stability(prob, phi)
     frac = None
     if spacing == 'graded' and conv[0] and n > 1 and not loads.follower:
