@@ -149,3 +149,49 @@ def test_coarse_start_is_asked_for_the_loose_tolerance(monkeypatch):
     monkeypatch.setattr(fast, 'fast_solve', spy)
     spy(FAST_DENSE_MAX_N + 1, 1.0, 1.0, 2 + 6j, -1.0, False, clothoid=True)
     assert (fast.COARSE_N, fast._START_RTOL) in calls
+
+
+@pytest.mark.parametrize('n', [24, 48, 64, 100])
+@pytest.mark.parametrize('follower', [False, True])
+@pytest.mark.parametrize('graded', [False, True])
+def test_single_case_banded_newton_step_is_the_dense_step(n, follower, graded):
+    """The general path's Newton step for one case (banded LAPACK solve from BANDED_MIN_N
+    arcs) equals the dense solve of the same Jacobian."""
+    from fam_solver import equations, linsolve
+    from fam_solver.problem import make_problem
+    rng = np.random.default_rng(n + 2 * follower + 4 * graded)
+    frac = rng.uniform(0.5, 1.5, (1, n)) if graded else None
+    if graded:
+        frac /= frac.sum()
+    prob = make_problem(n, 1.0, 1.0, np.array([2.0 + 6.0j]), follower, np.array([-1.0]), [],
+                        fractions=frac)
+    phi = rng.normal(0.0, 0.1, (1, n))
+    loads, m = prob.loads(1.0)
+    r, fac, _ = equations.evaluate(phi, prob.l, prob.w, loads, m, jac=True)
+    dx, _ = linsolve.newton_step(prob.w, fac, r)
+    J = linsolve.dense_jacobian(prob.w, fac)
+    ref = np.linalg.solve(J[0], -r[0])
+    assert np.max(np.abs(dx[0] - ref)) <= 1e-10 * max(1.0, np.abs(ref).max())
+
+
+def test_single_case_branch_check_is_the_eigenvalue_criterion():
+    """principal_ok for one case (Cholesky first, ``energy_stable``) says what the
+    eigenvalues of the Jacobian say, on stable and on unstable (buckled) equilibria."""
+    from fam_solver import equations, linsolve
+    from fam_solver.problem import make_problem
+    verdicts = []
+    for F, th in [(-30.0 + 0.1j, 0.0), (-30.0 + 0.1j, 0.3), (2.0 + 6.0j, 0.0), (-1.0 + 0j, 0.0),
+                  (-5.0 + 0j, 0.0), (3.0 - 8.0j, -0.5)]:
+        for clothoid in (False, True):
+            n = 24
+            prob = make_problem(n, 1.0, 1.0, np.array([F]), False, np.array([0.0]), [],
+                                clothoid=clothoid)
+            phi = np.full((1, n), th / n)
+            loads, m = prob.loads(1.0)
+            _, fac, _ = equations.evaluate(phi, prob.l, prob.w, loads, m, jac=True,
+                                           clothoid=clothoid)
+            eig = np.min(np.linalg.eigvals(linsolve.dense_jacobian(prob.w, fac)[0]).real) > 1e-9
+            got = bool(linsolve.principal_ok(prob.w, fac)[0])
+            assert got == eig, (F, th, clothoid)
+            verdicts.append(got)
+    assert any(verdicts) and not all(verdicts)

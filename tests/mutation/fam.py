@@ -142,4 +142,12 @@ MUTANTS = [
            '        phi0 = guess if start is None else start',
            '        phi0 = guess',
            'general path: the given start ignored'),
+    Mutant('M31', P + 'linsolve.py',
+           '        return np.array([energy_stable(J[0], w1)])',
+           '        return np.array([True])',
+           'general path, one case: branch check always passes'),
+    Mutant('M32', P + 'linsolve.py',
+           'for f in fac), -r[0])',
+           'for f in fac), r[0])',
+           'general path, one case: banded Newton step with the wrong sign'),
 ]

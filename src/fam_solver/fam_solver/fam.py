@@ -102,10 +102,11 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
     prob = build_problem(cat, n, np.array([tip]), loads.follower,
                          np.array([loads.tip_moment]), pfs, clothoid=clothoid)
     start = None
-    if arc_model == 'bezier' and not pfs and n <= DENSE_MAX_N:
+    if arc_model == 'bezier' and not pfs:
         # the Bezier model starts from the circular-arc solution (fast path): the two agree
         # to O(phi^2) per arc, so Newton on the Bezier residual needs few iterations, about
-        # as many at every N (from the small-deflection start their count fell with N)
+        # as many at every N (from the small-deflection start their count fell with N;
+        # beyond 64 arcs the general path's own coarse start doubled the time)
         ex = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower)
         if ex is not None:
             start = ex[0][None]

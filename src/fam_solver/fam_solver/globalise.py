@@ -159,7 +159,7 @@ def solve_cases(prob: Problem, B: int, arc_model: str = 'exact',
     2. N <= 64: damped Newton from the rescaled small-deflection solution, accepted by
        ``accept_direct``; N > 64: Newton from the coarse (N = 32) solution interpolated onto the
        arcs (that solution is accepted already); ``start`` (B, N), when given, replaces
-       the start for N <= 64 (the Bezier model starts from the circular-arc solution);
+       either start (the Bezier model starts from the accepted circular-arc solution);
     3. otherwise load continuation from zero (per case). A result that is exactly straight
        is kept (loading from zero keeps an axially loaded catheter straight).
     """
@@ -170,8 +170,10 @@ def solve_cases(prob: Problem, B: int, arc_model: str = 'exact',
     iters = np.zeros(B, dtype=int)
     snapped = np.zeros(B, dtype=bool)
     lin, th_lin, guess = linear_guess(prob)
-    if N <= DENSE_MAX_N:
-        phi0 = guess if start is None else start
+    if start is not None:
+        phi0 = start
+    elif N <= DENSE_MAX_N:
+        phi0 = guess
     else:
         coarse = coarse_problem(prob)
         pc, cc, ic, _, _ = solve_cases(coarse, B, 'exact')
