@@ -19,10 +19,10 @@ from .linsolve import banded_solve
 _MAXR = np.maximum.reduce
 _FAST_CACHE = {}
 #: the fast path's switch from the dense Newton step (and the direct start) to the O(N)
-#: banded step started from the COARSE_N solution, set where the two cost the same (cost
-#: model: dense ~ a + b N^2 + c N^3, banded ~ the coarse solve + d N; they cross at N ~ 80
-#: for both arc models and case sets, see the package README), so that the time per solve
-#: does not jump at the switch. The general path keeps ``linsolve.DENSE_MAX_N``.
+#: banded step started from the COARSE_N solution. Cost model: dense ~ a + b N^2 + c N^3 per
+#: step, banded ~ the coarse solve + d N; measured (package README, design record) they cross
+#: at N ~ 80-88 for plain tip forces but at ~64-70 for tip force + moment loads (more dense
+#: iterations), so at 64 one more arc never costs less. The general path: linsolve.DENSE_MAX_N.
 FAST_DENSE_MAX_N = 64
 #: clothoid arcs: the rates' Jacobian terms are added once max|r| < this (rad); further out
 #: the circular-arc factors do as well and cost less
