@@ -1,7 +1,7 @@
 """Fast path: one load case with tip loads only (force, moment; dead or follower), circular
 or clothoid arcs, any N -- which equilibrium, with the Newton kernel of ``fast_newton``.
 
-* N <= FAST_DENSE_MAX_N (80): Newton from the rescaled small-deflection start (with a tip
+* N <= FAST_DENSE_MAX_N (64): Newton from the rescaled small-deflection start (with a tip
   moment and axial tension: the stiffened one, ``_stiffened_linear``); accepted when it
   turned the way the small-deflection beam (or its stiffened version) turns and the branch
   check holds (``linsolve.energy_stable``). Otherwise: N > 12 restarts from the 12-arc
