@@ -10,9 +10,8 @@ Prints three tables:
     solve_elastica (rtol 1e-12) and median solve time; the reference solver at looser
     tolerances; scipy.integrate.solve_bvp; cases: the thesis flexure (40 mm, EI 7.5e-4 N m^2,
     tip forces and moments) and the Blazer II-XP (65 mm, EI 6e-5 N m^2, 0-0.3 N at 0..pi);
-    then the performance-cliff checks (issue 15): per arc model and spacing, the slowest
-    case's CPU time over the median at each N (target <= 3) and whether the median grows
-    with N; the same for tip forces with tip moments (Blazer, moments +-F L/4);
+    (the performance-cliff checks of issue 15 are ``bench_fam_cliffs.py``, which
+    ``scripts/bench fam`` runs too);
  2. stress: a seeded random sweep of 10 000 load cases (near zero, huge, compressive,
     follower, point forces): non-converged / NaN counts, worst error on a subsample;
  3. batch throughput against a loop of single solves (both models, both spacings).
@@ -49,10 +48,8 @@ MODELS = ('clothoid', 'exact', 'bezier')
 #: % L: below this the comparison measures the reference, not the FAM (solve_elastica at
 #: rtol 1e-12 is accurate to ~1e-12 L; clothoid arcs get there by N ~ 1000)
 FLOOR = 2e-10
-#: cliff checks: the slowest case at most this many times the median at the same N
+#: the stress table: solves over this many times the median are counted
 CLIFF_RATIO = 3.0
-#: per-case CPU times [ms] from table 1: (case set, model, spacing, N) -> (cases,)
-CASE_CPU = {}
 
 
 def thesis_cases():
@@ -154,7 +151,6 @@ def table1():
                         walls.append(w)
                         cpus.append(c)
                         conv += sh.converged
-                    CASE_CPU[(name, model, spacing, n)] = np.array(cpus) * 1e3
                     mw, mc = float(np.median(walls)) * 1e3, float(np.median(cpus)) * 1e3
                     # observed order between this N and the previous one (2 = second order)
                     order = (math.log(errs_by_n[-1] / max(errs)) / math.log(n / ns[-1])
@@ -241,75 +237,6 @@ def table1():
             print(f'| {name} | ({fx:.3f}, {fy:.3f}) | {ld.tip_moment:g} | {ld.load_parameter(cat):.1f} | '
                   f'{eu:.4f} | {eg:.4f} | {eg / eu if eu > 0 else nan:.2f} | {ec:.2e} | '
                   f'{ec / eg if eg > 0 else nan:.3f} |')
-    print()
-
-
-def cliff_report(title, times, ns, labels):
-    """Print the cliff checks for one (case set, model, spacing): times[n] = per-case CPU ms."""
-    meds = [float(np.median(times[n])) for n in ns]
-    ratios = [float(np.max(times[n]) / np.median(times[n])) for n in ns]
-    worst = [labels[int(np.argmax(times[n]))] for n in ns]
-    # the largest drop of the median from any smaller N (0 when non-decreasing)
-    drop, where = 0.0, ''
-    for j in range(1, len(ns)):
-        k = int(np.argmax(meds[:j]))
-        d = 1.0 - meds[j] / meds[k]
-        if d > drop:
-            drop, where = d, f' (N = {ns[k]} -> {ns[j]})'
-    cells = ' | '.join(f'{m:.3f} / {r:.2f}' for m, r in zip(meds, ratios))
-    ok_ratio = max(ratios) <= CLIFF_RATIO
-    print(f'| {title} | {cells} | {max(ratios):.2f} at N = {ns[int(np.argmax(ratios))]} '
-          f'({worst[int(np.argmax(ratios))]}) {"ok" if ok_ratio else "OVER " + str(CLIFF_RATIO)} | '
-          f'{"yes" if drop == 0.0 else "no"}; largest drop {drop * 100:.1f} %{where} |')
-    return ok_ratio, drop
-
-
-def table_cliffs():
-    print(f'### Performance cliffs (issue 15): per N, median CPU ms over the cases / slowest case '
-          f'over that median (target <= {CLIFF_RATIO:g}); is the median non-decreasing in N')
-    ns = [n for n in NS if not (QUICK and n > 500)]
-    print('| case set, model, spacing | ' + ' | '.join(f'N = {n}' for n in ns) +
-          ' | max slowest/median | median non-decreasing (largest drop) |')
-    print('|---|' + '---|' * (len(ns) + 2))
-    sets = [('thesis 40 mm', thesis_cases()), ('Blazer 65 mm', blazer_cases())]
-    drops = []
-    for name, cases in sets:
-        labels = [f'case {i}' for i in range(len(cases))]
-        for model in MODELS:
-            for spacing in ('uniform', 'graded'):
-                times = {n: CASE_CPU[(name, model, spacing, n)] for n in ns}
-                drops.append(cliff_report(f'{name}, {model}, {spacing}', times, ns, labels))
-    print(f'all within {CLIFF_RATIO:g}x of the median: '
-          f'{"yes" if all(ok for ok, _ in drops) else "NO"}; largest drop of a median with N: '
-          f'{max(d for _, d in drops) * 100:.1f} % (CPU-time medians of 9 runs per case; drops of '
-          f'a few % between N = 1..12, where the time hardly depends on N, are measurement noise)')
-    print()
-    # tip forces with tip moments (the case that used to leave the fast path)
-    cat = BLAZER
-    cases, labels = [], []
-    for F in (0.1, 0.2, 0.3):
-        for b in (math.pi / 4, math.pi / 2, 3 * math.pi / 4):
-            for sgn in (-1, 1):
-                m = sgn * 0.25 * F * cat.length
-                cases.append(Loads(tip_force=(F * math.cos(b), F * math.sin(b)), tip_moment=m))
-                labels.append(f'{F} N at {math.degrees(b):.0f} deg, {m * 1e3:+.2f} mN m')
-    print('### Tip force with tip moment (Blazer 0.1-0.3 N at 45/90/135 deg, moments +-F L/4; '
-          'N = 12, 24, 48, 100)')
-    ns2 = [12, 24, 48, 100]
-    print('| model, spacing | ' + ' | '.join(f'N = {n}' for n in ns2) +
-          ' | max slowest/median | median non-decreasing (largest drop) |')
-    print('|---|' + '---|' * (len(ns2) + 2))
-    for model in ('clothoid', 'exact'):
-        for spacing in ('uniform', 'graded'):
-            times = {}
-            for n in ns2:
-                times[n] = np.array([timed(lambda: solve_fam(cat, ld, n_arcs=n, arc_model=model,
-                                                             spacing=spacing), 5)[1]
-                                     for ld in cases]) * 1e3
-            cliff_report(f'Blazer force + moment, {model}, {spacing}', times, ns2, labels)
-    st = [solve_fam(cat, ld, n_arcs=12).status.name for ld in cases]
-    print('status of the 18 cases (clothoid, N = 12): ' +
-          ', '.join(f'{k} {st.count(k)}' for k in sorted(set(st))))
     print()
 
 
@@ -467,7 +394,6 @@ def table3():
 if __name__ == '__main__':
     t = time.perf_counter()
     table1()
-    table_cliffs()
     table1b()
     table2()
     table3()

@@ -165,12 +165,13 @@ FORCE_MOMENT = [Loads(tip_force=(F * np.cos(b), F * np.sin(b)), tip_moment=s * F
                 for s in (-0.25, 0.25)]
 
 
-@pytest.mark.parametrize('n', [12, 24, 48, 100])
+@pytest.mark.parametrize('n', [12, 24, 48, 64, 65, 100])
 def test_force_with_moment_stays_cheap(n):
-    """Issue 15: a tip force with a tip moment left the fast path (20x a normal solve).
-    Counted in Newton iterations (deterministic): at most 4x the median case's."""
+    """Issue 15: a tip force with a tip moment left the fast path (20x a normal solve), then
+    took 3-4x the median at N = 24 (restart from 12 arcs). Counted in Newton iterations
+    (deterministic): at most 3x the median case's, the issue's bound."""
     its = np.array([solve_fam(BLAZER, ld, n_arcs=n).iterations for ld in FORCE_MOMENT])
-    assert its.max() <= 4 * np.median(its), its
+    assert its.max() <= 3 * np.median(its), its
 
 
 def test_force_with_moment_matches_the_general_path():
@@ -178,7 +179,7 @@ def test_force_with_moment_matches_the_general_path():
     vectorised general path (batch) finds."""
     F = np.array([ld.tip_force for ld in FORCE_MOMENT])
     M = np.array([ld.tip_moment for ld in FORCE_MOMENT])
-    for n in (12, 48):
+    for n in (12, 24, 48, 64):
         bt = solve_fam_batch(BLAZER, F, M, n_arcs=n)
         for k, ld in enumerate(FORCE_MOMENT):
             sh = solve_fam(BLAZER, ld, n_arcs=n)

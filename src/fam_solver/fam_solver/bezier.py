@@ -150,7 +150,9 @@ class BezierResidual:
     """Bezier residual and (for N <= FD_MAX_N) its finite-difference Jacobian; beyond, Newton
     uses the circular-arc model's analytic Jacobian (quasi-Newton: a few more iterations,
     each far cheaper than the O(N^2) finite differences; the switch sits where the two cost
-    about the same, so the solve time does not fall from N to 2N)."""
+    about the same). Tip loads start from the circular-arc solution (``fam.solve_fam``), so
+    both need few iterations; a Broyden correction of the quasi-Newton Jacobian was measured
+    and saved at most one of them (not used)."""
     FD_MAX_N = 12
 
     def __init__(self, prob: Problem):

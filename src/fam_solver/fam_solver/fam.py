@@ -101,7 +101,18 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
                              rates=rho, _trusted=True)
     prob = build_problem(cat, n, np.array([tip]), loads.follower,
                          np.array([loads.tip_moment]), pfs, clothoid=clothoid)
-    phi, conv, iters, res, snapped = solve_cases(prob, 1, arc_model)
+    start = None
+    if arc_model == 'bezier' and not pfs:
+        # the Bezier model starts from the circular-arc solution (fast path): the two agree
+        # to O(phi^2) per arc, so Newton on the Bezier residual needs few iterations, about
+        # as many at every N (from the small-deflection start their count fell with N;
+        # beyond 64 arcs the general path's own coarse start doubled the time)
+        ex = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower)
+        if ex is not None:
+            start = ex[0][None]
+    phi, conv, iters, res, snapped = solve_cases(prob, 1, arc_model, start)
+    if start is not None:
+        iters = iters + ex[2]       # the circular-arc solve's iterations count too
     stable = stability(prob, phi)
     frac = None
     if spacing == 'graded' and conv[0] and n > 1 and not loads.follower:

@@ -1,12 +1,13 @@
 """Fast path: one load case with tip loads only (force, moment; dead or follower), circular
 or clothoid arcs, any N -- which equilibrium, with the Newton kernel of ``fast_newton``.
 
-* N <= DENSE_MAX_N: Newton from the rescaled small-deflection start; accepted when it turned
-  the way the small-deflection beam (or its stiffened version) turns and the branch check
-  holds (``linsolve.energy_stable``). Otherwise: N > 12 restarts from the 12-arc solution,
-  N <= 12 applies the load by continuation on this path (``_continuation``).
-* N > DENSE_MAX_N: Newton (O(N) banded solve) from the COARSE_N solution resampled onto the
-  arcs; stability judged on the COARSE_N model, as ``globalise.stability`` does.
+* N <= FAST_DENSE_MAX_N (64): Newton from the rescaled small-deflection start (with a tip
+  moment and axial tension: the stiffened one, ``_stiffened_linear``); accepted when it
+  turned the way the small-deflection beam (or its stiffened version) turns and the branch
+  check holds (``linsolve.energy_stable``). Otherwise: N > 12 restarts from the 12-arc
+  solution, N <= 12 applies the load by continuation on this path (``_continuation``).
+* N > FAST_DENSE_MAX_N: Newton (O(N) banded solve) from the COARSE_N solution resampled onto
+  the arcs; stability judged on the COARSE_N model, as ``globalise.stability`` does.
 * spacing='graded': a second Newton pass on the graded arcs (``mesh.fast_grade``).
 
 Returns None when nothing is accepted (a fold, a critical point, a straight catheter under
@@ -20,8 +21,8 @@ from typing import Optional, Tuple
 import numpy as np
 from scipy.linalg.lapack import dgesv as _dgesv
 
-from .fast_newton import fast_tip_newton, jacobian_at
-from .linsolve import DENSE_MAX_N, energy_stable
+from .fast_newton import FAST_DENSE_MAX_N, fast_tip_newton, jacobian_at
+from .linsolve import energy_stable
 from .mesh import fast_grade
 from .problem import COARSE_N
 
@@ -40,6 +41,9 @@ _FALLBACK_N = 12
 #: the direct attempt from the small-deflection start is given up after this many Newton
 #: iterations still far from a solution (max|r| > fast_newton.QUASI_ABOVE)
 _PATIENCE = 4
+#: a coarse solution that only starts a finer model is solved to this relative tolerance:
+#: resampled onto the fine arcs it is ~1e-3 off anyway (Newton's last step saved)
+_START_RTOL = 1e-7
 
 
 def _equal_arcs(n: int, L: float, EI: float):
@@ -64,7 +68,7 @@ def _resample(phi: np.ndarray, n: int) -> np.ndarray:
 
 def _continuation(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
                   clothoid: bool, lin: np.ndarray, max_iter: int):
-    """Load the case from zero on the fast path (N <= DENSE_MAX_N): secant predictor (the
+    """Load the case from zero on the fast path (N <= FAST_DENSE_MAX_N): secant predictor (the
     small-deflection shape for the first step), at most 0.5 rad tip-angle change per step,
     the branch check after every step, as ``globalise.continuation`` does; None when the
     path needs steps below _CONT_MIN_STEP (a fold or a critical point) or too many
@@ -121,7 +125,7 @@ def _coarse_start(n: int, L: float, EI: float, F: complex, m: float, follower: b
                   clothoid: bool, nc: int = COARSE_N) -> Optional[Tuple[np.ndarray, int, float]]:
     """The solution on nc arcs (this path) resampled onto n equal arcs, its iterations and
     tip angle; None when the coarse model is not solved on this path."""
-    coarse = fast_solve(nc, L, EI, F, m, follower, clothoid=clothoid)
+    coarse = fast_solve(nc, L, EI, F, m, follower, clothoid=clothoid, rtol=_START_RTOL)
     if coarse is None:
         return None
     return _resample(coarse[0], n), coarse[2], float(coarse[0].sum())
@@ -150,16 +154,19 @@ def _accepted(phi: np.ndarray, conv: bool, res: float, tip: complex, rtol: float
               or (dense and _stiffened_sign(l, w, F, m, follower, clothoid, lin) == (th > 0))):
         return False
     if warm or (dense and abs(th_lin) > 0.3) or _compressed(F, th, follower):
-        # N > DENSE_MAX_N: on the coarse model, whose solution had the check for large loads
+        # N > FAST_DENSE_MAX_N: on the coarse model, whose solution had the check for large loads
         return _stable_at(phi, J, w, None, L, EI, F, m, follower, clothoid)
     return True
 
 
 def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool,
                initial: Optional[np.ndarray] = None, spacing: str = 'uniform',
-               clothoid: bool = False) -> Optional[Tuple]:
+               clothoid: bool = False, rtol: Optional[float] = None) -> Optional[Tuple]:
     """Whole single-case solve for tip loads (circular or clothoid arcs), or None when it is
     not accepted (the caller then uses the general path).
+
+    rtol: Newton's relative tolerance (None: 1e-12; the first pass of graded arcs 1e-9); a
+    coarse solution that only starts a finer model uses _START_RTOL.
 
     Returns phi, converged, iterations, residual, tip (complex), stable, fractions (None:
     equal arcs), clothoid rates (None for circular arcs)."""
@@ -167,7 +174,7 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
         return None
     mi = 12
     cl = clothoid
-    dense = n <= DENSE_MAX_N
+    dense = n <= FAST_DENSE_MAX_N
     l, w, lever = _equal_arcs(n, L, EI)
     lin = w * (m + F.imag * lever)    # small-deflection solution
     th_lin = float(lin.sum())
@@ -181,10 +188,19 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
             return None
         phi0, it0, th_c = start
     else:
-        phi0, it0 = _linear_start(lin, th_lin, F, m, follower, L, EI), 0
+        base = lin
+        if dense and m != 0.0 and F.real > 0.0 and F.imag != 0.0 and not follower:
+            # axial tension with a tip moment: the tension stiffens the response to the
+            # force more than to the moment, so phi_lin can point the wrong way and Newton
+            # from it lands on a looped equilibrium; start from the stiffened response
+            stiff = _stiffened_linear(l, w, F, m, follower, cl, lin)
+            if stiff is not None:
+                base = stiff
+        phi0, it0 = _linear_start(base, float(base.sum()), F, m, follower, L, EI), 0
     # graded: this equal-arc solution only places the arcs; stop it at 1e-9 (an iterate error
     # ~1e-9 moves the tip of the graded solution by ~1e-12 L) -- saves one Newton step
-    rtol = 1e-9 if graded else 1e-12
+    if rtol is None:
+        rtol = 1e-9 if graded else 1e-12
     phi, conv, it, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, phi0, mi,
                                                       rtol=rtol, clothoid=cl,
                                                       patience=_PATIENCE if th_c is None else mi)
@@ -267,10 +283,19 @@ def _stiffened_sign(l: np.ndarray, w: np.ndarray, F: complex, m: float, follower
     turn against phi_lin; where phi_lin's sign disagrees with the direct solution, this sign
     may confirm it (how often, and that it never confirmed a solution load continuation does
     not reach: package README, design record)."""
+    stiff = _stiffened_linear(l, w, F, m, follower, clothoid, lin)
+    return None if stiff is None else float(np.sum(stiff)) > 0
+
+
+def _stiffened_linear(l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
+                      clothoid: bool, lin: np.ndarray) -> Optional[np.ndarray]:
+    """The small-deflection solution WITH the geometric stiffness of the loads: one Newton
+    step from the straight shape, J(0)^-1 phi_lin (N <= FAST_DENSE_MAX_N); None when the straight
+    shape is not stable (past buckling)."""
     J0 = jacobian_at(np.zeros(l.size), l, w, F, m, follower, clothoid)
     if J0 is None or not energy_stable(J0, w):
         return None
-    return float(np.sum(_dgesv(J0, lin)[2])) > 0
+    return _dgesv(J0, lin)[2]
 
 
 def _stable_at(phi: np.ndarray, J: Optional[np.ndarray], Jw: np.ndarray,
@@ -278,9 +303,9 @@ def _stable_at(phi: np.ndarray, J: Optional[np.ndarray], Jw: np.ndarray,
                follower: bool, clothoid: bool) -> bool:
     """Branch / stability check at the solution phi (on arcs L * frac, None: equal arcs): on
     J (the last Newton step's Jacobian, row weights Jw) when given, else on the Jacobian at
-    phi; beyond DENSE_MAX_N on the COARSE_N model with the same curvature."""
+    phi; beyond FAST_DENSE_MAX_N on the COARSE_N model with the same curvature."""
     n = phi.size
-    if n > DENSE_MAX_N:
+    if n > FAST_DENSE_MAX_N:
         lc, Jw, _ = _equal_arcs(COARSE_N, L, EI)
         pc = _resample(phi if frac is None else _to_equal(phi, frac), COARSE_N)
         J = jacobian_at(pc, lc, Jw, F, m, follower, clothoid)

@@ -1,7 +1,7 @@
 """The single-case Newton kernel of the fast path: the FAM residual and Jacobian for tip loads
 (force, moment; dead or follower), circular or clothoid arcs, written with 1-D arrays and as
 few numpy calls as possible (numpy call overhead dominates at N = 12), LAPACK called
-directly: dense Jacobian for N <= DENSE_MAX_N, the O(N) banded solve beyond. The same
+directly: dense Jacobian for N <= FAST_DENSE_MAX_N, the O(N) banded solve beyond. The same
 equations as ``equations.evaluate`` / ``linsolve`` (tests check that). No rclpy here.
 """
 from __future__ import annotations
@@ -14,10 +14,16 @@ import numpy as np
 from scipy.linalg.lapack import dgesv as _dgesv
 
 from .equations import RHO_MAX, clothoid_terms
-from .linsolve import DENSE_MAX_N, banded_solve
+from .linsolve import banded_solve
 
 _MAXR = np.maximum.reduce
 _FAST_CACHE = {}
+#: the fast path's switch from the dense Newton step (and the direct start) to the O(N)
+#: banded step started from the COARSE_N solution. Cost model: dense ~ a + b N^2 + c N^3 per
+#: step, banded ~ the coarse solve + d N; measured (package README, design record) they cross
+#: at N ~ 80-88 for plain tip forces but at ~64-70 for tip force + moment loads (more dense
+#: iterations), so at 64 one more arc never costs less. The general path: linsolve.DENSE_MAX_N.
+FAST_DENSE_MAX_N = 64
 #: clothoid arcs: the rates' Jacobian terms are added once max|r| < this (rad); further out
 #: the circular-arc factors do as well and cost less
 QUASI_ABOVE = 1e-2
@@ -106,15 +112,15 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     """Damped Newton for one tip-loaded case. F complex (base or tip frame), m float.
     Stops at max|r| <= 1e-13 + rtol max|phi| (converged is judged with rtol = 1e-12).
     clothoid: clothoid arcs (as in evaluate; the Jacobian has the rates' derivatives once
-    max|r| < QUASI_ABOVE). N <= DENSE_MAX_N: dense Jacobian (returned); beyond: the O(N)
+    max|r| < QUASI_ABOVE). N <= FAST_DENSE_MAX_N: dense Jacobian (returned); beyond: the O(N)
     banded solve (no Jacobian returned). Gives up after ``patience`` iterations while max|r|
     is still above QUASI_ABOVE and fell less than 10x in the last two (a start that leads
     nowhere near a solution).
 
     Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
-    Jacobian of the last Newton step (None if no step was taken or N > DENSE_MAX_N) and the
+    Jacobian of the last Newton step (None if no step was taken or N > FAST_DENSE_MAX_N) and the
     clothoid rates (N,) at phi (None for circular arcs)."""
-    dense = n <= DENSE_MAX_N
+    dense = n <= FAST_DENSE_MAX_N
     lower = _fast_consts(n)[0] if dense else None
     cF0 = F.conjugate()
     acc = np.add.accumulate
@@ -213,7 +219,7 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
 
 def jacobian_at(phi: np.ndarray, l: np.ndarray, w: np.ndarray, F: complex, m: float,
                  follower: bool, clothoid: bool) -> Optional[np.ndarray]:
-    """The dense Jacobian (N <= DENSE_MAX_N) at phi: the one a Newton step from phi uses."""
+    """The dense Jacobian (N <= FAST_DENSE_MAX_N) at phi: the one a Newton step from phi uses."""
     J = fast_tip_newton(phi.size, l, w, F, m, follower, phi, 1, step_limit=math.inf, rtol=-1.0,
                         clothoid=clothoid)[5]
     return J

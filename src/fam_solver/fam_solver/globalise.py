@@ -150,14 +150,16 @@ def accept_direct(prob: Problem, phi: np.ndarray, conv: np.ndarray, th_lin: np.n
     return ok
 
 
-def solve_cases(prob: Problem, B: int, arc_model: str = 'exact'
+def solve_cases(prob: Problem, B: int, arc_model: str = 'exact',
+                start: Optional[np.ndarray] = None
                 ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Globalised solve for B cases.
 
     1. zero load -> exactly straight;
     2. N <= 64: damped Newton from the rescaled small-deflection solution, accepted by
        ``accept_direct``; N > 64: Newton from the coarse (N = 32) solution interpolated onto the
-       arcs (that solution is accepted already);
+       arcs (that solution is accepted already); ``start`` (B, N), when given, replaces
+       either start (the Bezier model starts from the accepted circular-arc solution);
     3. otherwise load continuation from zero (per case). A result that is exactly straight
        is kept (loading from zero keeps an axially loaded catheter straight).
     """
@@ -168,7 +170,9 @@ def solve_cases(prob: Problem, B: int, arc_model: str = 'exact'
     iters = np.zeros(B, dtype=int)
     snapped = np.zeros(B, dtype=bool)
     lin, th_lin, guess = linear_guess(prob)
-    if N <= DENSE_MAX_N:
+    if start is not None:
+        phi0 = start
+    elif N <= DENSE_MAX_N:
         phi0 = guess
     else:
         coarse = coarse_problem(prob)
