@@ -49,6 +49,22 @@ class RelayNode(Node):
         self.pub.publish(out)
 
 
+class InfoRelayNode(Node):
+    """Like RelayNode, with a callback that takes the message info too (callback(msg, info))."""
+
+    def __init__(self, **kwargs):
+        super().__init__('info_relay', **kwargs)
+        self.pub = self.create_publisher(JointState, '/test/info_relayed', QOS_FAST)
+        self.sub = self.create_subscription(WrenchStamped, '/test/force', self.cb, QOS_FAST)
+
+    def cb(self, msg, info):
+        out = JointState()
+        out.header = msg.header
+        out.name = ['x']
+        out.position = [msg.wrench.force.x]
+        self.pub.publish(out)
+
+
 class FakeCameraNode(Node):
     """30 Hz mono8 64x48 frames on /test/image."""
 

@@ -54,6 +54,25 @@ def test_lockstep_run_records_every_message(tmp_path, make_scenario, test_regist
     assert force_times == [k * 1_000_000 for k in range(1, 301)]
 
 
+def test_lockstep_delivers_to_callbacks_that_take_message_info(tmp_path, make_scenario,
+                                                               test_registry):
+    import sys
+    import types
+
+    import nodes_for_tests as n
+    from catheter_bringup.scenario import NodeSpec
+    mod = types.ModuleType('bringup_test_nodes_InfoRelayNode')
+    mod.NODE_CLASS = n.InfoRelayNode
+    sys.modules[mod.__name__] = mod
+    registry = dict(test_registry, info_relay=NodeSpec(
+        'info_relay', mod.__name__, ('/test/force',), ('/test/info_relayed',)))
+    res = ScenarioRunner(make_scenario(outputs=['/test/info_relayed', '/test/relayed']),
+                         bag=str(tmp_path / 'info.mcap'), registry=registry,
+                         progress=False).run()
+    assert res.status == 'complete', res.reason
+    assert res.published['/test/info_relayed'] == res.published['/test/relayed'] == 300
+
+
 def test_two_runs_with_one_seed_record_identical_streams(tmp_path, make_scenario,
                                                           test_registry):
     a, b, c = (tmp_path / f'{n}.mcap' for n in 'abc')

@@ -2,6 +2,7 @@
 two runs with one seed record the same streams, reprocess reproduces every node, and the
 main command writes its files. Skipped while the teleoperation nodes are not importable."""
 import json
+import math
 
 import pytest
 from mcap_ros2.reader import read_ros2_messages
@@ -80,3 +81,27 @@ def test_full_default_graph_with_image_pipeline_is_deterministic(tmp_path):
         runs.append(_decoded(res.bag))
     assert sum(1 for t, _, _ in runs[0] if t == '/catheter/tip_wrench') >= 10
     assert runs[0] == runs[1]
+
+
+def test_image_force_source_scenario_feeds_the_identifier(tmp_path):
+    """force_source: image (never run in tests before): force_source_node puts the image-based
+    tip force into the identifier's joint state and the identifier takes it."""
+    pytest.importorskip('catheter_shape.shape_node')
+    pytest.importorskip('force_estimator.force_estimator_node')
+    sc = load_scenario('experiment_ii_image_source')
+    sc['duration'] = 0.5
+    sc['record']['only'] = ['/slave/joint_state_image', '/catheter/tip_wrench']
+    res = ScenarioRunner(sc, bag=str(tmp_path / 'img.mcap'), progress=False,
+                         log=lambda *_: None).run()
+    assert res.status == 'complete', res.reason
+    assert 'force_source_node' in res.nodes and 'impedance_identifier_node' in res.nodes
+    assert res.published['/slave/joint_state_image'] == 500
+    assert res.published['/catheter/tip_wrench'] >= 10
+    msgs = [m.ros_msg for m in read_ros2_messages(str(res.bag),
+                                                  topics=['/slave/joint_state_image'])]
+    wrenches = [m.ros_msg for m in read_ros2_messages(str(res.bag),
+                                                      topics=['/catheter/tip_wrench'])]
+    estimates = {round(math.hypot(w.wrench.force.x, w.wrench.force.y), 12) for w in wrenches}
+    # after the first estimate, the insertion effort is an image estimate, not the load cell's
+    replaced = [m for m in msgs[-100:] if round(m.effort[0], 12) in estimates]
+    assert len(replaced) == 100

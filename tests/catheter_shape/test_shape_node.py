@@ -168,3 +168,20 @@ def test_base_constraint_parameter(ros, shape_helpers):
 def test_bad_parameters_are_refused(ros):
     with pytest.raises(ValueError):
         ShapeNode(context=ros.context, parameter_overrides=[Parameter('psi', value=[1.0, 2.0])])
+
+
+def test_debug_overlay_draws_whatever_the_calibration_gives(shape_helpers):
+    """Found by the node fuzz benchmark: a wild calibration or base_px put pixel positions
+    of 1e300 (or NaN) into cv2.circle, which raised and stopped the node's timer."""
+    import types
+    from catheter_shape.shape_node import debug_overlay
+    frame = np.full((40, 60), 200, np.uint8)
+    obs = types.SimpleNamespace(
+        ok=True, mask=None, roi=None, pixels=np.array([[1.0, 2.0], [np.inf, 3.0]]),
+        control_points=np.array([[0.0, 0.0, 0.0], [0.02, 0.0, 0.0], [0.04, 0.0, 0.0],
+                                 [0.06, 0.0, 0.0]]),
+        base_px=(1e300, np.nan), tip_px=(-1e300, 5.0), residual=1e-5,
+        timings={'total': 0.001}, status='ok', message='')
+    psi = np.array([[1e-150, 0.0, 0.0, 0.0], [0.0, 1e-150, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]])
+    img = debug_overlay(frame, obs, psi)
+    assert img.shape == (40, 60, 3) and img.dtype == np.uint8

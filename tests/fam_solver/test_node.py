@@ -8,7 +8,7 @@ from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Path
 from visualization_msgs.msg import Marker
 
-from catheter_common.topics import SHAPE, SHAPE_MARKER, TIP_LOAD
+from catheter_common.topics import FAM_SHAPE, FAM_SHAPE_MARKER, TIP_LOAD, resolve
 from catheter_common.qos import QOS_DEFAULT
 from fam_solver import Catheter, Loads, solve_fam
 from fam_solver.fam_solver_node import FamSolverNode
@@ -24,19 +24,18 @@ def _wrench(fx, fy, mz=0.0, sec=7):
     return m
 
 
-# Topics are remapped to a per-process prefix: other test processes on this machine may
-# share the ROS domain and subscribe to /catheter/shape, which would make "no subscriber"
-# untrue.
-PREFIX = f'/fam_test_{os.getpid()}'
-LOAD_T, SHAPE_T, MARKER_T = PREFIX + TIP_LOAD, PREFIX + SHAPE, PREFIX + SHAPE_MARKER
+# The node runs in a per-process namespace (its topic names are relative): other test
+# processes on this machine may share the ROS domain and subscribe to the shape topic, which
+# would make "no subscriber" untrue.
+NS = f'/fam_test_{os.getpid()}'
+LOAD_T, SHAPE_T, MARKER_T = (resolve(t, NS) for t in (TIP_LOAD, FAM_SHAPE, FAM_SHAPE_MARKER))
 
 
 def _setup(ros, **params):
     from rclpy.parameter import Parameter
     overrides = [Parameter(k, value=v) for k, v in params.items()]
-    remap = ['--ros-args', '-r', f'{TIP_LOAD}:={LOAD_T}', '-r', f'{SHAPE}:={SHAPE_T}',
-             '-r', f'{SHAPE_MARKER}:={MARKER_T}']
-    node = ros.add(FamSolverNode(context=ros.context, parameter_overrides=overrides, cli_args=remap))
+    node = ros.add(FamSolverNode(context=ros.context, parameter_overrides=overrides,
+                                 namespace=NS))
     client = ros.node('fam_test_client')
     pub = client.create_publisher(WrenchStamped, LOAD_T, QOS_DEFAULT)
     return node, client, pub

@@ -140,7 +140,7 @@ def test_analytic_jacobian_matches_finite_differences(x):
     obs = est.observed_points(cp)
     x = np.array(x, dtype=float)
     r, J, cost = est._eval(x, obs)
-    assert np.isfinite(cost) and J.shape == (2 * est.n_points + 2, 4)
+    assert np.isfinite(cost) and J.shape == (2 * est.n_points + 4, 4)   # + 4 prior rows
     fd = np.zeros_like(J)
     for k, h in enumerate((1e-6, 1e-6, 1e-8, 1e-6)):
         e = np.zeros(4)

@@ -76,11 +76,19 @@ def test_node_estimates_with_stamp_and_frame(ros, toy_models, toy_model_files, m
     assert ros.spin_until(lambda: node.diag.get('bad_messages') >= 3, 5.0)
     ros.spin_for(0.1)
     assert len(got) == n_before
-    # ... and the node keeps working; a far input is flagged out of envelope
+    # a far input is flagged out of envelope and NOT published as a normal estimate ...
     far = cp.copy()
     far[3, 1] += 0.2
-    assert _send_until(ros, pub, _msg(far, 13, 0), got)
+    for _ in range(50):
+        pub.publish(_msg(far, 13, 0))
+        if ros.spin_until(lambda: node.diag.get('out_of_envelope') >= 1, 0.2):
+            break
     assert node.diag.get('out_of_envelope') >= 1
+    assert node.diag.level()[0] == 1 and 'envelope' in node.diag.level()[1]
+    ros.spin_for(0.1)
+    assert all(w.header.stamp.sec != 13 for w in got)
+    # ... and the node keeps working
+    assert _send_until(ros, pub, _msg(cp, 14, 0), got)
     assert ros.spin_until(lambda: any(
         kv.key == 'bad_messages' for d in diags for s in d.status for kv in s.values), 5.0)
     keys = {kv.key for d in diags for s in d.status for kv in s.values}

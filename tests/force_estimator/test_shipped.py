@@ -51,3 +51,38 @@ def test_shipped_models_on_unseen_rendered_frames():
         assert err.max() < 0.04, (name, err)          # N; the benchmark measures accuracy
         assert err.mean() < 0.02, (name, err)
         assert inside.all()
+
+
+@pytest.mark.parametrize('name', SHIPPED_MODELS)
+def test_shipped_models_know_a_straight_catheter_is_ambiguous(name):
+    """A straight catheter: any axial pull (or none) gives this shape. The learned model's
+    estimate is flagged axial_unobservable (its nearest training inputs were pulls of every
+    size, whatever its own output), and make_estimator hands it to the FAM inversion, whose
+    weak force prior answers ~0 with the axial uncertainty."""
+    pytest.importorskip('fam_solver')
+    from force_estimator import make_estimator
+    L = 0.065
+    cp = np.array([[0, 0, 0], [L / 3, 0, 0], [2 * L / 3, 0, 0], [L, 0, 0]], dtype=float)
+    e = load_estimator(name).estimate(cp)
+    assert e.status == 'axial_unobservable' and e.normal and e.max_std > 0.03
+    h = make_estimator(name.split('-')[1])
+    e = h.estimate(cp)
+    assert e.method == 'fam_fallback' and e.primary == name.split('-')[1]
+    assert e.status == 'axial_unobservable' and np.hypot(*e.force) < 0.02
+    assert abs(e.weak_direction[0]) > 0.9
+
+
+@pytest.mark.parametrize('name', SHIPPED_MODELS)
+def test_shipped_models_answer_lateral_forces_themselves(name):
+    pytest.importorskip('fam_solver')
+    from force_estimator import dataset as D
+    from force_estimator import make_estimator
+    F = np.array([[0.0, 0.1], [-0.1, 0.15], [0.05, -0.2]])
+    cls, _ = D.fam_centerlines(F)
+    cp, ok = D.render_control_points(cls, seed=3)
+    h = make_estimator(name.split('-')[1])
+    for c, f in zip(cp[ok], F[ok]):
+        e = h.estimate(c)
+        assert e.method == name.split('-')[1] and e.status == 'ok', (e.status, e.message)
+        assert np.hypot(*(e.force - f)) < 0.01
+        assert e.max_std < 0.02

@@ -48,8 +48,8 @@ def test_identifier_node_publishes_named_models_and_survives_bad_messages(ros):
     bad.position = [float('nan')]
     bad.effort = [0.1]
     for n, m in enumerate((bad, JointState())):   # one at a time: depth-1 best effort
-        assert ros.spin_until(lambda: (pub.publish(m), node.diag.get('bad_messages') > n)[1],
-                              5.0)
+        assert ros.spin_until(lambda m=m, n=n: (pub.publish(m),
+                                                node.diag.get('bad_messages') > n)[1], 5.0)
     k = [0]
 
     def feed():
@@ -223,3 +223,20 @@ def test_sim_haptic_node_runs_in_lockstep_with_a_clock(ros):
     stamp_ns = last.sec * 10 ** 9 + last.nanosec
     assert t_ns - 5_000_000 <= stamp_ns <= t_ns            # simulated, not wall time
     assert 0.30 - 0.03 <= node.t_last <= 0.32 + 0.001
+
+
+def test_identifier_node_never_overwrites_a_state_file_it_could_not_load(ros, tmp_path):
+    """Issue 10 item 5: a rejected state file was logged as ignored, then overwritten at
+    shutdown with the new, empty state. It is kept; the new state goes beside it."""
+    path = tmp_path / 'ident.json'
+    path.write_text('[1, 2, 3]')                       # a JSON list, not a state
+    node = ImpedanceIdentifierNode(context=ros.context, parameter_overrides=params(
+        state_file=str(path)))
+    assert node.model is None
+    node.ident.update(0.03, 0.01, 0.0, 0.2)
+    node.close()
+    assert path.read_text() == '[1, 2, 3]'
+    beside = sorted(p.name for p in tmp_path.iterdir() if p.name != 'ident.json')
+    assert beside == ['ident.1.json'], beside
+    assert node.diag.level()[0] == 1 and 'rejected' in node.diag.level()[1]
+    node.destroy_node()

@@ -1,5 +1,6 @@
-"""Shared ROS 2 plumbing for the catheter packages.
+"""Shared ROS 2 plumbing for the catheter packages (see README.md).
 
-`catheter_common.topics` holds topic names, frames and QoS profiles;
-`catheter_common.ros_node` holds the node runner, diagnostics and parameter helpers.
+Pure Python (importable anywhere): `topics` (names and frames), `checks` (argument checks).
+Node plumbing: `qos`, `params` (parameters applied at run time or refused), `diagnostics`
+(counters and leveled conditions), `images`, `ros_node` (`run_node`), `ros_testing`.
 """

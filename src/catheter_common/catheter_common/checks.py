@@ -47,3 +47,19 @@ def seed(name: str, value):
     if isinstance(value, bool) or not isinstance(value, int) or value < 0:
         raise ValueError(f'{name} must be None or an int >= 0, got {value!r}')
     return value
+
+
+def first(name: str, values, default=None) -> float:
+    """The first element of a message sequence (JointState.position, ...) as a finite float;
+    `default` when the sequence is empty (ValueError naming `name` when no default is given)."""
+    if len(values) == 0:
+        if default is None:
+            raise ValueError(f'{name} is empty')
+        return default
+    return finite(f'{name}[0]', values[0])
+
+
+def all_finite(name: str, values) -> None:
+    """ValueError naming the first entry of `values` that is not a finite number."""
+    for i, v in enumerate(values):
+        finite(f'{name}[{i}]', v)

@@ -1,110 +1,26 @@
-"""Node plumbing shared by every package: a `main` runner with a clean Ctrl-C shutdown,
-a diagnostics publisher, and declared parameters with descriptions and ranges.
+"""The body of every node executable: `run_node` (``--help``, spin, a clean stop on SIGINT and
+SIGTERM), the executor choice, and wall time for latency measurements.
 
-Only node modules import this file; the algorithm modules never import rclpy.
+Only node modules import this file; the algorithm modules never import rclpy. Parameters
+are in `catheter_common.params`, diagnostics in `catheter_common.diagnostics` (both also
+importable from here, as before).
 """
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import time
-from typing import Callable, Dict, Optional
+from typing import Callable, Optional
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange,
-                                ParameterDescriptor)
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from catheter_common.topics import DIAGNOSTICS
-from catheter_common.qos import QOS_DEFAULT
+from catheter_common.diagnostics import Diagnostics  # noqa: F401  (re-exported)
+from catheter_common.params import declare, format_help, seal  # noqa: F401  (re-exported)
 
-
-def declare(node: Node, name: str, default, description: str, lo=None, hi=None,
-            step=None, read_only: bool = False, choices=None):
-    """Declare a parameter with a description and (for numbers) a range; return its value."""
-    desc = ParameterDescriptor(description=description, read_only=read_only)
-    if choices is not None:
-        desc.additional_constraints = 'one of: ' + ', '.join(str(c) for c in choices)
-    if lo is not None and hi is not None:
-        if isinstance(default, bool):
-            pass
-        elif isinstance(default, int):
-            desc.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi),
-                                               step=int(step or 1))]
-        elif isinstance(default, float):
-            desc.floating_point_range = [FloatingPointRange(from_value=float(lo),
-                                                            to_value=float(hi),
-                                                            step=float(step or 0.0))]
-    value = node.declare_parameter(name, default, desc).value
-    if choices is not None and value not in choices:
-        raise ValueError(f'parameter {name}={value!r} is not one of {list(choices)}')
-    return value
-
-
-class Diagnostics:
-    """Counts events and rates of a node and publishes a DiagnosticArray on /diagnostics.
-
-    `count(key)` increments a counter; `set(key, value)` sets a value; `error(msg)`
-    records a failure (level WARN while failures happened in the last period).
-    """
-
-    def __init__(self, node: Node, period: float = 1.0, hardware_id: str = 'sim'):
-        self._node = node
-        self._name = node.get_fully_qualified_name()
-        self._hw = hardware_id
-        self._counts: Dict[str, int] = {}
-        self._last_counts: Dict[str, int] = {}
-        self._values: Dict[str, str] = {}
-        self._errors_in_period = 0
-        self._last_error = ''
-        self._pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS, QOS_DEFAULT)
-        self._t_last = node.get_clock().now()
-        self._timer = node.create_timer(period, self.publish)
-
-    def count(self, key: str, n: int = 1) -> None:
-        self._counts[key] = self._counts.get(key, 0) + n
-
-    def get(self, key: str) -> int:
-        return self._counts.get(key, 0)
-
-    def set(self, key: str, value) -> None:
-        self._values[key] = value if isinstance(value, str) else f'{value:.6g}' \
-            if isinstance(value, float) else str(value)
-
-    def error(self, message: str, key: str = 'errors') -> None:
-        self.count(key)
-        self._errors_in_period += 1
-        self._last_error = message
-
-    def publish(self) -> None:
-        now = self._node.get_clock().now()
-        dt = (now - self._t_last).nanoseconds * 1e-9
-        self._t_last = now
-        st = DiagnosticStatus()
-        st.name = self._name
-        st.hardware_id = self._hw
-        if self._errors_in_period:
-            st.level = DiagnosticStatus.WARN
-            st.message = f'{self._errors_in_period} error(s): {self._last_error}'
-        else:
-            st.level = DiagnosticStatus.OK
-            st.message = 'ok'
-        self._errors_in_period = 0
-        kv = []
-        for k, v in sorted(self._counts.items()):
-            kv.append(KeyValue(key=k, value=str(v)))
-            if dt > 0:
-                rate = (v - self._last_counts.get(k, 0)) / dt
-                kv.append(KeyValue(key=k + '_rate_hz', value=f'{rate:.2f}'))
-        self._last_counts = dict(self._counts)
-        kv += [KeyValue(key=k, value=v) for k, v in sorted(self._values.items())]
-        st.values = kv
-        msg = DiagnosticArray()
-        msg.header.stamp = now.to_msg()
-        msg.status = [st]
-        self._pub.publish(msg)
+#: the signals that stop a node cleanly, and how the logs name them
+STOP_SIGNALS = {signal.SIGINT: 'SIGINT (Ctrl-C)', signal.SIGTERM: 'SIGTERM'}
 
 
 def make_executor(kind: str = 'events', context=None):
@@ -121,27 +37,64 @@ def make_executor(kind: str = 'events', context=None):
     raise ValueError(f'executor kind must be "events" or "single", got {kind!r}')
 
 
-def run_node(node_factory: Callable[..., Node], args=None, executor: str = 'events') -> int:
-    """Entry point body for a node executable: init, spin, clean shutdown on Ctrl-C / SIGTERM.
+def wants_help(args) -> bool:
+    """True if the command line (without its --ros-args part) asks for help."""
+    from rclpy.utilities import remove_ros_args
+    argv = list(sys.argv if args is None else args)
+    return any(a in ('-h', '--help') for a in remove_ros_args(argv)[1:])
 
-    `node_factory` is called with no arguments after rclpy.init. Returns a process exit code.
+
+def node_help(node_class, executable: Optional[str] = None) -> str:
+    """The --help text of a node class: its docstring's first paragraph and its table."""
+    exe = executable or getattr(node_class, 'NODE_NAME', None) or \
+        os.path.basename(sys.argv[0]) or node_class.__name__
+    mod = sys.modules.get(node_class.__module__)
+    doc = (getattr(mod, '__doc__', None) or node_class.__doc__ or '').strip().split('\n\n')[0]
+    return format_help(exe, getattr(node_class, 'PARAMS', ()), doc)
+
+
+class _StopFlag:
+    """Set by the signal handlers; the spin loop checks it between spins."""
+
+    def __init__(self):
+        self.signum: Optional[int] = None
+
+    def __call__(self, signum, _frame) -> None:
+        if self.signum is None:
+            self.signum = signum
+
+
+def run_node(node_factory: Callable[..., Node], args=None, executor: str = 'events') -> int:
+    """Entry point body for a node executable. Returns the process exit code.
+
+    ``--help`` / ``-h``: prints the node's parameters and exits 0 without starting anything.
+    SIGINT and SIGTERM stop the spin loop; then the node's ``close()`` runs (it may still
+    publish), the node is destroyed, and only then the context is shut down: no callback
+    can run against a dead context (that was the ``[FATAL] publisher's context is invalid``
+    on SIGTERM). Exit code 0 on a signal, 1 when the node failed.
     """
-    rclpy.init(args=args)
+    if wants_help(args):
+        sys.stdout.write(node_help(node_factory))
+        return 0
+    stop = _StopFlag()
+    old = {s: signal.signal(s, stop) for s in STOP_SIGNALS}
+    from rclpy.signals import SignalHandlerOptions
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node: Optional[Node] = None
     exe = None
     code = 0
-    # SIGTERM behaves like Ctrl-C (clean shutdown, nodes flush what they hold).
-    signal.signal(signal.SIGTERM, lambda *_: rclpy.try_shutdown())
     try:
         node = node_factory()
+        seal(node)
         exe = make_executor(executor)
         exe.add_node(node)
         node.get_logger().info('running; Ctrl-C to stop')
-        # spin_once in a loop, not spin(): EventsExecutor.spin() stays inside C++ and never
-        # sees Ctrl-C (KeyboardInterrupt is only raised when control returns to Python).
-        while rclpy.ok():
+        # spin_once in a loop, not spin(): the handlers run in Python between two spins
+        while stop.signum is None and rclpy.ok():
             exe.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        if stop.signum is not None:
+            node.get_logger().info(f'{STOP_SIGNALS[stop.signum]}: stopping')
+    except KeyboardInterrupt:          # a signal before the handlers were in place
         pass
     except Exception as exc:  # a failing node says why and exits non-zero
         if node is not None:
@@ -150,6 +103,11 @@ def run_node(node_factory: Callable[..., Node], args=None, executor: str = 'even
             print(f'node failed to start: {exc!r}', file=sys.stderr)
         code = 1
     finally:
+        if exe is not None and node is not None:
+            try:
+                exe.remove_node(node)
+            except Exception:  # noqa: BLE001 - shutting down anyway
+                pass
         if node is not None:
             close = getattr(node, 'close', None)
             if callable(close):
@@ -157,15 +115,15 @@ def run_node(node_factory: Callable[..., Node], args=None, executor: str = 'even
                     close()
                 except Exception as exc:  # noqa: BLE001 - report, keep shutting down
                     print(f'error while closing node: {exc!r}', file=sys.stderr)
-            try:
-                node.get_logger().info('shut down cleanly')
-            except Exception:  # noqa: BLE001 - logger may be gone after context shutdown
-                pass
+                    code = code or 1
+            node.get_logger().info('shut down cleanly')
         if exe is not None:
             exe.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        for s, h in old.items():
+            signal.signal(s, h)
     return code
 
 

@@ -3,6 +3,12 @@
 One place for every name, so nodes, the recorder, the analysis and tests agree. Pure
 Python (no rclpy): algorithm modules and offline tools import it too. The QoS profiles
 that go with the topics are in `catheter_common.qos` (which needs rclpy).
+
+The constants are the names in the root namespace (what a recording of an un-namespaced
+graph holds). Nodes create their publishers and subscriptions with `relative(name)`, so
+`--ros-args -r __ns:=/robot1` (or `namespace=` in-process) moves the whole graph under
+/robot1; the ROS-wide topics in `GLOBAL` (/clock, /diagnostics, /tf, ...) stay absolute,
+where ROS tools expect them. `resolve(name, ns)` gives the name a topic has under `ns`.
 """
 
 # Frames
@@ -13,12 +19,22 @@ FRAME_CAMERA = 'camera_optical_frame'
 CAMERA_IMAGE = '/camera/image_raw'             # sensor_msgs/Image, mono8, 30 Hz
 CONTROL_POINTS = '/catheter/control_points'    # geometry_msgs/PoseArray, 4 poses base->tip
 TIP_LOAD = '/catheter/tip_load'                # geometry_msgs/WrenchStamped (input of fam_solver)
-SHAPE = '/catheter/shape'                      # nav_msgs/Path
-SHAPE_MARKER = '/catheter/shape_marker'        # visualization_msgs/Marker
+#: nav_msgs/Path: the centreline MEASURED in the image (shape_node)
+SHAPE = '/catheter/shape'
+#: nav_msgs/Path: the centreline MODELLED by FAM from the tip load (fam_solver_node)
+FAM_SHAPE = '/catheter/fam/shape'
+FAM_SHAPE_MARKER = '/catheter/fam/shape_marker'  # visualization_msgs/Marker of FAM_SHAPE
+#: former name of FAM_SHAPE_MARKER (kept until every user says FAM_SHAPE_MARKER)
+SHAPE_MARKER = FAM_SHAPE_MARKER
 TIP_WRENCH = '/catheter/tip_wrench'            # geometry_msgs/WrenchStamped (estimated tip force)
 SHAPE_DEBUG_IMAGE = '/catheter/debug_image'    # sensor_msgs/Image overlay (only while subscribed)
-SLAVE_JOINT_STATE = '/slave/joint_state'       # sensor_msgs/JointState (insertion m, rotation rad; effort N)
-SLAVE_IMPEDANCE = '/slave/impedance'           # sensor_msgs/JointState used as stamped named float64 values
+#: sensor_msgs/JointState (insertion m, rotation rad; effort N)
+SLAVE_JOINT_STATE = '/slave/joint_state'
+#: /slave/joint_state with the insertion effort taken from the image-based tip force
+#: (force_source_node; the identifier's input when a scenario says force_source: image)
+SLAVE_JOINT_STATE_IMAGE = '/slave/joint_state_image'
+#: sensor_msgs/JointState used as stamped named float64 values
+SLAVE_IMPEDANCE = '/slave/impedance'
 SLAVE_FORCE = '/slave/force'                   # geometry_msgs/WrenchStamped
 MASTER_COMMAND = '/master/command'             # sensor_msgs/JointState
 MASTER_RENDERED_FORCE = '/master/rendered_force'  # geometry_msgs/WrenchStamped
@@ -27,10 +43,36 @@ MASTER_RENDERED_FORCE = '/master/rendered_force'  # geometry_msgs/WrenchStamped
 # delivered on these master-local topics, which the renderer consumes.
 MASTER_LINK_IMPEDANCE = '/master/link/impedance'  # /slave/impedance as delivered at the master
 MASTER_LINK_FORCE = '/master/link/force'          # /slave/force as delivered at the master
-MASTER_HAND_FORCE = '/master/hand_force'        # geometry_msgs/WrenchStamped: force at the operator's hand
-CAMERA_TIP_FORCE_TRUTH = '/camera/tip_force_truth'  # geometry_msgs/WrenchStamped: tip force the sim camera drew
+#: geometry_msgs/WrenchStamped: force at the operator's hand
+MASTER_HAND_FORCE = '/master/hand_force'
+#: geometry_msgs/WrenchStamped: tip force the sim camera drew
+CAMERA_TIP_FORCE_TRUTH = '/camera/tip_force_truth'
 DIAGNOSTICS = '/diagnostics'                   # diagnostic_msgs/DiagnosticArray
 CLOCK = '/clock'                               # rosgraph_msgs/Clock
 
 # Names of the values carried in /slave/impedance (JointState.name, values in JointState.position).
 IMPEDANCE_FIELDS = ('m', 'c', 'k', 'offset', 'valid')
+
+#: ROS-wide topics: absolute in every namespace (ROS tools look for them there)
+GLOBAL = frozenset({CLOCK, DIAGNOSTICS, '/rosout', '/parameter_events', '/tf', '/tf_static'})
+
+
+def relative(name: str) -> str:
+    """The name a node creates its publisher or subscription with: relative (no leading '/')
+    so the node's namespace applies, except for the ROS-wide topics in `GLOBAL`."""
+    if not isinstance(name, str) or not name.startswith('/') or len(name) < 2:
+        raise ValueError(f'name must be an absolute topic name like "/slave/force", got {name!r}')
+    return name if name in GLOBAL else name[1:]
+
+
+def resolve(name: str, namespace: str = '/') -> str:
+    """The fully qualified name of topic `name` (a constant of this module) for nodes in
+    `namespace`: resolve('/slave/force', '/robot1') == '/robot1/slave/force';
+    the `GLOBAL` topics do not move."""
+    rel = relative(name)
+    if rel.startswith('/'):
+        return rel
+    if not isinstance(namespace, str) or not namespace.startswith('/'):
+        raise ValueError(f'namespace must start with "/", got {namespace!r}')
+    ns = namespace.rstrip('/')
+    return f'{ns}/{rel}'

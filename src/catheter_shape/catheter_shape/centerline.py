@@ -1,4 +1,5 @@
-"""Ordered centreline of a segmented catheter: skeleton -> longest geodesic path on the
+"""Ordered centreline of a segmented catheter: skeleton (without the parts where the mask is
+thinner than a catheter) -> longest geodesic path on the
 8-connected pixel graph (two Dijkstra passes, which ignores spurs) -> base/tip orientation
 -> ends restored along their tangents (a skeleton stops about half a width short of each
 end) -> light smoothing of the pixel staircase.
@@ -10,14 +11,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
+import cv2
 import numpy as np
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 from skimage.morphology import skeletonize
 
 __all__ = ['Centerline', 'skeleton_path', 'extend_end', 'smooth_path']
 
 _OFFS = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
+#: skeleton pixels where the mask's half-width is below this fraction of the catheter's are
+#: not the catheter
+THIN = 0.7
 
 
 @dataclass
@@ -63,7 +68,7 @@ def _path(pred: np.ndarray, start: int, end: int) -> np.ndarray:
 
 def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
                   image_shape: Optional[Tuple[int, int]] = None,
-                  min_length_px: float = 10.0) -> Centerline:
+                  min_length_px: float = 10.0, width_px: Optional[float] = None) -> Centerline:
     """Longest geodesic path of the skeleton of `mask` (uint8/bool ROI at `offset` (u0, v0)),
     in full-frame pixels, ordered base -> tip.
 
@@ -71,12 +76,36 @@ def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
     skeleton) from the pixel nearest base_px, the base the end farthest from that tip; if
     base_px lies inside the image and the path passes it well before its end (the clamp is
     part of the mask), the path is cut at the pixel nearest base_px. Not given: the base is
-    the path end nearest the image border (image_shape (H, W) needed)."""
+    the path end nearest the image border (image_shape (H, W) needed).
+
+    width_px: the catheter's width; given, runs of skeleton pixels at least a width long
+    where the mask is thinner than `THIN` of a catheter's (its mask is about 0.9 width_px
+    wide) are dropped first: a thin structure touching the catheter (a wire across it, a
+    guidewire out of its tip) cannot carry the path away from it; a short dip of a noisy
+    mask stays."""
     skel = skeletonize(mask.astype(bool))
     n = int(np.count_nonzero(skel))
     if n < 2:
         return Centerline('bad_skeleton', skeleton_px=n, message=f'skeleton has {n} pixel(s)')
     g, xy = _graph(skel)
+    if width_px is not None:
+        # only runs of thin skeleton at least a width long: a short dip of a noisy mask
+        # stays, a wire goes (runs: connected components of the thin nodes' subgraph)
+        m = cv2.copyMakeBorder(mask.astype(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+        dt = cv2.distanceTransform(m, cv2.DIST_L2, 3)
+        ij = xy.astype(int) + 1
+        thin = dt[ij[:, 1], ij[:, 0]] < THIN * 0.45 * width_px
+        if np.count_nonzero(thin) >= width_px:          # else no run can be a width long
+            ti = np.flatnonzero(thin)
+            _, lab = connected_components(g[ti][:, ti], directed=False)
+            drop = np.zeros(n, bool)
+            drop[ti] = np.bincount(lab)[lab] >= width_px
+            if drop.any():
+                keep = np.flatnonzero(~drop)
+                if keep.size < 2:
+                    return Centerline('bad_skeleton', skeleton_px=int(keep.size),
+                                      message='no part of the object is as wide as a catheter')
+                g, xy = g[keep][:, keep], xy[keep]
     off = np.asarray(offset, dtype=float)
     xy += off
     if base_px is not None:
@@ -137,7 +166,7 @@ def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:
 def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
                trim_px: float, at_start: bool = False,
                half_contrast: bool = True, quadratic: bool = True,
-               span_widths: float = 1.5) -> Tuple[np.ndarray, float]:
+               span_widths: float = 1.5) -> Tuple[np.ndarray, float, bool]:
     """Restore one end of an ordered path (N, 2): drop the last trim_px of it (a skeleton
     curls into a corner of a flat end), fit a parabola to the preceding ~1.5 widths (the
     end may bend strongly: a loaded catheter's base) and walk along it until the darkness
@@ -147,11 +176,13 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     The edge level is `level` (the segmentation threshold), or with half_contrast the
     midpoint between the catheter's darkness on the path and the local background beside
     it (an unbiased edge for a symmetric blur; a threshold above the midpoint would put
-    the end inside the tube). Returns (new path, extension length px)."""
+    the end inside the tube). Returns (new path, extension length px, found): found is
+    False when the darkness never fell to the edge level within the search (the path is
+    then extended by the whole search length and should not be trusted)."""
     if at_start:
-        p, ext = extend_end(px[::-1], score, level, width_px, trim_px, False, half_contrast,
-                            quadratic, span_widths)
-        return p[::-1], ext
+        p, ext, found = extend_end(px[::-1], score, level, width_px, trim_px, False,
+                                   half_contrast, quadratic, span_widths)
+        return p[::-1], ext, found
     if not np.isfinite(level):
         raise ValueError(f'level must be finite, got {level!r}')
     H, W = score.shape
@@ -159,14 +190,14 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     s = np.concatenate([[0.0], np.cumsum(seg)])
     L = s[-1]
     if L < 3 * max(trim_px, 1.0) + 4:
-        return px, 0.0
+        return px, 0.0, True
     keep = s <= L - trim_px
     body = px[keep]
     sb = s[keep]
     span = max(span_widths * width_px, 6.0)
     tail = body[sb >= sb[-1] - span]
     if tail.shape[0] < 3:
-        return px, 0.0
+        return px, 0.0, True
     c = tail.mean(axis=0)
     _, _, vt = np.linalg.svd(tail - c, full_matrices=False)
     d = vt[0]
@@ -177,8 +208,9 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     bq = (tail - c) @ nrm
     if quadratic and tail.shape[0] >= 5 and np.ptp(a) > 2.0:
         coef = np.polyfit(a, bq, 2)
-        # bound the curvature by the tube's (a skeleton cannot bend tighter than ~its width)
-        coef[0] = np.clip(coef[0], -0.5 / width_px, 0.5 / width_px)
+        # bound the curvature: a bending radius of at least 3 widths (the Blazer under 0.3 N
+        # bends to 7 mm = 3 widths at most; a skeleton's corner curl bends tighter)
+        coef[0] = np.clip(coef[0], -1.0 / (6.0 * width_px), 1.0 / (6.0 * width_px))
     else:
         coef = np.array([0.0, 0.0, 0.0])
     a_e = float(np.dot(body[-1] - c, d))
@@ -217,7 +249,7 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     # new points every pixel (along the axis) up to the sub-pixel end
     steps = np.append(np.arange(a_e, t_end - 0.1, 1.0), t_end)
     new = curve(steps)
-    return np.vstack([body[:-1], new]), ext
+    return np.vstack([body[:-1], new]), ext, bool(below.any())
 
 
 def smooth_path(px: np.ndarray, window: int = 5) -> np.ndarray:

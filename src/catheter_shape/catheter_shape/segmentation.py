@@ -1,7 +1,9 @@
-"""Segmentation of a dark catheter in an 8-bit frame (thesis section 2.4: background
-removal and a greyscale threshold of 132), cleanup and the catheter's connected component.
+"""Segmentation of a dark catheter: the thesis's thresholds on an 8-bit frame (section 2.4:
+subtractive background removal and a greyscale threshold of 132; Otsu; adaptive), frame
+conversion, cleanup and the catheter's connected component. The default, illumination-
+independent method ('flatfield') lives in `catheter_shape.flatfield`.
 
-Pure numpy/OpenCV; no rclpy. Images are uint8 (H, W); masks are uint8 0/255.
+Pure numpy/OpenCV; no rclpy. Frames are uint8 or uint16 (H, W); masks are uint8 0/255.
 """
 from __future__ import annotations
 
@@ -11,20 +13,26 @@ from typing import Optional, Tuple
 import cv2
 import numpy as np
 
-__all__ = ['METHODS', 'Segmentation', 'to_gray', 'threshold_frame', 'catheter_component']
+__all__ = ['METHODS', 'FULL_SCALE', 'Segmentation', 'to_gray', 'to_uint8', 'threshold_frame',
+           'catheter_component']
 
-#: thresholding methods: 'fixed' (the thesis: grey < threshold, after background removal when
-#: a background is given), 'otsu' (global Otsu level, for frames without background),
-#: 'adaptive' (local mean minus an offset, robust to uneven illumination)
-METHODS = ('fixed', 'otsu', 'adaptive')
+#: thresholding methods: 'flatfield' (the default: divisive flat-field, threshold at half the
+#: catheter's own contrast; see catheter_shape.flatfield), 'fixed' (the thesis: grey <
+#: threshold, after subtractive background removal when a background is given), 'otsu'
+#: (global Otsu level), 'adaptive' (local mean minus an offset)
+METHODS = ('flatfield', 'fixed', 'otsu', 'adaptive')
+#: frame dtypes accepted, with their full scale
+FULL_SCALE = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}
 
 
 def to_gray(frame: np.ndarray) -> np.ndarray:
-    """uint8 (H, W) or (H, W, 1) -> itself; (H, W, 3) BGR or (H, W, 4) BGRA -> grey.
+    """uint8/uint16 (H, W) or (H, W, 1) -> itself; (H, W, 3) BGR or (H, W, 4) BGRA -> grey
+    (same dtype).
 
     Raises ValueError with the reason for any other array (the caller maps it to a status)."""
-    if frame.dtype != np.uint8:
-        raise ValueError(f'frame must be uint8, got {frame.dtype}')
+    if frame.dtype not in FULL_SCALE:
+        raise ValueError(f'frame must be uint8 or uint16, got {frame.dtype} (convert, e.g. '
+                         f'(frame * 255).astype(np.uint8) for floats in [0, 1])')
     if frame.size == 0:
         raise ValueError(f'frame is empty (shape {frame.shape})')
     if frame.ndim == 2:
@@ -48,7 +56,8 @@ def threshold_frame(gray: np.ndarray, threshold: int = 132,
     keeps g < threshold (the catheter is at least 255 - threshold grey levels darker than
     the scene behind it). Without a background, 'fixed' keeps gray < threshold.
     'otsu' picks the level by Otsu's method on g; 'adaptive' keeps pixels darker than the
-    local mean (block x block pixels) minus `offset`.
+    local mean (block x block pixels, odd, at least 3: a coarse calibration can ask for
+    less) minus `offset`.
 
     Returns (mask uint8 0/255, score uint8, level): score = 255 - g is the darkness image and
     mask == score > level (used for sub-pixel edge search; level is NaN for 'adaptive').
@@ -66,11 +75,57 @@ def threshold_frame(gray: np.ndarray, threshold: int = 132,
     elif method == 'adaptive':
         g = cv2.bitwise_not(score)
         mask = cv2.adaptiveThreshold(g, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY_INV,
-                                     int(block) | 1, float(offset))
+                                     max(3, int(block) | 1), float(offset))
         level = float('nan')
     else:
         raise ValueError(f'method must be one of {METHODS}, got {method!r}')
     return mask, score, level
+
+
+#: a component is as thick as a catheter when its widest part is at least this fraction of
+#: the catheter's width (thinner: a wire, a rim, a line of noise)
+THICK = 0.6
+
+
+def _thickness(blob: np.ndarray) -> float:
+    """Width (pixels) of the widest part of a binary blob: twice its largest distance to
+    the background."""
+    m = cv2.copyMakeBorder(blob.astype(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    return 2.0 * float(cv2.distanceTransform(m, cv2.DIST_L2, 3).max())
+
+
+def _elongated(xs: np.ndarray, ys: np.ndarray, min_length: float) -> bool:
+    """A blob of pixels (xs, ys) is at least min_length long (sqrt(12 var) along its
+    principal axis, the length of a uniform bar): a piece of catheter, not a roundish blob
+    of texture or noise."""
+    if xs.size < 3:
+        return False
+    c = np.cov(np.stack([xs, ys]).astype(float))
+    lam = 0.5 * (c[0, 0] + c[1, 1]) + np.sqrt(0.25 * (c[0, 0] - c[1, 1]) ** 2 + c[0, 1] ** 2)
+    return bool(np.sqrt(12.0 * lam) >= min_length)
+
+
+def _component_at(labels, stats, order, bu, bv, reach, min_area):
+    """The label of the component (area >= min_area) nearest to (bu, bv) in ROI pixels,
+    within `reach` pixels; None if there is none."""
+    best = None
+    for k in order:
+        if stats[k, cv2.CC_STAT_AREA] < min_area:
+            break
+        x, y, w, h = (int(stats[k, i]) for i in range(4))
+        dx = max(x - bu, 0.0, bu - (x + w - 1))
+        dy = max(y - bv, 0.0, bv - (y + h - 1))
+        if np.hypot(dx, dy) > reach:
+            continue
+        r = int(np.ceil(reach))
+        ys, xs = np.nonzero(labels[max(int(bv) - r, 0):int(bv) + r + 1,
+                                   max(int(bu) - r, 0):int(bu) + r + 1] == k)
+        if ys.size == 0:
+            continue
+        d = float(np.min(np.hypot(xs + max(int(bu) - r, 0) - bu, ys + max(int(bv) - r, 0) - bv)))
+        if d <= reach and (best is None or d < best[0]):
+            best = (d, int(k))
+    return None if best is None else best[1]
 
 
 @dataclass
@@ -87,15 +142,23 @@ class Segmentation:
     message: str = ''
 
 
+def to_uint8(gray: np.ndarray) -> np.ndarray:
+    """A grey frame as uint8 (uint16 keeps its 8 most significant bits)."""
+    return gray if gray.dtype == np.uint8 else (gray >> 8).astype(np.uint8)
+
+
 def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
                        width_px: float, second_ratio: float = 0.25,
-                       max_fill: float = 0.5) -> Segmentation:
-    """Clean a binary mask and keep the catheter: the largest connected component plus
-    fragments within max_gap_px of it (joined by a bar of the catheter's width: gaps from
-    occlusion or low contrast); fails with 'multiple_objects' when another component of at
-    least second_ratio of the largest's area remains (two catheters), 'no_catheter' when
-    the largest is below min_area pixels, 'bad_segmentation' when more than max_fill of the
-    frame is dark."""
+                       max_fill: float = 0.5, base_px=None) -> Segmentation:
+    """Clean a binary mask and keep the catheter: the component at the clamp pixel base_px
+    (when given and inside the frame; else the largest) plus fragments within max_gap_px of
+    it that are at least 1.5 widths long and as thick as a catheter (`THICK`; joined by the
+    convex hull of both ends: gaps from occlusion or low contrast; a roundish blob or a
+    wire near the tip is not joined); fails with 'multiple_objects' when another component
+    as thick as a catheter and of at least second_ratio of the kept one's area remains (two
+    catheters, or a piece of this one too far away), 'no_catheter'
+    when the kept one is below min_area pixels, 'bad_segmentation' when more than max_fill
+    of the frame is dark."""
     H, W = mask.shape
     u0, v0, w, h = cv2.boundingRect(mask)
     if w == 0 or h == 0:
@@ -105,10 +168,12 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
     if n_dark > max_fill * H * W:
         return Segmentation('bad_segmentation',
                             message=f'{n_dark / (H * W):.0%} of the frame is below the threshold')
-    # morphology: open removes isolated noise pixels, close fills pinholes
+    # morphology: open removes noise pixels and structures thinner than a third of the
+    # catheter (wires, rims of the background estimate), close fills pinholes
     k3 = np.ones((3, 3), np.uint8)
     if width_px >= 6:
-        roi = cv2.morphologyEx(roi, cv2.MORPH_OPEN, k3)
+        k = max(3, int(round(width_px / 3.0)) | 1)
+        roi = cv2.morphologyEx(roi, cv2.MORPH_OPEN, np.ones((k, k), np.uint8))
     roi = cv2.morphologyEx(roi, cv2.MORPH_CLOSE, k3)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(roi, connectivity=8)
     if n <= 1:
@@ -116,6 +181,12 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
     areas = stats[1:, cv2.CC_STAT_AREA]
     order = np.argsort(areas)[::-1] + 1
     main = int(order[0])
+    if base_px is not None and 0 <= base_px[0] <= W - 1 and 0 <= base_px[1] <= H - 1:
+        near = _component_at(labels, stats, order, base_px[0] - u0, base_px[1] - v0,
+                             2.0 * width_px, min_area)
+        if near is not None:
+            main = near
+            order = np.concatenate([[main], order[order != main]])
     if stats[main, cv2.CC_STAT_AREA] < min_area:
         return Segmentation('no_catheter', area=int(stats[main, cv2.CC_STAT_AREA]),
                             message=f'largest dark region has {stats[main, cv2.CC_STAT_AREA]} px'
@@ -136,7 +207,10 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
         fy, fx = np.nonzero(win == k)
         my, mx = np.nonzero(np.isin(win, keep))
         joined = False
-        if my.size and fy.size:
+        thick = None
+        if my.size and fy.size and _elongated(fx, fy, 1.5 * width_px):
+            thick = _thickness(win == k) >= THICK * width_px
+        if thick:
             fs = max(1, fy.size // 400)
             ms = max(1, my.size // 400)
             F = np.stack([fx[::fs], fy[::fs]], 1).astype(np.float32)
@@ -145,17 +219,24 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
             i, j = np.unravel_index(int(np.argmin(d2)), d2.shape)
             if d2[i, j] <= max_gap_px ** 2:
                 keep.append(int(k))
-                bars.append(((int(F[i, 0]) + wx0, int(F[i, 1]) + wy0),
-                             (int(M[j, 0]) + wx0, int(M[j, 1]) + wy0)))
+                # the bridge: the convex hull of both ends (the pixels within a width of the
+                # nearest pair), so the gap is filled across the whole width of the tube
+                r2 = (np.sqrt(d2[i, j]) + width_px) ** 2
+                fe = F[np.sum((F - M[j]) ** 2, 1) <= r2]
+                me = M[np.sum((M - F[i]) ** 2, 1) <= r2]
+                hull = cv2.convexHull(np.vstack([fe, me]) + np.float32([wx0, wy0]))
+                bars.append(np.rint(hull).astype(np.int32))
                 joined = True
         if not joined and a >= second_ratio * stats[main, cv2.CC_STAT_AREA]:
-            return Segmentation('multiple_objects', n_objects=2,
-                                message=f'a second dark object of {a} px beside one of '
-                                        f'{stats[main, cv2.CC_STAT_AREA]} px')
+            if thick is None:
+                thick = _thickness(labels[y:y + fh, x:x + fw] == k) >= THICK * width_px
+            if thick:           # a thin line (a wire) is not a second catheter
+                return Segmentation('multiple_objects', n_objects=2,
+                                    message=f'a second dark object of {a} px beside one of '
+                                            f'{stats[main, cv2.CC_STAT_AREA]} px')
     out = np.isin(labels, keep).astype(np.uint8) if len(keep) > 1 else \
         (labels == main).astype(np.uint8)
-    t = max(1, int(round(0.6 * width_px)))
-    for p, q in bars:
-        cv2.line(out, p, q, 1, t)
+    for hull in bars:
+        cv2.fillConvexPoly(out, hull, 1)
     return Segmentation('ok', mask=out, offset=(u0, v0), area=int(out.sum()),
                         n_objects=1, bridged=len(bars))

@@ -2,16 +2,19 @@
 debug overlay. Thin: decodes messages, owns parameters/timers/diagnostics and calls
 catheter_shape.ShapeSensor.
 
-Subscribes  /camera/image_raw          sensor_msgs/Image (mono8, bgr8, rgb8, bgra8, rgba8)
-Publishes   /catheter/control_points   geometry_msgs/PoseArray, 4 poses base -> tip, catheter_base,
-                                       stamped with the image's stamp
-            /catheter/shape            nav_msgs/Path (measured centreline), only while subscribed
-            /catheter/debug_image      sensor_msgs/Image bgr8 overlay, only while subscribed
-            /diagnostics
+Subscribes  camera/image_raw          sensor_msgs/Image (mono8, bgr8, rgb8, bgra8, rgba8)
+Publishes   catheter/control_points   geometry_msgs/PoseArray, 4 poses base -> tip, catheter_base,
+                                      stamped with the image's stamp
+            catheter/shape            nav_msgs/Path (the centreline MEASURED in the image; the
+                                      FAM model's is catheter/fam/shape), only while subscribed
+            catheter/debug_image      sensor_msgs/Image bgr8 overlay, only while subscribed
+            /diagnostics              WARN after frames without a catheter shape and bad images
 
 Frames are never queued: the callback keeps only the newest frame and a timer on the node
 clock (period `period`) processes it; a frame replaced before it was processed counts as
 dropped. While nobody subscribes to any output, frames are not processed (counted 'idle').
+Every parameter applies at run time (from the next frame; a background_file that cannot be
+read is refused). Topic names are relative (the node's namespace applies).
 """
 from __future__ import annotations
 
@@ -22,15 +25,16 @@ import cv2
 import numpy as np
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from nav_msgs.msg import Path
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image
 
-from catheter_common import topics as T
-
 from catheter_common import qos as Q
-from catheter_common.ros_node import Diagnostics, declare, run_node, wall_time
+from catheter_common import topics as T
+from catheter_common.diagnostics import WARN, Diagnostics
+from catheter_common.images import array_to_image, image_to_array  # noqa: F401  (re-exported)
+from catheter_common.params import NodeParams, Param, table
+from catheter_common.ros_node import run_node, wall_time
 from catheter_shape.bezier import bezier_derivative, bezier_eval
 from catheter_shape.camera import SYSTEM_CAMERA, system_psi
 from catheter_shape.segmentation import METHODS
@@ -41,53 +45,31 @@ from catheter_shape.sensor import STATUSES, ShapeSensor
 DEFAULT_PSI = [float(x) for x in system_psi().reshape(-1)]
 DEFAULT_BASE_PX = [float(b) for b in SYSTEM_CAMERA['base_px']]
 
-_CHANNELS = {'mono8': 1, '8UC1': 1, 'bgr8': 3, 'rgb8': 3, 'bgra8': 4, 'rgba8': 4, '8UC3': 3}
-
-
-def image_to_array(msg: Image) -> np.ndarray:
-    """sensor_msgs/Image -> uint8 array (H, W) grey or (H, W, 3|4) in BGR(A) order.
-
-    Raises ValueError for unsupported encodings or inconsistent sizes."""
-    enc = msg.encoding
-    if enc not in _CHANNELS:
-        raise ValueError(f'unsupported image encoding {enc!r} (mono8, bgr8, rgb8, bgra8, rgba8)')
-    ch = _CHANNELS[enc]
-    h, w, step = int(msg.height), int(msg.width), int(msg.step)
-    if h <= 0 or w <= 0:
-        raise ValueError(f'empty image {w}x{h}')
-    if step < w * ch:
-        raise ValueError(f'step {step} < width {w} x {ch} channels')
-    try:
-        buf = np.frombuffer(msg.data, dtype=np.uint8)        # array.array / bytes: no copy
-    except (TypeError, ValueError):
-        buf = np.frombuffer(bytes(msg.data), dtype=np.uint8)
-    if buf.size < h * step:
-        raise ValueError(f'image data has {buf.size} bytes, expected {h * step}')
-    a = buf[:h * step].reshape(h, step)[:, :w * ch]
-    if ch == 1:
-        return a
-    a = a.reshape(h, w, ch)
-    if enc == 'rgb8':
-        return a[:, :, ::-1]
-    if enc == 'rgba8':
-        return a[:, :, [2, 1, 0, 3]]
-    return a
-
-
-def array_to_image(a: np.ndarray, stamp, frame_id: str) -> Image:
-    """uint8 (H, W) -> mono8 or (H, W, 3) -> bgr8 sensor_msgs/Image."""
-    msg = Image()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
-    msg.height, msg.width = int(a.shape[0]), int(a.shape[1])
-    if a.ndim == 2:
-        msg.encoding, ch = 'mono8', 1
-    else:
-        msg.encoding, ch = 'bgr8', 3
-    msg.is_bigendian = 0
-    msg.step = msg.width * ch
-    msg.data = np.ascontiguousarray(a, dtype=np.uint8).tobytes()
-    return msg
+PARAMS = table(
+    Param('psi', DEFAULT_PSI, 'camera calibration matrix PSI (Eq. 1), 12 numbers row-major '
+          '3x4: (x, y, z) [m, catheter_base] = PSI (u, v, 0, 1) [pixels]', numbers=True,
+          length=12, dynamic=True),
+    Param('threshold', 132, 'grey threshold (8 bit): the catheter is darker than this after '
+          'background removal (thesis: 132)', 1, 255, dynamic=True),
+    Param('base_px', DEFAULT_BASE_PX, 'pixel (u, v) of the clamp / catheter base (ints or '
+          'doubles; default: the system camera\'s, with the default psi); [-1, -1] = unknown '
+          '(the base is the centreline end nearest the image border)', numbers=True, length=2,
+          dynamic=True),
+    Param('background_file', '', 'optional PNG of the scene without the catheter (background '
+          'removal)', dynamic=True),
+    Param('method', 'fixed', 'threshold method', choices=tuple(METHODS), dynamic=True),
+    Param('period', 0.005, 'processing timer period, s (node clock): the newest frame is '
+          'processed, older unprocessed ones are dropped', 0.001, 1.0, dynamic=True),
+    Param('path_poses', 100, 'largest number of poses in catheter/shape', 2, 10000,
+          dynamic=True),
+    Param('degree', 3, 'Bezier degree (3: the 4 control points of the thesis; force_estimator '
+          'expects 3)', 1, 8, dynamic=True),
+    Param('base_constraint', 'none', 'Bezier base constraint (needs base_px): none (thesis), '
+          'point (p0 at the clamp), tangent (p0 at the clamp, p1 along +x)',
+          choices=('none', 'point', 'tangent'), dynamic=True),
+)
+_SENSOR_KEYS = {'psi', 'threshold', 'base_px', 'background_file', 'method', 'degree',
+                'base_constraint'}
 
 
 def _yaw_quaternion(yaw: float):
@@ -147,6 +129,19 @@ def points_to_path(points, stamp, frame_id: str = T.FRAME_CATHETER_BASE,
     return msg
 
 
+#: px, drawing coordinates are kept within +-this (OpenCV takes int32 pixel positions; a wild
+#: calibration or base_px gives positions far outside the image, or not finite)
+_DRAW_LIMIT = 1e6
+
+
+def _draw_points(pts, shift: int = 0) -> np.ndarray:
+    """Pixel positions (n, 2) as the int32 (n, 1, 2) OpenCV draws, scaled by 2**shift, with
+    non-finite and far-away positions pulled to the drawing limit."""
+    a = np.nan_to_num(np.asarray(pts, dtype=float) * (1 << shift), nan=-_DRAW_LIMIT,
+                      posinf=_DRAW_LIMIT, neginf=-_DRAW_LIMIT)
+    return np.rint(np.clip(a, -_DRAW_LIMIT, _DRAW_LIMIT)).astype(np.int32).reshape(-1, 1, 2)
+
+
 def debug_overlay(frame: np.ndarray, obs, psi: np.ndarray) -> np.ndarray:
     """BGR overlay: the catheter mask tinted, the ordered centreline (green), the fitted
     curve (red), control points (yellow), base (blue) and tip (magenta) ends."""
@@ -158,17 +153,17 @@ def debug_overlay(frame: np.ndarray, obs, psi: np.ndarray) -> np.ndarray:
         sub[obs.mask > 0] = (0.5 * sub[obs.mask > 0] + np.array([0, 60, 120])).astype(np.uint8)
     if obs.ok:
         from catheter_shape.camera import psi_to_pixels
-        pts = np.rint(obs.pixels * 4).astype(np.int32).reshape(-1, 1, 2)
-        cv2.polylines(img, [pts], False, (0, 200, 0), 1, cv2.LINE_AA, 2)
+        cv2.polylines(img, [_draw_points(obs.pixels, 2)], False, (0, 200, 0), 1, cv2.LINE_AA, 2)
         curve = bezier_eval(obs.control_points, np.linspace(0, 1, 100))
-        cpx = psi_to_pixels(psi, curve)
-        cv2.polylines(img, [np.rint(cpx * 4).astype(np.int32).reshape(-1, 1, 2)], False,
-                      (0, 0, 255), 1, cv2.LINE_AA, 2)
-        for q in psi_to_pixels(psi, obs.control_points):
-            cv2.circle(img, (int(round(q[0])), int(round(q[1]))), 4, (0, 220, 220), 1, cv2.LINE_AA)
-        cv2.circle(img, tuple(int(round(x)) for x in obs.base_px), 5, (255, 0, 0), 2)
-        cv2.circle(img, tuple(int(round(x)) for x in obs.tip_px), 5, (255, 0, 255), 2)
-        txt = f'ok  residual {obs.residual * 1e3:.3f} mm  {obs.timings.get("total", 0) * 1e3:.1f} ms'
+        cv2.polylines(img, [_draw_points(psi_to_pixels(psi, curve), 2)], False, (0, 0, 255), 1,
+                      cv2.LINE_AA, 2)
+        for q in _draw_points(psi_to_pixels(psi, obs.control_points)).reshape(-1, 2):
+            cv2.circle(img, (int(q[0]), int(q[1])), 4, (0, 220, 220), 1, cv2.LINE_AA)
+        for p, colour in ((obs.base_px, (255, 0, 0)), (obs.tip_px, (255, 0, 255))):
+            q = _draw_points([p]).reshape(2)
+            cv2.circle(img, (int(q[0]), int(q[1])), 5, colour, 2)
+        txt = (f'ok  residual {obs.residual * 1e3:.3f} mm  '
+               f'{obs.timings.get("total", 0) * 1e3:.1f} ms')
     else:
         txt = f'{obs.status}: {obs.message}'[:80]
     cv2.putText(img, txt, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 255, 255), 1, cv2.LINE_AA)
@@ -178,53 +173,13 @@ def debug_overlay(frame: np.ndarray, obs, psi: np.ndarray) -> np.ndarray:
 class ShapeNode(Node):
     """Image -> control points (see the module docstring)."""
 
+    PARAMS = PARAMS
+
     def __init__(self, **kwargs):
         super().__init__('shape_node', **kwargs)
-        psi = self._declare_array('psi', DEFAULT_PSI,
-                                  'camera calibration matrix PSI (Eq. 1), 12 numbers row-major '
-                                  '3x4: (x, y, z) [m, catheter_base] = PSI (u, v, 0, 1) [pixels]')
-        threshold = declare(self, 'threshold', 132,
-                            'grey threshold (8 bit): the catheter is darker than this after '
-                            'background removal (thesis: 132)', 1, 255)
-        base_px = self._declare_array('base_px', DEFAULT_BASE_PX,
-                                      'pixel (u, v) of the clamp / catheter base (ints or '
-                                      'doubles; default: the system camera\'s, with the default '
-                                      'psi); [-1, -1] = unknown (the base is the centreline '
-                                      'end nearest the image border)')
-        bg_file = declare(self, 'background_file', '',
-                          'optional PNG of the scene without the catheter (background removal)')
-        method = declare(self, 'method', 'fixed', 'threshold method', choices=METHODS)
-        period = declare(self, 'period', 0.005,
-                         'processing timer period, s (node clock): the newest frame is '
-                         'processed, older unprocessed ones are dropped', 0.001, 1.0)
-        self._path_max = declare(self, 'path_poses', 100,
-                                 'largest number of poses in /catheter/shape', 2, 10000)
-        degree = declare(self, 'degree', 3, 'Bezier degree (3: the 4 control points of the '
-                                            'thesis; force_estimator expects 3)', 1, 8)
-        base_constraint = declare(self, 'base_constraint', 'none',
-                                  'Bezier base constraint (needs base_px): none (thesis), '
-                                  'point (p0 at the clamp), tangent (p0 at the clamp, p1 '
-                                  'along +x)', choices=('none', 'point', 'tangent'))
-        if len(psi) != 12:
-            raise ValueError(f'parameter psi needs 12 values, got {len(psi)}')
-        base = None
-        if len(base_px) != 2:
-            raise ValueError(f'parameter base_px needs 2 values, got {len(base_px)}')
-        if base_px[0] >= 0 and base_px[1] >= 0:
-            base = (float(base_px[0]), float(base_px[1]))
-        background = None
-        if bg_file:
-            background = cv2.imread(bg_file, cv2.IMREAD_GRAYSCALE)
-            if background is None:
-                self.get_logger().error(f'cannot read background_file {bg_file!r}: running '
-                                        'without background removal')
-        self._psi = np.asarray(psi, dtype=float).reshape(3, 4)
-        if base is None and base_constraint != 'none':
-            self.get_logger().warning('base_constraint needs base_px: using none')
-            base_constraint = 'none'
-        self.sensor = ShapeSensor(self._psi, threshold=threshold, background=background,
-                                  base_px=base, method=method, degree=degree,
-                                  base_constraint=base_constraint)
+        self.params = p = NodeParams(self, PARAMS, apply=self._apply_params)
+        self._path_max = p['path_poses']
+        self.sensor, self._psi = self._build_sensor(p.values, strict=False)
         self.diag = Diagnostics(self)
         for k in ('frames', 'processed', 'dropped', 'idle', 'published', 'bad_messages') + \
                 tuple('fail_' + s for s in STATUSES if s != 'ok'):
@@ -232,32 +187,58 @@ class ShapeNode(Node):
         qos_in = QoSProfile(history=Q.QOS_SENSOR.history, depth=Q.QOS_SENSOR.depth,
                             reliability=Q.QOS_SENSOR.reliability,
                             durability=Q.QOS_SENSOR.durability)
-        self.sub = self.create_subscription(Image, T.CAMERA_IMAGE, self._on_image, qos_in)
-        self.pub_cp = self.create_publisher(PoseArray, T.CONTROL_POINTS, Q.QOS_SENSOR)
-        self.pub_path = self.create_publisher(Path, T.SHAPE, Q.QOS_DEFAULT)
-        self.pub_debug = self.create_publisher(Image, T.SHAPE_DEBUG_IMAGE, Q.QOS_SENSOR)
+        self.sub = self.create_subscription(Image, T.relative(T.CAMERA_IMAGE), self._on_image,
+                                            qos_in)
+        self.pub_cp = self.create_publisher(PoseArray, T.relative(T.CONTROL_POINTS),
+                                            Q.QOS_SENSOR)
+        self.pub_path = self.create_publisher(Path, T.relative(T.SHAPE), Q.QOS_DEFAULT)
+        self.pub_debug = self.create_publisher(Image, T.relative(T.SHAPE_DEBUG_IMAGE),
+                                               Q.QOS_SENSOR)
         self._pending: Optional[Image] = None
-        self._timer = self.create_timer(period, self._process)
+        self._timer = self.create_timer(p['period'], self._process)
         self._last_obs = None
         self.get_logger().info(
-            f'shape_node: {T.CAMERA_IMAGE} -> {T.CONTROL_POINTS}, {T.SHAPE}; threshold '
-            f'{threshold} ({method}), base_px {base}, background '
+            f'shape_node: {self.sub.topic_name} -> {self.pub_cp.topic_name}, '
+            f'{self.pub_path.topic_name}; threshold {p["threshold"]} ({p["method"]}), base_px '
+            f'{self.sensor.base_px}, background '
             f'{"yes" if self.sensor.background is not None else "no"}, '
             f'{self.sensor._m_per_px * 1e3:.4f} mm/px')
 
-    def _declare_array(self, name: str, default, description: str):
-        """A numeric array parameter that accepts integer or double lists (dynamic typing:
-        YAML writes [51, 240] and [51.2, 240.0] differently). Returns floats."""
-        desc = ParameterDescriptor(description=description, dynamic_typing=True)
-        value = self.declare_parameter(name, default, desc).value
-        try:
-            out = [float(v) for v in value]
-        except (TypeError, ValueError):
-            raise ValueError(f'parameter {name} must be a list of numbers, got {value!r}') \
-                from None
-        if not all(np.isfinite(out)):
-            raise ValueError(f'parameter {name} has non-finite values: {value!r}')
-        return out
+    def _build_sensor(self, values, strict: bool):
+        """(ShapeSensor, psi 3x4) for the parameter values. A background_file that cannot be
+        read: ValueError when `strict` (a runtime change), else logged and left out (at start
+        the camera may not have written it yet)."""
+        base_px = values['base_px']
+        base = (base_px[0], base_px[1]) if base_px[0] >= 0 and base_px[1] >= 0 else None
+        background = None
+        bg_file = values['background_file']
+        if bg_file:
+            background = cv2.imread(bg_file, cv2.IMREAD_GRAYSCALE)
+            if background is None:
+                if strict:
+                    raise ValueError(f'cannot read background_file {bg_file!r}')
+                self.get_logger().error(f'cannot read background_file {bg_file!r}: running '
+                                        'without background removal')
+        constraint = values['base_constraint']
+        if base is None and constraint != 'none':
+            if strict:
+                raise ValueError(f'base_constraint {constraint} needs base_px')
+            self.get_logger().warning('base_constraint needs base_px: using none')
+            constraint = 'none'
+        psi = np.asarray(values['psi'], dtype=float).reshape(3, 4)
+        sensor = ShapeSensor(psi, threshold=values['threshold'], background=background,
+                             base_px=base, method=values['method'], degree=values['degree'],
+                             base_constraint=constraint)
+        return sensor, psi
+
+    def _apply_params(self, changes, values) -> None:
+        if _SENSOR_KEYS & set(changes):
+            self.sensor, self._psi = self._build_sensor(values, strict=True)
+        if 'period' in changes:
+            self._timer.timer_period_ns = int(round(values['period'] * 1e9))
+            self._timer.reset()          # the new period counts from now
+        if 'path_poses' in changes:
+            self._path_max = values['path_poses']
 
     def _on_image(self, msg: Image) -> None:
         self.diag.count('frames')
@@ -273,9 +254,7 @@ class ShapeNode(Node):
         try:
             frame = image_to_array(msg)
         except ValueError as exc:
-            self.diag.count('bad_messages')
-            self.diag.error(f'bad image: {exc}')
-            self.get_logger().warning(f'bad image message: {exc}', throttle_duration_sec=5.0)
+            self.diag.bad_input('image', str(exc))
             return
         want_debug = self.pub_debug.get_subscription_count() > 0
         if not want_debug and self.pub_cp.get_subscription_count() == 0 and \
@@ -283,7 +262,12 @@ class ShapeNode(Node):
             self.diag.count('idle')         # nobody listens: skip the heavy work
             return
         self.sensor.keep_mask = want_debug
-        obs = self.sensor.process(frame)
+        try:
+            obs = self.sensor.process(frame)
+        except (ValueError, cv2.error) as exc:    # the sensor should say 'bad_input' itself
+            self.diag.count('sensor_errors')
+            self.diag.bad_input('image', f'the shape sensor failed on it: {exc!r}'[:300])
+            return
         self._last_obs = obs
         self.diag.count('processed')
         stamp = msg.header.stamp
@@ -295,9 +279,10 @@ class ShapeNode(Node):
             self.diag.set('residual_mm', obs.residual * 1e3)
         else:
             self.diag.count('fail_' + obs.status)
-            self.diag.error(f'{obs.status}: {obs.message}')
-            self.get_logger().warning(f'no catheter shape: {obs.status} ({obs.message})',
-                                      throttle_duration_sec=5.0)
+            self.diag.event('no_shape', WARN, f'no catheter shape: {obs.status} '
+                            f'({obs.message})')
+            self.diag.log_limited('no_shape', f'no catheter shape: {obs.status} '
+                                  f'({obs.message})')
         if want_debug:
             self.pub_debug.publish(array_to_image(debug_overlay(frame, obs, self._psi), stamp,
                                                   T.FRAME_CAMERA))

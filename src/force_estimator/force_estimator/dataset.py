@@ -203,6 +203,48 @@ def render_control_points(centerlines, seed: int = 0, progress: bool = False,
     return (out, ok, times) if return_timing else (out, ok)
 
 
+def styled_control_points(centerlines, styles=None, seed: int = 0, width: int = 640,
+                          height: int = 480, length: float = BLAZER_LENGTH,
+                          background: bool = True, progress: bool = False):
+    """Control points through the image pipeline on a family of camera styles
+    (catheter_shape.styles): frame i is drawn in style styles[i % len(styles)] (default the
+    styles the sensor was tuned on, catheter_shape.styles.TUNING_STYLES) with randomised
+    physics and geometry, the clamp always in view (the learned models cover curves that
+    start at the clamp; others are outside their domain), and measured by ShapeSensor given
+    the calibration (psi, base_px), the catheter length and (background=True) the style's
+    background frame.
+
+    centerlines: (B, k, 2) m. Returns (control_points (B, 4, 3) m, ok (B,) bool, style
+    (B,) int index into styles, hidden (B,) m of the tip under tissue); frames the sensor
+    refuses give ok False and NaN control points."""
+    from catheter_shape import ShapeSensor
+    from catheter_shape.styles import TUNING_STYLES, render_style, style_params
+    styles = tuple(TUNING_STYLES if styles is None else styles)
+    c = np.asarray(centerlines, dtype=float)
+    if c.ndim != 3 or c.shape[2] not in (2, 3) or not np.isfinite(c).all():
+        raise ValueError(f'centerlines must be finite with shape (B, k, 2|3), got {c.shape}')
+    rng = np.random.default_rng(seed)
+    out = np.full((len(c), 4, 3), np.nan)
+    ok = np.zeros(len(c), bool)
+    sty = np.arange(len(c)) % len(styles)
+    hidden = np.zeros(len(c))
+    it = range(len(c))
+    if progress:
+        from tqdm import tqdm
+        it = tqdm(it, desc='styles+sense', unit='frame', leave=False)
+    for i in it:
+        p = style_params(styles[sty[i]], rng)
+        p.update(base_out=False)            # the clamp in view: the curve starts at the base
+        f = render_style(styles[sty[i]], c[i], rng=rng, width=width, height=height, params=p)
+        hidden[i] = f.hidden_tip
+        obs = ShapeSensor(f.psi, background=f.background if background else None,
+                          base_px=f.base_px, length=length).process(f.image)
+        if obs.ok:
+            out[i] = obs.control_points
+            ok[i] = True
+    return out, ok, sty, hidden
+
+
 def make_dataset(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI,
                  n_arcs: int = N_ARCS, point_noise: float = 0.0, render: bool = False,
                  test_frac: float = 0.3, seed: int = 0, progress: bool = True,

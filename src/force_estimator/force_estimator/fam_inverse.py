@@ -52,9 +52,19 @@ last force evaluated there, whose FAM shape is kept, so a streamed frame often n
 single new solve) and, when that fails to fit, the nearest entry of a table of FAM shapes
 precomputed over the force range (both bending directions), looked up only then.
 
+A weak prior on the force (`FORCE_PRIOR`, the force range, per component) keeps the
+iteration where the shape says nothing: an axial pull leaves an inextensible catheter
+straight, and without the prior the iteration drifted along that flat direction to the
+edge of its search (straight control points gave 0.675 N); with it the axial component
+stays near 0 and its uncertainty says that it is unknown.
+
 Confidence: `residual`, the RMS point distance (m) between the observed curve and the
-best FAM shape. A result is `in_envelope` when the iteration converged, the residual is
-below `max_residual` and |f| <= f_max.
+best FAM shape, and the force's covariance from the Jacobian at the solution
+(force_estimator.uncertainty: `SHAPE_NOISE` per point, or the residual when larger). The
+result's status: 'not_converged'; 'no_fit' (residual above `max_residual`);
+'out_of_envelope' (|f| > f_max: the force is scaled back to f_max); else 'ok' or
+'axial_unobservable' (the weakest direction's std above 0.03 N); `in_envelope` is True
+for the last two.
 """
 from __future__ import annotations
 
@@ -64,27 +74,31 @@ from typing import Optional
 
 import numpy as np
 
-from force_estimator.models import control_points_to_features
+from force_estimator.estimate import (DOMAIN_UNKNOWN, ForceEstimate, bounded, classify,
+                                      domain_distance, failed_estimate)
+from force_estimator.inputs import control_points_to_features
+from force_estimator.inputs import check_control_points
+from force_estimator.uncertainty import (ALIGN_SIGMA, FORCE_PRIOR, SHAPE_NOISE,
+                                         STRETCH_SIGMA, force_covariance)
 
-#: prior width of the arc-length offset of the observed curve's start, m
-ALIGN_SIGMA = 1e-3
 #: Jacobian variants: analytic force columns (default) or forward differences
 SOLVERS = ('analytic', 'single', 'batch')
-#: prior width of the relative stretch of the observed curve's arc length
-STRETCH_SIGMA = 0.02
 
 
 @dataclass
-class FamInverseResult:
-    """One estimate: force (2,) N, residual (RMS point distance to the FAM shape, m), iterations,
-    FAM solves used, converged (LM step below tolerance), in_envelope (converged, residual
-    below max_residual and |force| <= f_max)."""
-    force: np.ndarray
-    residual: float
-    iterations: int
-    solves: int
-    converged: bool
-    in_envelope: bool
+class FamInverseResult(ForceEstimate):
+    """One estimate (a ForceEstimate, method 'fam') and the inversion's details: residual
+    (RMS point distance to the FAM shape, m), iterations, FAM solves used, converged (LM step
+    below tolerance). in_envelope: the estimate is normal (converged, residual below
+    max_residual, |force| <= f_max)."""
+    residual: float = float('nan')
+    iterations: int = 0
+    solves: int = 0
+    converged: bool = False
+
+    @property
+    def in_envelope(self) -> bool:
+        return self.normal
 
 
 class FamInverseEstimator:
@@ -224,7 +238,7 @@ class FamInverseEstimator:
         ap = np.clip(x[2] + (1.0 + x[3]) * self._a, 0.0, self.length)
         frac = ap / self.length
         n = self.n_points
-        J = np.zeros((2 * n + 2, 4))
+        J = np.zeros((2 * n + 4, 4))
         if self.solver == 'analytic':
             base = self._solve_base(f)
             if base is None:
@@ -292,12 +306,16 @@ class FamInverseEstimator:
         """Residual, Jacobian (force columns already in J) and cost from the FAM points P0
         (n_points, 2) m and unit tangents T (n_points, 2) at the compared arc lengths."""
         n = self.n_points
+        w = self._w
         r = np.concatenate([(P0 - obs).reshape(-1),
-                            [x[2] / ALIGN_SIGMA * self._w, x[3] / STRETCH_SIGMA * self._w]])
+                            [x[2] / ALIGN_SIGMA * w, x[3] / STRETCH_SIGMA * w,
+                             x[0] / FORCE_PRIOR * w, x[1] / FORCE_PRIOR * w]])
         J[:2 * n, 2] = T.reshape(-1)
         J[:2 * n, 3] = (T * self._a[:, None]).reshape(-1)
-        J[2 * n, 2] = self._w / ALIGN_SIGMA
-        J[2 * n + 1, 3] = self._w / STRETCH_SIGMA
+        J[2 * n, 2] = w / ALIGN_SIGMA
+        J[2 * n + 1, 3] = w / STRETCH_SIGMA
+        J[2 * n + 2, 0] = w / FORCE_PRIOR
+        J[2 * n + 3, 1] = w / FORCE_PRIOR
         cost = float(r @ r)
         if not (np.isfinite(cost) and np.isfinite(J).all()):
             return r, J, np.inf
@@ -314,7 +332,7 @@ class FamInverseEstimator:
         n0 = self._n_solves
         r, J, cost = self._eval(x, obs)
         if not np.isfinite(cost):
-            return x, x, np.inf, 0, self._n_solves - n0, False
+            return x, x, np.inf, 0, self._n_solves - n0, False, None
         xe = x                                   # the last x with a FAM solve behind it
         mu = 1e-4
         converged = False
@@ -346,12 +364,34 @@ class FamInverseEstimator:
                 if small:                        # no descent left at the tolerance scale
                     converged = True
                     break
-        shape_cost = float(r[:-2] @ r[:-2])
-        return x, xe, shape_cost, it, self._n_solves - n0, converged
+        n2 = 2 * self.n_points
+        shape_cost = float(r[:n2] @ r[:n2])
+        return x, xe, shape_cost, it, self._n_solves - n0, converged, J[:n2].copy()
 
     def estimate(self, control_points) -> FamInverseResult:
-        """Full result for one observation: control_points (4, 3) m (z ignored)."""
-        obs = self.observed_points(control_points)
+        """Full result for one observation: control_points (4, 3) m (z ignored), or (4, 2).
+
+        Raises ValueError (naming control_points) for a wrong shape; non-finite or absurd
+        (> 1 m) coordinates, or a curve of zero length, give a result with the status
+        'non_finite_input' / 'bad_input' and force 0."""
+        bad = check_control_points(control_points)
+        if bad is not None:
+            status, msg = bad
+            r = failed_estimate(status, 'fam', msg, self.f_max)
+            out = FamInverseResult(**{k: getattr(r, k) for k in
+                                      ('force', 'covariance', 'status', 'method', 'primary',
+                                       'domain_distance', 'message')})
+            self.last_result = out
+            return out
+        try:
+            obs = self.observed_points(control_points)
+        except ValueError as exc:
+            r = failed_estimate('bad_input', 'fam', str(exc), self.f_max)
+            out = FamInverseResult(force=r.force, covariance=r.covariance, status='bad_input',
+                                   method='fam', primary='fam', domain_distance=DOMAIN_UNKNOWN,
+                                   message=str(exc))
+            self.last_result = out
+            return out
         starts = []
         if self._last is not None:
             # analytic: from the last evaluated point, whose FAM shape is cached (saves the
@@ -372,23 +412,48 @@ class FamInverseEstimator:
                 continue
             if kind == 'table':
                 self._prev_shape = None        # a far warm start could pick another branch
-            x, xe, cost, it, solves, conv = self._solve(obs, f0)
+            x, xe, cost, it, solves, conv, J = self._solve(obs, f0)
             total += solves
             res = float(np.sqrt(cost / self.n_points))
             if best is None or res < best[1]:
-                best = (x, res, it, conv, xe)
+                best = (x, res, it, conv, xe, J)
             if conv and res <= 0.5 * self.max_residual:
                 break
-        x, res, it, conv, xe = best
-        f = x[:2].copy()
-        inside = bool(conv and res <= self.max_residual and np.hypot(*f) <= self.f_max)
+        x, res, it, conv, xe, J = best
         if np.isfinite(res):
             self._last = x.copy()
             self._last_eval = xe.copy()
-        out = FamInverseResult(force=np.asarray(f, dtype=float), residual=res, iterations=it,
-                               solves=total, converged=bool(conv), in_envelope=inside)
+        out = self._result(x[:2], res, it, total, conv, J)
         self.last_result = out
         return out
+
+    def _result(self, f, res, it, solves, conv, J) -> FamInverseResult:
+        """The estimate from the best solution: force bounded by f_max, covariance from the
+        Jacobian (shape noise SHAPE_NOISE per point, or the fit residual when larger)."""
+        force, clipped = bounded(f, self.f_max)
+        if J is not None and np.isfinite(res) and np.all(np.isfinite(J)):
+            try:
+                cov = force_covariance(J, max(SHAPE_NOISE, res), FORCE_PRIOR)
+            except np.linalg.LinAlgError:
+                cov = np.eye(2) * FORCE_PRIOR ** 2
+        else:
+            cov = np.eye(2) * FORCE_PRIOR ** 2
+        if not conv:
+            status, msg = 'not_converged', 'the FAM inversion did not converge'
+        elif not res <= self.max_residual:
+            status, msg = 'no_fit', (f'no tip force explains the shape: residual '
+                                     f'{1e3 * res:.3f} mm > {1e3 * self.max_residual:.3f} mm')
+        elif clipped:
+            status, msg = 'out_of_envelope', (f'|f| = {np.hypot(*f):.3g} N > f_max '
+                                              f'{self.f_max:g} N (scaled back)')
+        else:
+            status, msg = classify(cov), ''
+        dist = domain_distance(res / self.max_residual if np.isfinite(res) else np.inf)
+        return FamInverseResult(force=force, covariance=cov, status=status, method='fam',
+                                primary='fam', domain_distance=dist, message=msg,
+                                residual=res, iterations=it, solves=solves,
+                                converged=bool(conv))
+
     @property
     def last_residual(self) -> float:
         """Residual of the last estimate, m (nan before the first)."""
@@ -400,9 +465,12 @@ class FamInverseEstimator:
         return_flags: also return in_envelope (bool or (B,) bool)."""
         x = np.asarray(control_points, dtype=float)
         if x.ndim == 3:
+            for xi in x:
+                self.observed_points(xi)               # ValueError before any estimate
             res = [self.estimate(xi) for xi in x]
             F = np.array([r.force for r in res]).reshape(-1, 2)
             flags = np.array([r.in_envelope for r in res], dtype=bool)
             return (F, flags) if return_flags else F
+        self.observed_points(x)             # ValueError for bad input (predict's contract)
         r = self.estimate(x)
         return (r.force, r.in_envelope) if return_flags else r.force

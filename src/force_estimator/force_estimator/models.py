@@ -23,24 +23,56 @@ metrics. Arrays: ``x_mean``, ``x_scale`` (12,), ``y_mean``, ``y_scale`` (2,),
 ``sv`` (n, 12), ``coef`` (n, 2), ``gamma`` (n,), ``intercept`` (2,); for mlp ``W0``,
 ``b0``, ``W1``, ``b1``, ...
 
+Format version 2 adds: ``domain_X`` (n, 12) and ``domain_Y`` (n, 2) float32, the reference
+training inputs of the domain check (force_estimator.domain) and their forces, and ``obs_angles``, ``obs_magnitudes``, ``obs_cov``,
+the observability table (force_estimator.uncertainty); the header adds ``domain``
+(threshold), ``model_cov`` (2x2 N^2, the validation error covariance of the model on
+observable inputs) and ``selftest`` (inputs and the outputs the model gave for them when it
+was written).
+
 The training envelope: a prediction is *in the envelope* when every raw feature lies in
 the training range widened by `ENVELOPE_MARGIN` of that range (at least
 `ENVELOPE_MIN_PAD` m) and the predicted force magnitude is at most
 ``(1 + ENVELOPE_MARGIN)`` times the largest training magnitude (plus 1 mN). Outside,
-the model is extrapolating and the result is flagged, never silently trusted.
+the model is extrapolating and the result is flagged, never silently trusted; and it is
+BOUNDED: the features are clipped into the envelope box before the forward pass (a ReLU
+network cannot extrapolate to kilonewtons from a bounded box) and the force's magnitude is
+clipped to the envelope's (`ForceModel.f_bound`).
+
+Validation on load (`ForceModel(...)`, `load_model`): every array finite; the stored
+training range plausible (0 < max force <= `MAX_PLAUSIBLE_FORCE`, the envelope box within
+`MAX_COORD` m); the largest output the weights can produce over the envelope box (interval
+arithmetic through the layers, or the sum of the SVR's coefficients) at most
+`MAX_OUTPUT_RATIO` times the trained force; and the self-test: the stored inputs give the
+stored outputs (a file with weights x 1e6, or 1e200, is refused).
+
+`ForceModel.estimate(cp)` returns a `force_estimator.estimate.ForceEstimate`: the bounded
+force, its covariance (the observability table at the estimate or at the training force of
+one of the input's 8 nearest neighbours, whichever is the least determined, plus the model's
+own error),
+the status ('out_of_domain' beyond the domain check, 'out_of_envelope' when the output was
+clipped, 'non_finite_input' / 'bad_input', else 'ok' or 'axial_unobservable') and the domain
+distance.
 """
 from __future__ import annotations
 
 import importlib.resources
 import json
 import os
+import zipfile
 from typing import Dict, Optional, Tuple
 
 import numpy as np
 
+from force_estimator.domain import DomainCheck
+from force_estimator.estimate import (ForceEstimate, bounded, classify, domain_distance,
+                                      failed_estimate)
+from force_estimator.inputs import (MAX_COORD, N_FEATURES, check_control_points,
+                                    control_points_to_features)
+from force_estimator.uncertainty import FORCE_PRIOR, ObservabilityTable
+
 FORMAT = 'force_estimator.model'
-FORMAT_VERSION = 1
-N_FEATURES = 12
+FORMAT_VERSION = 2
 N_TARGETS = 2
 TARGET_NAMES = ('fx', 'fy')
 SHIPPED_MODELS = ('blazer-svr', 'blazer-mlp')
@@ -48,31 +80,24 @@ SHIPPED_MODELS = ('blazer-svr', 'blazer-mlp')
 ENVELOPE_MARGIN = 0.05
 #: minimal absolute widening of a feature's training range, m (pixel-noise scale)
 ENVELOPE_MIN_PAD = 5e-4
-
-
-def control_points_to_features(control_points) -> np.ndarray:
-    """Validate control points and flatten them to features.
-
-    control_points: (4, 3) or (B, 4, 3) m (a planar (4, 2) / (B, 4, 2) input gets z = 0).
-    Returns (12,) or (B, 12) float64. Raises ValueError (naming `control_points`) on a
-    wrong shape or non-finite values.
-    """
-    x = np.asarray(control_points, dtype=float)
-    if x.ndim < 2 or x.ndim > 3 or x.shape[-2] != 4 or x.shape[-1] not in (2, 3):
-        raise ValueError(f'control_points must have shape (4, 3) or (B, 4, 3), got {x.shape}')
-    if x.shape[-1] == 2:
-        x = np.concatenate([x, np.zeros(x.shape[:-1] + (1,))], axis=-1)
-    if not np.isfinite(x).all():
-        raise ValueError('control_points contain non-finite values')
-    return x.reshape(x.shape[:-2] + (N_FEATURES,))
+#: largest trained force magnitude a model file may claim, N
+MAX_PLAUSIBLE_FORCE = 10.0
+#: largest output the weights may produce over the envelope box, times the trained force
+#: (a rigorous but loose bound: an RBF SVR's is the sum of its |coefficients|; weights of
+#: 1e200 exceed it, tampered weights of plausible size are caught by the self-test)
+MAX_OUTPUT_RATIO = 1e6
 
 
 class ForceModel:
-    """A trained force model: scaling, the numpy forward pass and the training envelope.
+    """A trained force model: scaling, the numpy forward pass, the training envelope, the
+    domain check and the uncertainty.
 
     Use `predict(control_points)` ((4, 3) -> (2,) N; (B, 4, 3) -> (B, 2) N), or
     `predict(..., return_flags=True)` -> (forces, in_envelope) with in_envelope a bool
-    (single) or (B,) bool array.
+    (single) or (B,) bool array; forces are bounded (see the module docstring).
+    `estimate(control_points)` -> ForceEstimate (one sample, with covariance and status).
+    Raises ValueError naming the array when the model's arrays are inconsistent,
+    non-finite or implausible (see the module docstring).
     """
 
     def __init__(self, kind: str, arrays: Dict[str, np.ndarray], header: Optional[dict] = None,
@@ -85,23 +110,33 @@ class ForceModel:
         self.header.setdefault('kind', kind)
         self.arrays = {k: np.ascontiguousarray(v, dtype=float) for k, v in arrays.items()}
         a = self.arrays
+        for key, v in a.items():
+            if not np.isfinite(v).all():
+                raise ValueError(f'model array {key!r} is not finite')
         for key, shape in (('x_mean', (N_FEATURES,)), ('x_scale', (N_FEATURES,)),
                            ('y_mean', (N_TARGETS,)), ('y_scale', (N_TARGETS,)),
                            ('env_lo', (N_FEATURES,)), ('env_hi', (N_FEATURES,))):
             if key not in a or a[key].shape != shape:
                 raise ValueError(f'model array {key!r} must have shape {shape}')
-            if not np.isfinite(a[key]).all():
-                raise ValueError(f'model array {key!r} is not finite')
         if (a['x_scale'] <= 0).any() or (a['y_scale'] <= 0).any():
             raise ValueError('model scales must be positive')
+        if (a['env_hi'] < a['env_lo']).any() or np.abs(a['env_lo']).max() > MAX_COORD \
+                or np.abs(a['env_hi']).max() > MAX_COORD:
+            raise ValueError(f'model arrays "env_lo"/"env_hi" must be a box within '
+                             f'{MAX_COORD} m')
         self._xm = a['x_mean']
         self._xis = 1.0 / a['x_scale']
         self._ym = a['y_mean']
         self._ys = a['y_scale']
         self._lo = a['env_lo']
         self._hi = a['env_hi']
-        self.max_force = float(self.header.get('envelope', {}).get('max_force', np.inf))
-        self._fmax2 = ((1.0 + ENVELOPE_MARGIN) * self.max_force + 1e-3) ** 2
+        self.max_force = float(self.header.get('envelope', {}).get('max_force', np.nan))
+        if not (np.isfinite(self.max_force) and 0 < self.max_force <= MAX_PLAUSIBLE_FORCE):
+            raise ValueError(f'model header envelope.max_force must be in (0, '
+                             f'{MAX_PLAUSIBLE_FORCE}] N, got {self.max_force!r}')
+        #: the largest force magnitude the model returns, N
+        self.f_bound = (1.0 + ENVELOPE_MARGIN) * self.max_force + 1e-3
+        self._fmax2 = self.f_bound ** 2
         if kind == 'svr':
             for key in ('sv', 'coef', 'gamma', 'intercept'):
                 if key not in a:
@@ -115,6 +150,8 @@ class ForceModel:
             n = self._sv.shape[0]
             if self._coef.shape != (n, N_TARGETS) or self._gamma.shape != (n,):
                 raise ValueError('svr arrays "coef" (n, 2) and "gamma" (n,) do not match "sv"')
+            if (self._gamma <= 0).any():
+                raise ValueError('svr array "gamma" must be positive')
             self._sv2 = np.einsum('ij,ij->i', self._sv, self._sv)
             self._ng = -self._gamma
             self._sv2g = -self._gamma * self._sv2
@@ -135,9 +172,65 @@ class ForceModel:
             if width != N_TARGETS:
                 raise ValueError('mlp output layer must have 2 units')
             self._layers = layers
-        for key, v in a.items():
-            if not np.isfinite(v).all():
-                raise ValueError(f'model array {key!r} is not finite')
+        bound = self.output_bound()
+        if not bound <= MAX_OUTPUT_RATIO * self.max_force:
+            raise ValueError(f'model weights can produce {bound:.3g} N over the training '
+                             f'envelope, more than {MAX_OUTPUT_RATIO:g} x the trained '
+                             f'{self.max_force:g} N: implausible weights')
+        self._selftest()
+        self.domain = DomainCheck.from_model(a, self.header)
+        self.table = (ObservabilityTable.from_arrays(a) if 'obs_cov' in a else None)
+        # the table at every reference input's training force, once (estimate() takes the
+        # least determined of its neighbours')
+        self._ref_cov = self._ref_weak = None
+        if self.table is not None and self.domain is not None \
+                and self.domain.targets is not None:
+            self._ref_cov = self.table.lookup(self.domain.targets)
+            self._ref_weak = np.linalg.eigvalsh(self._ref_cov)[:, -1]
+        mc = np.asarray(self.header.get('model_cov', np.zeros((2, 2))), dtype=float)
+        if mc.shape != (2, 2) or not np.isfinite(mc).all() \
+                or np.linalg.eigvalsh(0.5 * (mc + mc.T))[0] < -1e-12:
+            raise ValueError('model header model_cov must be a finite PSD 2x2 covariance')
+        self.model_cov = 0.5 * (mc + mc.T)
+
+    # -- validation -----------------------------------------------------------------------
+    def output_bound(self) -> float:
+        """An upper bound (N) of |each force component| the weights can produce for inputs
+        in the envelope box (interval arithmetic; for an SVR the sum of |coefficients|)."""
+        if self.kind == 'svr':
+            std = np.abs(self._coef).sum(axis=0) + np.abs(self._b)
+        else:
+            lo = (self._lo - self._xm) * self._xis
+            hi = (self._hi - self._xm) * self._xis
+            last = len(self._layers) - 1
+            for i, (W, b) in enumerate(self._layers):
+                Wp, Wn = np.maximum(W, 0.0), np.minimum(W, 0.0)
+                lo, hi = lo @ Wp + hi @ Wn + b, hi @ Wp + lo @ Wn + b
+                if i < last:
+                    lo, hi = np.maximum(lo, 0.0), np.maximum(hi, 0.0)
+            std = np.maximum(np.abs(lo), np.abs(hi))
+        with np.errstate(over='ignore', invalid='ignore'):
+            out = std * self._ys + np.abs(self._ym)
+        return float(np.max(out)) if np.all(np.isfinite(out)) else float('inf')
+
+    def _selftest(self) -> None:
+        st = self.header.get('selftest')
+        if not st:
+            return
+        X = np.asarray(st.get('features'), dtype=float)
+        Y = np.asarray(st.get('forces'), dtype=float)
+        if X.ndim != 2 or X.shape[1] != N_FEATURES or Y.shape != (X.shape[0], N_TARGETS):
+            raise ValueError('model header selftest must hold features (k, 12) and forces (k, 2)')
+        got = self._forward((X - self._xm) * self._xis) * self._ys + self._ym
+        if not np.allclose(got, Y, rtol=1e-6, atol=1e-9):
+            raise ValueError('model self-test failed: the stored inputs do not give the stored '
+                             'forces (the weights were changed after training)')
+
+    def make_selftest(self, X: np.ndarray) -> None:
+        """Store inputs X (k, 12) and the model's outputs for them in the header."""
+        X = np.asarray(X, dtype=float)
+        Y = self._forward((X - self._xm) * self._xis) * self._ys + self._ym
+        self.header['selftest'] = dict(features=X.tolist(), forces=Y.tolist())
 
     # -- forward passes in standardised units ------------------------------------------
     def _forward(self, z: np.ndarray) -> np.ndarray:
@@ -176,7 +269,7 @@ class ForceModel:
 
     # -- public API -----------------------------------------------------------------------
     def predict_features(self, features, return_flags: bool = False):
-        """features: (12,) or (B, 12) raw features (m) -> (2,) or (B, 2) N."""
+        """features: (12,) or (B, 12) raw features (m) -> (2,) or (B, 2) N (bounded)."""
         x = np.asarray(features, dtype=float)
         if x.shape[-1:] != (N_FEATURES,) or x.ndim > 2:
             raise ValueError(f'features must have shape (12,) or (B, 12), got {x.shape}')
@@ -185,24 +278,30 @@ class ForceModel:
         return self._predict_valid(x, return_flags)
 
     def _predict_valid(self, x: np.ndarray, return_flags: bool):
+        xc = np.clip(x, self._lo, self._hi)          # bounded: no extrapolation
         if x.ndim == 1:
-            y = self._forward1((x - self._xm) * self._xis) * self._ys + self._ym
+            y = self._forward1((xc - self._xm) * self._xis) * self._ys + self._ym
+            y2 = float(y @ y)
+            ok = bool(y2 <= self._fmax2)
+            if not ok:
+                y = y * np.sqrt(self._fmax2 / y2)
             if not return_flags:
                 return y
-            ok = bool((x >= self._lo).all() and (x <= self._hi).all()
-                      and y @ y <= self._fmax2)
-            return y, ok
-        y = self._forward((x - self._xm) * self._xis) * self._ys + self._ym
+            return y, ok and bool((x == xc).all())
+        y = self._forward((xc - self._xm) * self._xis) * self._ys + self._ym
+        y2 = np.einsum('ij,ij->i', y, y)
+        ok = y2 <= self._fmax2
+        if not ok.all():
+            y[~ok] *= np.sqrt(self._fmax2 / y2[~ok])[:, None]
         if not return_flags:
             return y
-        ok = ((x >= self._lo) & (x <= self._hi)).all(axis=1)
-        ok &= np.einsum('ij,ij->i', y, y) <= self._fmax2
-        return y, ok
+        return y, ok & (x == xc).all(axis=1)
 
     def predict(self, control_points, return_flags: bool = False):
         """Tip force from Bezier control points.
 
         control_points: (4, 3) m -> (2,) N (fx, fy) in catheter_base; (B, 4, 3) -> (B, 2).
+        The force is bounded: |f| <= f_bound whatever the input (see the module docstring).
         return_flags: also return in_envelope (bool, or (B,) bool): False when the input
         lies outside the training envelope or the force exceeds the trained range.
         Raises ValueError (naming `control_points`) on wrong shapes or non-finite values.
@@ -219,6 +318,67 @@ class ForceModel:
         """True where the input lies inside the training envelope (and the force in range)."""
         return self.predict(control_points, return_flags=True)[1]
 
+    def _domain(self, x: np.ndarray):
+        """(domain distance, indices of the k nearest reference inputs) of features x
+        (12,): the distance
+        is the larger of the nearest-neighbour distance over its threshold
+        (force_estimator.domain) and, outside the envelope box, 1 + how far outside (over the
+        box's padding); <= 1 inside. Files without a domain reference: 0 inside the box."""
+        out = np.maximum(self._lo - x, x - self._hi)
+        pad = np.maximum(ENVELOPE_MARGIN * (self._hi - self._lo) / (1 + 2 * ENVELOPE_MARGIN),
+                         ENVELOPE_MIN_PAD)
+        box = 1.0 + float(np.max(out / pad)) if (out > 0).any() else 0.0
+        if self.domain is None:
+            return box, None
+        d, idx = self.domain.neighbours(x)
+        return max(d / self.domain.threshold, box), idx
+
+    def domain_distance(self, control_points) -> float:
+        """The input's distance beyond the training domain (0 inside; see _domain and
+        force_estimator.estimate.domain_distance)."""
+        return domain_distance(self._domain(control_points_to_features(control_points))[0])
+
+    def covariance(self, force, neighbours=None) -> np.ndarray:
+        """Covariance (2, 2) N^2 of an estimate `force`: the observability table (the
+        shape's information about the force) at the estimate or at the training force of one
+        of the input's nearest reference inputs (indices `neighbours`), whichever is the
+        least determined, plus the model's own error covariance."""
+        if self.table is None:
+            return np.eye(2) * FORCE_PRIOR ** 2
+        C = self.table.lookup(force)
+        if neighbours is not None and self._ref_weak is not None and len(neighbours):
+            j = neighbours[int(np.argmax(self._ref_weak[neighbours]))]
+            if self._ref_weak[j] > np.linalg.eigvalsh(C)[-1]:
+                C = self._ref_cov[j]
+        return C + self.model_cov
+
+    def estimate(self, control_points) -> ForceEstimate:
+        """One estimate with uncertainty and status (see force_estimator.estimate).
+
+        control_points: (4, 3) m (or (4, 2)). Raises ValueError for a wrong shape only;
+        non-finite or absurd inputs give a failed estimate (force 0, status)."""
+        bad = check_control_points(control_points)
+        if bad is not None:
+            return failed_estimate(bad[0], self.kind, bad[1], self.f_bound)
+        x = control_points_to_features(control_points)
+        ratio, nb = self._domain(x)
+        raw = self._forward1((np.clip(x, self._lo, self._hi) - self._xm) * self._xis) \
+            * self._ys + self._ym
+        force, clipped = bounded(raw, self.f_bound)
+        cov = self.covariance(force, nb)
+        if not ratio <= 1.0:
+            status = 'out_of_domain'
+            msg = (f'the control points are {ratio:.3g} x the domain threshold from the '
+                   f'training inputs')
+        elif clipped:
+            status, msg = 'out_of_envelope', (f'the model gave |f| = {np.hypot(*raw):.3g} N '
+                                              f'> {self.f_bound:.3g} N (scaled back)')
+        else:
+            status, msg = classify(cov), ''
+        return ForceEstimate(force=force, covariance=cov, status=status, method=self.kind,
+                             primary=self.kind, domain_distance=domain_distance(ratio),
+                             message=msg)
+
     def save(self, path: str) -> str:
         """Write the model as .npz (arrays + JSON header; no pickle). Returns the path."""
         path = os.fspath(path)
@@ -226,7 +386,11 @@ class ForceModel:
             path += '.npz'
         header = dict(self.header)
         header.update(format=FORMAT, version=FORMAT_VERSION, kind=self.kind)
-        np.savez(path, header=np.array(json.dumps(header, sort_keys=True)), **self.arrays)
+        arrays = dict(self.arrays)
+        for k in ('domain_X', 'domain_Y'):
+            if k in arrays:
+                arrays[k] = arrays[k].astype(np.float32)
+        np.savez(path, header=np.array(json.dumps(header, sort_keys=True)), **arrays)
         return path
 
     def __repr__(self) -> str:
@@ -242,11 +406,19 @@ def load_model(path) -> ForceModel:
         raise ValueError(f'path must name a .npz model file, got {path!r}')
     if not os.path.isfile(path):
         raise ValueError(f'path {path!r} does not exist')
-    with np.load(path, allow_pickle=False) as data:
-        if 'header' not in data.files:
-            raise ValueError(f'path {path!r} is not a force_estimator model (no header)')
-        header = json.loads(str(data['header'][()]))
-        arrays = {k: np.array(data[k]) for k in data.files if k != 'header'}
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            files = list(data.files) if hasattr(data, 'files') else None
+            if files is not None and 'header' in files:
+                header = json.loads(str(data['header'][()]))
+                arrays = {k: np.array(data[k]) for k in files if k != 'header'}
+    except (OSError, EOFError, ValueError, KeyError, AttributeError, TypeError,
+            zipfile.BadZipFile) as exc:
+        raise ValueError(f'path {path!r} is not a readable model file: {exc}') from None
+    if files is None or 'header' not in files:
+        raise ValueError(f'path {path!r} is not a force_estimator model (no header)')
+    if not isinstance(header, dict):
+        raise ValueError(f'path {path!r} has a header that is not a JSON object')
     if header.get('format') != FORMAT:
         raise ValueError(f'path {path!r} is not a force_estimator model file')
     if int(header.get('version', -1)) > FORMAT_VERSION:

@@ -1,26 +1,34 @@
 """Rebuild the shipped default models: ``python -m force_estimator.train``.
 
-Recipe (deterministic, seeded; about a minute on one core):
+Recipe (deterministic, seeded; a few minutes on a shared 2-core machine):
 
-1. The thesis data set: the 16 x 25 grid of tip forces on the Blazer II-XP catheter, FAM
-   shapes, Bezier control points, 70:30 split. An SVR and the thesis MLP are trained on the
-   70 % and scored on the 30 % (the thesis's own test: SVR MAE 0.010 N, MLP 0.0113 N).
-2. The shipped training set: the thesis grid (its 70 % part, without the pure-tension row:
-   a straight catheter looks the same under any axial pull) plus `--n-random` random forces
-   (magnitude uniform in [0, 0.3] N, angle uniform in [pi/16, pi]: near-pure pulls are
-   unobservable and tip contact forces push) plus 30 frames of the unloaded catheter (so a
-   straight catheter reads 0 N instead of the mean of all pulls); half of the random frames
-   have 0-5 mm of the tip hidden by tissue (as in the thesis's ex-vivo frames; without it the
-   learned models lose 10x accuracy when the tip is hidden); every case also mirrored
-   (fy -> -fy) so both bending directions are covered; features through the camera path
-   (`--features render`: synthetic camera + ShapeSensor, the default when catheter_shape
-   provides it) or the Bezier fit of the FAM centreline with Gaussian point noise
-   (`--features noise`).
+1. The thesis experiment: the 16 x 25 grid of tip forces on the Blazer II-XP catheter, FAM
+   shapes, Bezier control points of the exact centrelines, 70:30 split. An SVR and the
+   thesis MLP are trained on the 70 % and scored on the 30 % (the thesis's own test: SVR MAE
+   0.010 N, MLP 0.0113 N). Reported only.
+2. The shipped training set, of the quality the camera path produces: `--n-random` tip
+   forces over the whole force range and every direction (magnitude uniform in [0, 0.3] N,
+   angle uniform in [-pi, pi)) plus `N_ZERO` (300) unloaded catheters; FAM shapes (48 circular
+   arcs); each drawn by one of the camera styles the sensor was tuned on
+   (catheter_shape.styles.TUNING_STYLES: randomised physics, geometry and noise, tissue over
+   the tip in the occluded style) and measured by ShapeSensor with the calibration, the
+   background frame and the catheter length (`--features styles`, the default). Frames the
+   sensor refuses are dropped. 15 % of the cases are held out for calibration; the rest is
+   mirrored (y -> -y, fy -> -fy). Axial pulls stay in: they are unobservable, the models
+   learn their conditional mean and the covariance says so.
 3. SVR (RBF, C = 100, epsilon and gamma by validation) -> ``blazer-svr``; the thesis MLP
-   (10 ReLU) and a larger MLP (32, 32): whichever validates better -> ``blazer-mlp``.
+   (10 ReLU) and a larger MLP (64, 64; L2 1e-3, 2000 L-BFGS iterations): whichever does
+   better on the held-out cases -> ``blazer-mlp``.
+4. Calibration on the held-out 15 % (force_estimator.training.calibrate): the domain check
+   (reference = the training inputs, threshold from the held-out inputs), the observability
+   table of the catheter (force_estimator.uncertainty.build_table), the model's own error
+   covariance on observable held-out cases, the self-test; and a report of the FAM
+   inversion's covariance calibration on held-out frames (the mean normalised squared error
+   should be about 2).
 
 Models are written to ``--out`` (default: the package's ``models/`` folder) as .npz files
-(arrays + JSON header; no pickle).
+(arrays + JSON header; no pickle). `--features render|noise|exact` are the older recipes
+(the system camera only; the FAM centreline with point noise; exact centrelines).
 """
 from __future__ import annotations
 
@@ -31,17 +39,21 @@ import time
 import numpy as np
 
 from force_estimator import dataset as D
-from force_estimator.training import fit_mlp, fit_svr
+from force_estimator.training import calibrate, fit_mlp, fit_svr
 
 DEFAULT_OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'models')
 #: pixel-like noise of the centreline points for --features noise, m
 POINT_NOISE = 5e-5
-#: smallest force angle of the random set, rad (the pull cone below is unobservable)
-ANGLE_MIN = np.pi / 16
-#: frames of the unloaded catheter in the training set
-N_ZERO = 30
-#: largest tip length hidden by tissue in the augmented random frames, m
-TISSUE_MAX = 0.005
+#: frames of the unloaded catheter in the training set: a straight catheter looks the same
+#: under no force and under any axial pull, and a learned model answers the training set's
+#: average of those; with 40 unloaded frames the shipped models read a straight catheter as
+#: a 19-31 mN pull (the Experiment II image estimate at rest), with 300 the unloaded frames
+#: outweigh the near-axial pulls
+N_ZERO = 300
+#: fraction of the cases held out for calibration
+VAL_FRAC = 0.15
+#: FAM inversions run on held-out frames to report the covariance calibration
+N_FAM_CHECK = 120
 
 
 def _mae(model, X, Y) -> float:
@@ -57,13 +69,13 @@ FINGERPRINT_FORCES = ((0.0, 0.05), (-0.1, 0.15), (0.1, 0.2))
 
 
 def camera_path_fingerprint(features: str = 'render') -> dict:
-    """Control points the feature path gives for three fixed shapes. Stored in the model
-    header: if `catheter_shape` changes its segmentation or fit later, the features move
-    (cubic control points are sensitive to the fit) and the models must be retrained;
+    """Control points the system camera's path gives for three fixed shapes. Stored in the
+    model header: if `catheter_shape` changes its segmentation or fit later, the features
+    move (cubic control points are sensitive to the fit) and the models must be retrained;
     `fingerprint_drift` measures that."""
     F = np.array(FINGERPRINT_FORCES)
     cls, _ = D.fam_centerlines(F)
-    if features == 'render':
+    if features in ('render', 'styles'):
         cp, _ = D.render_control_points(cls, seed=0)
     else:
         cp = D.fit_control_points(cls)
@@ -84,19 +96,84 @@ def fingerprint_drift(model) -> float:
 def has_camera() -> bool:
     try:
         from catheter_shape import ShapeSensor, SyntheticCamera  # noqa: F401
+        from catheter_shape.styles import render_style  # noqa: F401
         return True
     except ImportError:
         return False
 
 
-def build(out: str = DEFAULT_OUT, n_random: int = 1000, features: str = 'auto',
+def full_range_forces(n: int, seed: int, f_max: float = D.F_MAX) -> np.ndarray:
+    """N_ZERO unloaded cases then n forces: magnitude uniform in [0, f_max], angle uniform in
+    [-pi, pi)."""
+    rng = np.random.default_rng(seed)
+    mag = rng.uniform(0.0, f_max, n)
+    ang = rng.uniform(-np.pi, np.pi, n)
+    return np.concatenate([np.zeros((N_ZERO, 2)),
+                           np.stack([mag * np.cos(ang), mag * np.sin(ang)], axis=1)])
+
+
+def training_set(n_random: int, features: str, seed: int, progress: bool) -> dict:
+    """Control points X (n, 12), forces Y (n, 2) and the held-out mask of the recipe."""
+    F = full_range_forces(n_random, seed + 7)
+    cls, conv = D.fam_centerlines(F, progress=progress)
+    if features == 'styles':
+        cp, ok, style, hidden = D.styled_control_points(cls, seed=seed + 7, progress=progress)
+    elif features == 'render':
+        cp, ok = D.render_control_points(cls, seed=seed + 7, progress=progress)
+        style, hidden = np.zeros(len(F), int), np.zeros(len(F))
+    else:
+        cp = D.fit_control_points(cls, point_noise=POINT_NOISE if features == 'noise' else 0.0,
+                                  seed=seed + 7, progress=progress)
+        ok = np.ones(len(F), bool)
+        style, hidden = np.zeros(len(F), int), np.zeros(len(F))
+    keep = ok & conv
+    rng = np.random.default_rng(seed + 1)
+    val = rng.random(len(F)) < VAL_FRAC
+    return dict(X=cp.reshape(-1, 12), Y=F, keep=keep, val=val, style=style, hidden=hidden,
+                n_requested=len(F), n_refused=int((conv & ~ok).sum()),
+                n_not_converged=int((~conv).sum()))
+
+
+def _mirror(X, Y):
+    flip = np.tile([1.0, -1.0, 1.0], 4)
+    return np.concatenate([X, X * flip]), np.concatenate([Y, Y * [1.0, -1.0]])
+
+
+def fam_calibration(X_val, Y_val, seed: int = 0, n: int = N_FAM_CHECK) -> dict:
+    """The FAM inversion (24 arcs) on up to n held-out frames: MAE, and the mean normalised
+    squared error e^T C^-1 e of its observable estimates (2 when the covariance is right)."""
+    from fam_solver import Catheter
+
+    from force_estimator.fam_inverse import FamInverseEstimator
+    fam = FamInverseEstimator(Catheter(length=D.BLAZER_LENGTH, ei=D.BLAZER_EI), n_arcs=24)
+    idx = np.random.default_rng(seed).permutation(len(X_val))[:n]
+    q, err, normal = [], [], 0
+    for i in idx:
+        fam.reset()
+        e = fam.estimate(X_val[i].reshape(4, 3))
+        if not e.normal:
+            continue
+        normal += 1
+        d = e.force - Y_val[i]
+        err.append(float(np.hypot(*d)))
+        if e.status == 'ok':
+            q.append(float(d @ np.linalg.solve(e.covariance, d)))
+    q = np.array(q)
+    return dict(n=int(len(idx)), normal=normal, mae_n=float(np.mean(err)) if err else None,
+                n_observable=int(len(q)), mean_nsq=float(q.mean()) if len(q) else None,
+                coverage95=float(np.mean(q < 5.991)) if len(q) else None)
+
+
+def build(out: str = DEFAULT_OUT, n_random: int = 2400, features: str = 'auto',
           seed: int = 0, progress: bool = True, verbose: bool = True,
-          tissue_frac: float = 0.5) -> dict:
-    """Run the recipe; returns a report dict (metrics, hyper-parameters, times, paths)."""
+          data_cache: str = '') -> dict:
+    """Run the recipe; returns a report dict (metrics, hyper-parameters, times, paths).
+    data_cache: a .npz file holding the training set: read if it exists (and was made with
+    the same n_random, features and seed), else written after generating it."""
     if features == 'auto':
-        features = 'render' if has_camera() else 'noise'
-    if features not in ('render', 'noise', 'exact'):
-        raise ValueError(f'features must be render, noise or exact, got {features!r}')
+        features = 'styles' if has_camera() else 'noise'
+    if features not in ('styles', 'render', 'noise', 'exact'):
+        raise ValueError(f'features must be styles, render, noise or exact, got {features!r}')
     say = print if verbose else (lambda *a, **k: None)
     rep = dict(features=features, n_random=n_random, seed=seed)
     t0 = time.perf_counter()
@@ -115,39 +192,37 @@ def build(out: str = DEFAULT_OUT, n_random: int = 1000, features: str = 'auto',
     say(f'thesis grid ({tr.sum()} train / {te.sum()} test), per-component MAE on the test part: '
         f'SVR {rep["thesis_grid"]["svr_test_mae_n"]:.4f} N, '
         f'MLP {rep["thesis_grid"]["mlp_test_mae_n"]:.4f} N (thesis: 0.010 N, 0.0113 N)')
-    t_data0 = time.perf_counter()
 
     # 2. the shipped training set
-    render = features == 'render'
-    noise = POINT_NOISE if features == 'noise' else 0.0
-    # angles from pi/16: a pull along the catheter leaves it straight whatever its size, so the
-    # pull cone is unobservable; contact forces push. The unloaded catheter gets N_ZERO
-    # independent noisy frames so that "straight" reads 0 N.
-    F = np.concatenate([np.zeros((N_ZERO, 2)),
-                        D.random_forces(n_random, seed=seed + 7, angle_range=(ANGLE_MIN, np.pi),
-                                        include_zero=False)])
-    depth = 0.0
-    if render and tissue_frac > 0:
-        rng = np.random.default_rng(seed + 11)
-        depth = np.where(rng.random(len(F)) < tissue_frac,
-                         rng.uniform(0.0, TISSUE_MAX, len(F)), 0.0)
-        depth[:N_ZERO] = 0.0
-    rnd = D.make_dataset(F, point_noise=noise, render=render, seed=seed + 7, progress=progress,
-                         name='random', mirror=True, tissue_depth=depth)
-    gridm = D.make_dataset(D.thesis_grid(), point_noise=noise, render=render, seed=seed,
-                           progress=progress, name='thesis-grid', mirror=True)
-    # the grid's pure-tension row (angle 0) is dropped: a straight catheter looks the same for
-    # every axial pull, so those cases are identical inputs with different targets
-    use = (gridm['split'] == 0) & (np.abs(np.sin(gridm['angle'])) > 1e-9)
-    X = np.concatenate([rnd['X'], gridm['X'][use]])
-    Y = np.concatenate([rnd['Y'], gridm['Y'][use]])
+    t_data0 = time.perf_counter()
+    key = np.array([n_random, seed, ('styles', 'render', 'noise', 'exact').index(features),
+                    N_ZERO])
+    ds = None
+    if data_cache and os.path.isfile(data_cache):
+        with np.load(data_cache, allow_pickle=False) as d:
+            if np.array_equal(d['key'], key):
+                ds = {k: np.array(d[k]) for k in d.files if k != 'key'}
+                ds['n_refused'] = int(ds['n_refused'])
+        say(f'training set from {data_cache}' if ds is not None else
+            f'{data_cache} holds another recipe: regenerating')
+    if ds is None:
+        ds = training_set(n_random, features, seed, progress)
+        if data_cache:
+            np.savez(data_cache, key=key, **{k: np.asarray(v) for k, v in ds.items()})
+    k, v = ds['keep'], ds['val']
+    X, Y = _mirror(ds['X'][k & ~v], ds['Y'][k & ~v])
+    Xv, Yv = ds['X'][k & v], ds['Y'][k & v]
     rep['data_time_s'] = time.perf_counter() - t_data0
-    rep['n_train'] = int(len(X))
-    say(f'training set: {len(X)} cases ({features} features, mirrored), '
-        f'generated in {rep["data_time_s"]:.1f} s')
-    extra = dict(dataset=dict(features=features, point_noise=noise, n_random=n_random,
-                              seed=seed, mirror=True, tissue_frac=tissue_frac,
-                              tissue_max=TISSUE_MAX,
+    rep['n_train'], rep['n_val'] = int(len(X)), int(len(Xv))
+    rep['n_refused_by_sensor'] = ds['n_refused']
+    say(f'training set: {len(X)} cases ({features} features, mirrored), {len(Xv)} held out; '
+        f'{ds["n_refused"]} frames refused by the sensor; generated in '
+        f'{rep["data_time_s"]:.1f} s')
+    from catheter_shape.styles import TUNING_STYLES
+    extra = dict(dataset=dict(features=features, n_random=n_random, n_zero=N_ZERO, seed=seed,
+                              mirror=True, val_frac=VAL_FRAC,
+                              styles=list(TUNING_STYLES) if features == 'styles' else None,
+                              force_range='magnitude U[0, 0.3] N, angle U[-pi, pi)',
                               catheter=dict(length=D.BLAZER_LENGTH, ei=D.BLAZER_EI)),
                  camera_path_fingerprint=camera_path_fingerprint(features))
 
@@ -158,17 +233,37 @@ def build(out: str = DEFAULT_OUT, n_random: int = 1000, features: str = 'auto',
                       n_sv=int(svr.arrays['sv'].shape[0]))
     say(f'SVR: {rep["svr"]}')
     cands = {}
-    for name, hidden in (('thesis-10', (10,)), ('large-32x32', (32, 32))):
+    for name, hidden, alpha, iters in (('thesis-10', (10,), 1e-4, 1000),
+                                       ('large-64x64', (64, 64), 1e-3, 2000)):
         t = time.perf_counter()
-        m, r = fit_mlp(X, Y, hidden_layer_sizes=hidden, seed=seed, extra_header=extra,
-                       n_init=3 if hidden == (10,) else 1, max_iter=1000)
-        cands[name] = (m, dict(r['hyper'], fit_time_s=time.perf_counter() - t))
+        m, r = fit_mlp(X, Y, hidden_layer_sizes=hidden, alpha=alpha, seed=seed,
+                       extra_header=extra, n_init=3 if hidden == (10,) else 1, max_iter=iters)
+        cands[name] = (m, dict(r['hyper'], fit_time_s=time.perf_counter() - t,
+                               heldout_mae_n=_vec_mae(m, Xv, Yv)))
         say(f'MLP {name}: {cands[name][1]}')
-    win = min(cands, key=lambda k: cands[k][1]['val_mae_n'])
+    win = min(cands, key=lambda c: cands[c][1]['heldout_mae_n'])
     mlp = cands[win][0]
-    mlp.header['candidates'] = {k: v[1] for k, v in cands.items()}
+    mlp.header['candidates'] = {c: v[1] for c, v in cands.items()}
     mlp.header['chosen'] = win
-    rep['mlp'] = dict(chosen=win, candidates={k: v[1] for k, v in cands.items()})
+    rep['mlp'] = dict(chosen=win, candidates={c: v[1] for c, v in cands.items()})
+
+    # 4. calibration on the held-out cases
+    from fam_solver import Catheter
+
+    from force_estimator.uncertainty import SHAPE_NOISE, build_table
+    t = time.perf_counter()
+    table = build_table(Catheter(length=D.BLAZER_LENGTH, ei=D.BLAZER_EI))
+    rep['table_time_s'] = time.perf_counter() - t
+    for name, m in (('svr', svr), ('mlp', mlp)):
+        m.header['uncertainty'] = dict(shape_noise_m=SHAPE_NOISE, table='FAM Jacobian, 24 arcs, '
+                                       '24 points, see force_estimator.uncertainty')
+        rep[f'{name}_calibration'] = calibrate(m, X, Xv, Yv, table=table, seed=seed,
+                                               Y_train=Y)
+        say(f'{name} calibration: {rep[f"{name}_calibration"]}')
+    rep['fam_calibration'] = fam_calibration(Xv, Yv, seed=seed)
+    say(f'FAM inversion on held-out frames: {rep["fam_calibration"]}')
+    for m in (svr, mlp):
+        m.header['fam_calibration'] = rep['fam_calibration']
     os.makedirs(out, exist_ok=True)
     rep['paths'] = [svr.save(os.path.join(out, 'blazer-svr.npz')),
                     mlp.save(os.path.join(out, 'blazer-mlp.npz'))]
@@ -189,17 +284,18 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog='python -m force_estimator.train',
                                 description='Rebuild the shipped blazer-svr / blazer-mlp models.')
     p.add_argument('--out', default=DEFAULT_OUT, help='output folder (default: package models/)')
-    p.add_argument('--n-random', type=int, default=1000, help='random load cases (before mirroring)')
-    p.add_argument('--features', choices=('auto', 'render', 'noise', 'exact'), default='auto',
-                   help='render: synthetic camera + ShapeSensor; noise: FAM centreline + '
-                        'point noise; exact: FAM centreline')
+    p.add_argument('--n-random', type=int, default=2400, help='random load cases')
+    p.add_argument('--features', choices=('auto', 'styles', 'render', 'noise', 'exact'),
+                   default='auto',
+                   help='styles: the tuning camera styles + ShapeSensor (default); render: the '
+                        'system camera only; noise: FAM centreline + point noise; exact')
     p.add_argument('--seed', type=int, default=0)
-    p.add_argument('--tissue-frac', type=float, default=0.5,
-                   help='fraction of random frames with 0-5 mm of the tip hidden by tissue')
     p.add_argument('--quiet', action='store_true')
+    p.add_argument('--data-cache', default='', help='.npz file: reuse the training set '
+                   'if it exists (same recipe), else write it (saves minutes of rendering)')
     a = p.parse_args(argv)
     build_single_threaded(a.out, a.n_random, a.features, a.seed, progress=not a.quiet,
-                          verbose=not a.quiet, tissue_frac=a.tissue_frac)
+                          verbose=not a.quiet, data_cache=a.data_cache)
     return 0
 
 

@@ -201,6 +201,58 @@ def fit_mlp(X, Y, hidden_layer_sizes: Tuple[int, ...] = (10,), alpha: float = 1e
     return model, dict(hyper=hyper, table=table, fit_time_s=fit_time)
 
 
+def calibrate(model: ForceModel, X_train, X_val, Y_val, table=None, seed: int = 0,
+              n_selftest: int = 8, observable_std: float = None, Y_train=None) -> dict:
+    """Attach what a shipped model needs besides its weights, measured on held-out data
+    of the training distribution (X_val, Y_val, never trained on):
+
+    * the domain check (force_estimator.domain): reference = the training inputs (and their
+      forces Y_train, for the neighbours' spread), threshold from the held-out inputs'
+      nearest-neighbour distances;
+    * the observability table (force_estimator.uncertainty.ObservabilityTable, optional);
+    * model_cov: the covariance of the held-out errors where the force is observable (the
+      table's weakest std below `observable_std`, default UNOBSERVABLE_STD), without the 5 %
+      largest, i.e. the model's own error on top of what the shape cannot tell;
+    * the self-test: n_selftest training inputs and the model's outputs for them.
+
+    Modifies the model in place (arrays and header) and re-validates it by rebuilding it
+    from its arrays. Returns a report (domain threshold, model std, counts)."""
+    from force_estimator.domain import DomainCheck
+    from force_estimator.estimate import UNOBSERVABLE_STD
+    lim = UNOBSERVABLE_STD if observable_std is None else observable_std
+    X_train = np.asarray(X_train, dtype=float)
+    X_val = np.asarray(X_val, dtype=float)
+    Y_val = np.asarray(Y_val, dtype=float)
+    dc = DomainCheck.calibrate(X_train, X_val, seed=seed, Y_train=Y_train)
+    model.arrays.update(dc.arrays())
+    model.header['domain'] = dc.header()
+    if table is not None:
+        model.arrays.update(table.arrays())
+    P = model.predict_features(X_val)
+    E = P - Y_val
+    if table is not None:
+        weak = np.array([np.linalg.eigvalsh(table.lookup(f))[-1] for f in Y_val])
+        use = weak < lim ** 2
+    else:
+        use = np.ones(len(E), bool)
+    # trimmed: the 5 % largest errors (a few inputs far from any training input) would
+    # dominate the covariance of the typical estimate
+    if use.sum() > 20:
+        n = np.hypot(*E.T)
+        use &= n <= np.quantile(n[use], 0.95)
+    C = np.cov(E[use].T) if use.sum() > 2 else np.eye(2) * lim ** 2
+    model.header['model_cov'] = (0.5 * (C + C.T)).tolist()
+    idx = np.random.default_rng(seed).choice(len(X_train), min(n_selftest, len(X_train)),
+                                             replace=False)
+    model.make_selftest(X_train[idx])
+    rebuilt = ForceModel(model.kind, model.arrays, model.header, name=model.name)
+    model.__dict__.update({k: v for k, v in rebuilt.__dict__.items() if k != 'sklearn'})
+    return dict(domain_threshold_m=dc.threshold, model_std_n=np.sqrt(np.diag(C)).tolist(),
+                n_observable_val=int(use.sum()), n_val=int(len(E)),
+                val_mae_n=float(np.hypot(*E.T).mean()),
+                val_mae_observable_n=float(np.hypot(*E[use].T).mean()) if use.any() else None)
+
+
 def sklearn_predict(model: ForceModel, X) -> np.ndarray:
     """The scikit-learn prediction of a freshly trained model (for equivalence tests and
     benchmarks): X (B, 12) raw features -> (B, 2) N."""

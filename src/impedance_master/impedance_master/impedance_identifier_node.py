@@ -1,95 +1,121 @@
 """ROS 2 node `impedance_identifier_node` (slave side): identifies the catheter-vessel
 environment from the slave's joint states and publishes the model.
 
-Subscribes  /slave/joint_state  sensor_msgs/JointState: position[0] insertion m, velocity[0]
-                                m/s (optional: differentiated if absent), effort[0] measured
-                                insertion force N. QOS_FAST.
-Publishes   /slave/impedance    sensor_msgs/JointState used as stamped named float64 values:
-                                name = Impedance.to_fields() names (first 'm', 'c', 'k',
-                                'offset', 'valid'), position = values; header.frame_id
-                                catheter_base. At `publish_rate` Hz, QOS_FAST, while subscribed.
-            /diagnostics        samples, bad messages, published models, held estimates
-                                (status at_rest / ill_conditioned), solves, identifier status.
+Subscribes  slave/joint_state  sensor_msgs/JointState: position[0] insertion m, velocity[0]
+                               m/s (the thesis identifier differentiates x when it is absent;
+                               the default one refuses such a message), effort[0] measured
+                               insertion force N. QOS_FAST.
+Publishes   slave/impedance    sensor_msgs/JointState used as stamped named float64 values:
+                               name = Impedance.to_fields() names (first 'm', 'c', 'k',
+                               'offset', 'valid'), position = values; header.frame_id
+                               catheter_base. At `publish_rate` Hz, QOS_FAST, while subscribed.
+            /diagnostics       samples, bad messages, published models, held estimates
+                               (status at_rest / ill_conditioned), solves, identifier status;
+                               WARN while no model exists or the model is held, ERROR when it
+                               has been ill-conditioned for `stuck_after` s, WARN after bad
+                               messages.
 Parameters: identifier (default | thesis), window s, rate Hz (sample rate of the joint
-states), publish_rate Hz (50-1000), state_file (default identifier only: a JSON file of the
-learned information, loaded at start if it exists and written at shutdown, so the model
-keeps learning across sessions on the same phantom; '' = none). Every sample is learned from, subscribed or not (the
-default model learns from the whole history); publishing happens only while subscribed.
-Thin: the identification is impedance_master.identification.
+states), publish_rate Hz (50-1000, applies at run time), state_file (default identifier
+only: a JSON file of the learned information, loaded at start if it exists and written at
+shutdown, so the model keeps learning across sessions on the same phantom; '' = none; the
+core's StateFile: a file it rejects is never overwritten, the new state is written beside it,
+<stem>.<n>.json, and the rejection is a WARN). Every sample is learned from, subscribed or
+not (the default model learns from the whole history); publishing happens only while
+subscribed. Topic names are relative (the node's namespace applies). Thin: the
+identification is impedance_master.identification.
 """
 from __future__ import annotations
-
-import math
-import os
 
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from catheter_common.ros_node import Diagnostics, declare, run_node
-from catheter_common.topics import FRAME_CATHETER_BASE, SLAVE_IMPEDANCE, SLAVE_JOINT_STATE
+from catheter_common import topics as T
+from catheter_common.checks import first
+from catheter_common.diagnostics import ERROR, WARN, Diagnostics
+from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
+from catheter_common.ros_node import run_node
 from impedance_master.identification import SlidingWindowIdentifier, make_identifier
+from impedance_master.state_file import StateFile
+
+PARAMS = table(
+    Param('identifier', 'default', 'default: the history model (make_identifier); thesis: the '
+          'sliding-window linear fit of Eq. 34', choices=('default', 'thesis')),
+    Param('window', 1.0, 'identification window, s', 0.05, 10.0),
+    Param('rate', 1000.0, 'sample rate of slave/joint_state, Hz', 10.0, 10000.0),
+    Param('publish_rate', 1000.0, 'rate of slave/impedance, Hz', 50.0, 1000.0, dynamic=True),
+    Param('state_file', '', 'JSON file of the default identifier\'s learned state: loaded at '
+          'start if present, written at shutdown ("": none)'),
+    Param('stuck_after', 10.0, 'an identifier ill-conditioned this long is an ERROR, s',
+          0.1, 3600.0, dynamic=True),
+)
 
 
 class ImpedanceIdentifierNode(Node):
     """Slave-side identification node (see module doc)."""
 
+    PARAMS = PARAMS
+
     def __init__(self, **kwargs):
         super().__init__('impedance_identifier_node', **kwargs)
-        self.kind = declare(self, 'identifier', 'default',
-                            'default: the history model (make_identifier); thesis: the '
-                            'sliding-window linear fit of Eq. 34', choices=('default', 'thesis'))
-        window = declare(self, 'window', 1.0, 'identification window, s', 0.05, 10.0)
-        rate = declare(self, 'rate', 1000.0, 'sample rate of /slave/joint_state, Hz',
-                       10.0, 10000.0)
-        self.publish_rate = declare(self, 'publish_rate', 1000.0,
-                                    'rate of /slave/impedance, Hz', 50.0, 1000.0)
-        self.state_file = declare(self, 'state_file', '',
-                                  'JSON file of the default identifier\'s learned state: '
-                                  'loaded at start if present, written at shutdown ("": none)')
+        self.params = p = NodeParams(self, PARAMS, apply=self._apply_params)
+        self.kind = p['identifier']
+        window, rate = p['window'], p['rate']
+        self.publish_rate = p['publish_rate']
+        self.state_file = p['state_file']
         self.model = None
+        #: the learned state on disk (default identifier, state_file set): loaded now, saved
+        #: at close(); a file it rejects is kept and the new state goes beside it
+        self.sf = None
         if self.kind == 'thesis':
             self.ident = SlidingWindowIdentifier(window=window, rate=rate)
         else:
             self.ident = make_identifier(window=window, rate=rate)
-            if self.state_file and os.path.exists(self.state_file):
-                try:
-                    self.model = self.ident.load_state(self.state_file)
-                    self.get_logger().info(f'continuing from the learned state in '
-                                           f'{self.state_file} ({self.ident.n_moving} samples '
-                                           'of motion)')
-                except (OSError, ValueError) as exc:
-                    self.get_logger().warning(f'ignoring state file {self.state_file}: {exc}')
+            if self.state_file:
+                self.sf = StateFile(self.state_file)
+                self.model = self.sf.load(self.ident)
+                self._sf_message = self.sf.message
+                if self.sf.rejected:
+                    self.get_logger().warning(self.sf.message)
+                else:
+                    self.get_logger().info(self.sf.message)
         self._published_model = None
+        self._ill_since = None       # node-clock ns since when the status is ill_conditioned
         self.diag = Diagnostics(self)
-        self.pub = self.create_publisher(JointState, SLAVE_IMPEDANCE, QOS_FAST)
-        self.sub = self.create_subscription(JointState, SLAVE_JOINT_STATE, self._on_state,
-                                            QOS_FAST)
+        self.diag.count('bad_messages', 0)
+        self.pub = self.create_publisher(JointState, T.relative(T.SLAVE_IMPEDANCE), QOS_FAST)
+        self.sub = self.create_subscription(JointState, T.relative(T.SLAVE_JOINT_STATE),
+                                            self._on_state, QOS_FAST)
         self.timer = self.create_timer(1.0 / self.publish_rate, self._publish)
-        self._diag_timer = self.create_timer(1.0, self._to_diag)
+        self.diag.add_updater(self._to_diag)
         self.get_logger().info(
             f'identifying the environment ({self.kind} identifier, window {window:g} s at '
-            f'{rate:g} Hz) from {SLAVE_JOINT_STATE}; publishing {SLAVE_IMPEDANCE} at '
+            f'{rate:g} Hz) from {self.sub.topic_name}; publishing {self.pub.topic_name} at '
             f'{self.publish_rate:g} Hz')
 
-    def _bad(self, why: str) -> None:
-        self.diag.count('bad_messages')
-        self.diag.error(why)
-        self.get_logger().warning(f'bad joint state: {why}', throttle_duration_sec=2.0)
+    def _apply_params(self, changes, values) -> None:
+        if 'publish_rate' in changes:
+            self.publish_rate = values['publish_rate']
+            self.timer.timer_period_ns = int(round(1e9 / self.publish_rate))
+            self.timer.reset()          # the new period counts from now
 
     def _on_state(self, msg: JointState) -> None:
-        if len(msg.position) < 1 or len(msg.effort) < 1:
-            self._bad('position and effort must hold [insertion m, ...] and [force N, ...]')
-            return
-        x, f = msg.position[0], msg.effort[0]
-        xd = msg.velocity[0] if len(msg.velocity) >= 1 else None
-        if not (math.isfinite(x) and math.isfinite(f) and (xd is None or math.isfinite(xd))):
-            self._bad(f'non-finite values x={x!r} xd={xd!r} f={f!r}')
+        try:
+            x = first('position', msg.position)
+            f = first('effort', msg.effort)
+            xd = first('velocity', msg.velocity) if len(msg.velocity) else None
+            if xd is None and self.kind != 'thesis':
+                raise ValueError('velocity is empty (the default identifier needs it)')
+        except ValueError as exc:
+            self.diag.bad_input('joint_state', str(exc))
             return
         try:
             out = self.ident.update(x, xd, None, f)
-        except ValueError as exc:  # pragma: no cover - inputs are checked above
-            self._bad(str(exc))
+        except ValueError as exc:           # the identifier failed on a finite sample
+            self.diag.count('update_errors')
+            self.diag.event('update_error', ERROR, f'identification failed: {exc!r}')
+            self.diag.log_limited('update_error', f'identification failed on x={x!r} xd={xd!r} '
+                                  f'f={f!r}: {exc!r}', ERROR)
             return
         self.diag.count('samples')
         if out is not None:
@@ -105,7 +131,7 @@ class ImpedanceIdentifierNode(Node):
         fields = self.model.to_fields()
         msg = JointState()
         msg.header.stamp = self.get_clock().now().to_msg()
-        msg.header.frame_id = FRAME_CATHETER_BASE
+        msg.header.frame_id = T.FRAME_CATHETER_BASE
         msg.name = list(fields)
         msg.position = list(fields.values())
         self.pub.publish(msg)
@@ -113,20 +139,44 @@ class ImpedanceIdentifierNode(Node):
 
     def close(self) -> None:
         """Write the learned state (default identifier, state_file set)."""
-        if self.state_file and self.kind == 'default':
-            try:
-                self.ident.save_state(self.state_file)
-                self.get_logger().info(f'learned state written to {self.state_file}')
-            except OSError as exc:
-                self.get_logger().error(f'could not write {self.state_file}: {exc}')
+        if self.sf is None:
+            return
+        try:
+            written = self.sf.save(self.ident)
+        except (OSError, ValueError) as exc:
+            self.get_logger().error(f'could not write the learned state: {exc}')
+            return
+        if written:
+            self.get_logger().info(f'learned state written to {written}')
 
     def _to_diag(self) -> None:
-        self.diag.set('identifier', self.kind)
-        self.diag.set('status', self.ident.status)
-        self.diag.set('held_total', self.ident.n_held)
+        d = self.diag
+        status = self.ident.status
+        d.set('identifier', self.kind)
+        d.set('status', status)
+        d.set('held_total', self.ident.n_held)
         if self.model is not None:
-            self.diag.set('model_valid', str(self.model.valid))
-            self.diag.set('model_kind', 'table' if self.model.kind else 'linear')
+            d.set('model_valid', str(self.model.valid))
+            d.set('model_kind', 'table' if self.model.kind else 'linear')
+        for k in ('n_rejected', 'n_clipped', 'n_out_of_envelope'):
+            if hasattr(self.ident, k):
+                d.set(k[2:], getattr(self.ident, k))
+        if self.sf is not None and self.sf.rejected:
+            d.condition('state_file', WARN, self._sf_message)
+        d.condition('no_model', WARN if self.model is None or not self.model.valid else 0,
+                    f'no valid model yet (identifier {status})')
+        now = self.get_clock().now().nanoseconds
+        if status == 'ill_conditioned':
+            if self._ill_since is None:
+                self._ill_since = now
+            stuck = (now - self._ill_since) * 1e-9 >= self.params['stuck_after']
+            d.condition('held', ERROR if stuck else WARN,
+                        f'model held: ill-conditioned data for '
+                        f'{(now - self._ill_since) * 1e-9:.1f} s')
+        else:
+            self._ill_since = None
+            d.condition('held', WARN if status not in ('ok', 'filling') else 0,
+                        f'model held ({status})')
 
 
 NODE_CLASS = ImpedanceIdentifierNode

@@ -1,15 +1,17 @@
 """ROS 2 node `camera_node`: the slave's camera, 30 Hz frames of the catheter's distal end bent
 by the tip's wall-contact force.
 
-Subscribes  /slave/joint_state        sensor_msgs/JointState (position[0] insertion m,
-                                      velocity[0] m/s), QOS_FAST: the newest one is used
-Publishes   /camera/image_raw         sensor_msgs/Image mono8, frame camera_optical_frame,
-                                      sensor-data QoS (only while subscribed)
-            /camera/tip_force_truth   geometry_msgs/WrenchStamped, frame catheter_base: the tip
-                                      force the frame was drawn with (the truth for image-based
-                                      force estimation), same stamp as the image
-            /diagnostics              frames, FAM not converged, bad joint states
-Timer on the node clock (use_sim_time works). The shape node needs this camera's calibration:
+Subscribes  slave/joint_state        sensor_msgs/JointState (position[0] insertion m,
+                                     velocity[0] m/s), QOS_FAST: the newest one is used
+Publishes   camera/image_raw         sensor_msgs/Image mono8, frame camera_optical_frame,
+                                     sensor-data QoS (only while subscribed)
+            camera/tip_force_truth   geometry_msgs/WrenchStamped, frame catheter_base: the tip
+                                     force the frame was drawn with (the truth for image-based
+                                     force estimation), same stamp as the image
+            /diagnostics             frames, FAM not converged, bad joint states (WARN events)
+Timer on the node clock (use_sim_time works); `rate` applies at run time, the other
+parameters are fixed at start (they define the camera and the scene). Topic names are
+relative (the node's namespace applies). The shape node needs this camera's calibration:
 psi, base_px and the background (written to `background_file` if given) are logged at start.
 
 Thin: the physics (tip force, FAM, drawing) is in sim_slave.camera.TipCamera.
@@ -19,89 +21,101 @@ from __future__ import annotations
 import math
 from dataclasses import fields
 
-import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import Image, JointState
 
-from catheter_common.ros_node import Diagnostics, declare, run_node
-from catheter_common.topics import (CAMERA_IMAGE, FRAME_CAMERA, FRAME_CATHETER_BASE,
-                                    SLAVE_JOINT_STATE)
+from catheter_common import topics as T
+from catheter_common.checks import first
+from catheter_common.diagnostics import ERROR, WARN, Diagnostics
+from catheter_common.images import array_to_image
+from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST, QOS_SENSOR
+from catheter_common.ros_node import run_node
 from sim_slave.camera import BLAZER_EI, BLAZER_LENGTH, DEFAULT_CAMERA, TipCamera
 from sim_slave.vessel import VesselParams
 
-#: the tip force each frame was drawn with (ground truth of image-based estimation)
-from catheter_common.topics import CAMERA_TIP_FORCE_TRUTH  # noqa: E402  (re-exported)
+#: the tip force each frame was drawn with (re-exported for the tests that import it here)
+CAMERA_TIP_FORCE_TRUTH = T.CAMERA_TIP_FORCE_TRUTH
 _WALL_FIELDS = ('wall_depth', 'wall_stiffness', 'wall_exponent', 'wall_damping')
+
+PARAMS = table(
+    Param('rate', 30.0, 'frame rate, Hz', 0.1, 1000.0, dynamic=True),
+    Param('seed', 0, 'random seed (background texture, image noise)', 0, 2 ** 31 - 1),
+    Param('tip_force_angle', 2.0 * math.pi / 3.0, 'direction of the wall force on the tip in '
+          'catheter_base, rad', -2.0 * math.pi, 2.0 * math.pi),
+    Param('catheter.length', BLAZER_LENGTH, 'catheter length from clamp to tip, m', 0.005, 1.0),
+    Param('catheter.ei', BLAZER_EI, 'bending stiffness EI, N m^2', 1e-7, 1.0),
+    Param('n_arcs', 12, 'FAM arcs', 1, 500),
+    Param('camera.width', DEFAULT_CAMERA['width'], 'image width, px', 16, 8192),
+    Param('camera.height', DEFAULT_CAMERA['height'], 'image height, px', 16, 8192),
+    Param('camera.mm_per_px', DEFAULT_CAMERA['mm_per_px'], 'scale, mm per pixel', 0.001, 10.0),
+    Param('camera.base_px', [float(b) for b in DEFAULT_CAMERA['base_px']],
+          'pixel (u, v) of the clamp (catheter_base origin)', numbers=True, length=2),
+    Param('camera.noise', 4.0, 'image noise std, grey levels', 0.0, 100.0),
+    Param('background_file', '', 'if set, the background frame (no catheter) is written here '
+          'as PNG at start, for the shape node\'s background removal'),
+    *(Param('vessel.' + f, float(getattr(VesselParams(), f)),
+            f'vessel {f} (as sim_slave_node), SI', 0.0, 1e5) for f in _WALL_FIELDS),
+)
 
 
 class CameraNode(Node):
     """Renders the simulated catheter at a fixed rate from the newest slave joint state."""
 
+    PARAMS = PARAMS
+
     def __init__(self, **kwargs):
         super().__init__('camera_node', **kwargs)
-        rate = declare(self, 'rate', 30.0, 'frame rate, Hz', 0.1, 1000.0)
-        seed = declare(self, 'seed', 0, 'random seed (background texture, image noise)',
-                       0, 2 ** 31 - 1)
-        angle = declare(self, 'tip_force_angle', 2.0 * math.pi / 3.0,
-                        'direction of the wall force on the tip in catheter_base, rad',
-                        -2.0 * math.pi, 2.0 * math.pi)
-        length = declare(self, 'catheter.length', BLAZER_LENGTH,
-                         'catheter length from clamp to tip, m', 0.005, 1.0)
-        ei = declare(self, 'catheter.ei', BLAZER_EI, 'bending stiffness EI, N m^2', 1e-7, 1.0)
-        n_arcs = declare(self, 'n_arcs', 12, 'FAM arcs', 1, 500)
-        width = declare(self, 'camera.width', DEFAULT_CAMERA['width'], 'image width, px',
-                        16, 8192)
-        height = declare(self, 'camera.height', DEFAULT_CAMERA['height'], 'image height, px',
-                         16, 8192)
-        mm_per_px = declare(self, 'camera.mm_per_px', DEFAULT_CAMERA['mm_per_px'],
-                            'scale, mm per pixel', 0.001, 10.0)
-        base_px = declare(self, 'camera.base_px', [float(b) for b in DEFAULT_CAMERA['base_px']],
-                          'pixel (u, v) of the clamp (catheter_base origin)')
-        noise = declare(self, 'camera.noise', 4.0, 'image noise std, grey levels', 0.0, 100.0)
-        bg_file = declare(self, 'background_file', '',
-                          'if set, the background frame (no catheter) is written here as PNG '
-                          'at start, for the shape node\'s background removal')
+        self.params = p = NodeParams(self, PARAMS, apply=self._apply_params)
+        rate = p['rate']
+        width, height = p['camera.width'], p['camera.height']
+        base_px = p['camera.base_px']
+        bg_file = p['background_file']
         defaults = VesselParams()
-        wall = {f: declare(self, 'vessel.' + f, float(getattr(defaults, f)),
-                           f'vessel {f} (as sim_slave_node), SI', 0.0, 1e5)
-                for f in _WALL_FIELDS}
-        if len(base_px) != 2:
-            raise ValueError(f'camera.base_px needs 2 values, got {list(base_px)}')
-        vp = VesselParams(**{f.name: wall.get(f.name, getattr(defaults, f.name))
+        vp = VesselParams(**{f.name: p.values.get('vessel.' + f.name, getattr(defaults, f.name))
                              for f in fields(VesselParams)})
-        self.camera = TipCamera(vp, force_angle=angle, length=length, ei=ei, n_arcs=n_arcs,
-                                camera=dict(width=width, height=height, mm_per_px=mm_per_px,
-                                            base_px=tuple(base_px), noise=noise),
-                                seed=seed)
+        self.camera = TipCamera(vp, force_angle=p['tip_force_angle'], length=p['catheter.length'],
+                                ei=p['catheter.ei'], n_arcs=p['n_arcs'],
+                                camera=dict(width=width, height=height,
+                                            mm_per_px=p['camera.mm_per_px'],
+                                            base_px=tuple(base_px), noise=p['camera.noise']),
+                                seed=p['seed'])
         if bg_file:
             import cv2
             if not cv2.imwrite(bg_file, self.camera.camera.background):
                 raise ValueError(f'background_file {bg_file!r} cannot be written')
         self.x, self.xd = 0.0, 0.0
         self.diag = Diagnostics(self)
-        self.pub_image = self.create_publisher(Image, CAMERA_IMAGE, QOS_SENSOR)
-        self.pub_truth = self.create_publisher(WrenchStamped, CAMERA_TIP_FORCE_TRUTH, QOS_SENSOR)
-        self.sub = self.create_subscription(JointState, SLAVE_JOINT_STATE, self._on_state,
-                                            QOS_FAST)
+        self.diag.count('bad_messages', 0)
+        self.pub_image = self.create_publisher(Image, T.relative(T.CAMERA_IMAGE), QOS_SENSOR)
+        self.pub_truth = self.create_publisher(WrenchStamped,
+                                               T.relative(T.CAMERA_TIP_FORCE_TRUTH), QOS_SENSOR)
+        self.sub = self.create_subscription(JointState, T.relative(T.SLAVE_JOINT_STATE),
+                                            self._on_state, QOS_FAST)
         self.timer = self.create_timer(1.0 / rate, self._tick)
         psi = ', '.join(f'{v:.9g}' for v in self.camera.psi.reshape(-1))
         self.get_logger().info(
-            f'camera {width}x{height} at {rate:g} Hz: {SLAVE_JOINT_STATE} -> wall force on the tip '
-            f'({angle:.3f} rad) -> FAM -> {CAMERA_IMAGE}, {CAMERA_TIP_FORCE_TRUTH}; shape_node '
-            f'needs psi=[{psi}] base_px={list(base_px)}'
+            f'camera {width}x{height} at {rate:g} Hz: {self.sub.topic_name} -> wall force on '
+            f'the tip ({p["tip_force_angle"]:.3f} rad) -> FAM -> {self.pub_image.topic_name}, '
+            f'{self.pub_truth.topic_name}; shape_node needs psi=[{psi}] base_px={list(base_px)}'
             + (f' background_file={bg_file}' if bg_file else ''))
 
+    def _apply_params(self, changes, values) -> None:
+        if 'rate' in changes:
+            self.timer.timer_period_ns = int(round(1e9 / values['rate']))
+            self.timer.reset()          # the new period counts from now
+
     def _on_state(self, msg: JointState) -> None:
-        if len(msg.position) < 1 or not math.isfinite(msg.position[0]) or (
-                len(msg.velocity) >= 1 and not math.isfinite(msg.velocity[0])):
+        try:
+            x = first('position', msg.position)
+            xd = first('velocity', msg.velocity, 0.0)
+        except ValueError as exc:
             self.diag.count('bad_joint_states')
-            self.diag.error('joint state without a finite insertion position/velocity')
-            self.get_logger().warning('bad joint state ignored', throttle_duration_sec=2.0)
+            self.diag.bad_input('joint_state', str(exc))
             return
-        self.x = float(msg.position[0])
-        self.xd = float(msg.velocity[0]) if len(msg.velocity) >= 1 else 0.0
+        self.x, self.xd = x, xd
+        self.diag.count('joint_states')
 
     def _tick(self) -> None:
         want_image = self.pub_image.get_subscription_count() > 0
@@ -109,26 +123,23 @@ class CameraNode(Node):
         if not (want_image or want_truth):
             return
         stamp = self.get_clock().now().to_msg()
+        try:
+            frame = self.camera.frame(self.x, self.xd) if want_image else None
+            force = frame.tip_force if want_image else self.camera.tip_force(self.x, self.xd)
+        except (ArithmeticError, ValueError) as exc:     # a state the camera cannot draw
+            self.diag.count('frame_errors')
+            self.diag.event('frame_error', ERROR, f'no frame for x={self.x!r} m: {exc!r}')
+            return
         if want_image:
-            frame = self.camera.frame(self.x, self.xd)
-            force = frame.tip_force
             if not frame.converged:
                 self.diag.count('fam_not_converged')
-            img = Image()
-            img.header.stamp = stamp
-            img.header.frame_id = FRAME_CAMERA
-            img.height, img.width = int(frame.image.shape[0]), int(frame.image.shape[1])
-            img.encoding = 'mono8'
-            img.is_bigendian = 0
-            img.step = img.width
-            img.data = np.ascontiguousarray(frame.image, dtype=np.uint8).tobytes()
-            self.pub_image.publish(img)
+                self.diag.event('fam_not_converged', WARN, 'FAM did not converge: the frame '
+                                'shows its best iterate')
+            self.pub_image.publish(array_to_image(frame.image, stamp, T.FRAME_CAMERA))
             self.diag.count('frames')
-        else:
-            force = self.camera.tip_force(self.x, self.xd)
         w = WrenchStamped()
         w.header.stamp = stamp
-        w.header.frame_id = FRAME_CATHETER_BASE
+        w.header.frame_id = T.FRAME_CATHETER_BASE
         w.wrench.force.x, w.wrench.force.y = float(force[0]), float(force[1])
         self.pub_truth.publish(w)
 

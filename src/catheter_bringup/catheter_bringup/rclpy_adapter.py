@@ -1,0 +1,151 @@
+"""Every rclpy internal the runner relies on, in one place (rclpy 7.1, ROS 2 Jazzy).
+
+The lockstep runner drives the nodes itself: it intercepts what they publish, delivers
+messages to their subscription callbacks, sets their sim time and fires their timers,
+without DDS and without an executor's wait set per callback. That needs behaviour rclpy
+does not promise; each function here names what it relies on, and
+tests/catheter_bringup/test_rclpy_adapter.py pins every one of them, so a new rclpy fails
+one clear test instead of changing a run silently. `check_rclpy()` says whether the
+installed rclpy is a tested one.
+
+Nothing else in the project reaches into rclpy's private attributes.
+"""
+from __future__ import annotations
+
+from typing import Callable, Optional, Tuple
+
+#: rclpy versions (major.minor) whose internals the functions below were checked against
+TESTED_RCLPY = ('7.1',)
+
+
+def rclpy_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+    for dist in ('ros-jazzy-rclpy', 'rclpy'):
+        try:
+            return version(dist)
+        except PackageNotFoundError:
+            continue
+    return 'unknown'
+
+
+def check_rclpy() -> Tuple[bool, str]:
+    """(tested, version): whether the installed rclpy is one this module was checked on."""
+    v = rclpy_version()
+    return '.'.join(v.split('.')[:2]) in TESTED_RCLPY, v
+
+
+# ------------------------------------------------------------------ publishers
+def intercept_publish(pub, fn: Callable) -> Callable:
+    """Make ``pub.publish(msg)`` call ``fn(msg)`` instead; returns the original bound
+    ``publish`` (``fn`` may call it to publish on DDS too).
+
+    Relies on: Publisher has no __slots__, so an instance attribute shadows the method, and
+    the nodes call ``self.pub.publish(msg)`` (attribute lookup at each call)."""
+    orig = pub.publish
+    pub.publish = fn
+    return orig
+
+
+# ------------------------------------------------------------------ subscriptions
+def callback_wants_info(sub) -> bool:
+    """True if the subscription's callback takes (msg, message_info).
+
+    Relies on: the private ``Subscription._callback_type`` (an enum whose MessageOnly member
+    means callback(msg))."""
+    ct = getattr(sub, '_callback_type', None)
+    return ct is not None and ct.name != 'MessageOnly'
+
+
+def take_callback(sub, replacement: Callable) -> Tuple[Callable, bool]:
+    """Replace the subscription's callback; returns (the old callback, whether it takes
+    message info). What DDS still delivers to the subscription goes to `replacement`.
+
+    Relies on: the executor calls ``sub.callback`` (a plain attribute) for each message."""
+    old = sub.callback
+    wants = callback_wants_info(sub)
+    sub.callback = replacement
+    return old, wants
+
+
+def wrap_callback(sub, wrapper: Callable[[Callable], Callable]) -> None:
+    """``sub.callback = wrapper(sub.callback)`` (e.g. to count what it took)."""
+    sub.callback = wrapper(sub.callback)
+
+
+# ------------------------------------------------------------------ time
+def detach_clock(node):
+    """Take the node's sim time away from /clock: destroys the TimeSource's /clock
+    subscription and returns the TimeSource (None if the node has none), whose time
+    `set_time` then sets.
+
+    Relies on: the private ``Node._time_source`` and ``TimeSource._clock_sub`` (the /clock
+    subscription, created when use_sim_time is true)."""
+    ts = getattr(node, '_time_source', None)
+    if ts is None:
+        return None
+    if ts._clock_sub is not None:
+        node.destroy_subscription(ts._clock_sub)
+        ts._clock_sub = None
+    return ts
+
+
+def set_time(ts, clock_msg) -> None:
+    """Set the sim time of every clock of the TimeSource (as a /clock message would).
+
+    Relies on: ``TimeSource.clock_callback(msg)`` setting the ROS time override of its clocks
+    (and thereby making due timers ready)."""
+    ts.clock_callback(clock_msg)
+
+
+# ------------------------------------------------------------------ timers
+def timer_ready(tmr) -> Optional[bool]:
+    """Whether the timer is due; None when it has been destroyed."""
+    try:
+        return tmr.is_ready()
+    except Exception:  # noqa: BLE001 - a destroyed timer's handle raises
+        return None
+
+
+def timer_due_in_ns(tmr) -> Optional[int]:
+    """ns until the timer is due (<= 0: due); None when destroyed or canceled."""
+    try:
+        return tmr.time_until_next_call()
+    except Exception:  # noqa: BLE001 - a destroyed timer's handle raises
+        return None
+
+
+def fire_timer(tmr) -> None:
+    """Run a due timer's callback as the executor would: mark the period as called (the next
+    one is due a period later), then call the callback.
+
+    Relies on: ``Timer.handle.call_timer()`` (the C timer's "call", which advances it to
+    its next period, done under the handle's context manager) and ``Timer.callback``."""
+    with tmr.handle:
+        tmr.handle.call_timer()
+    tmr.callback()
+
+
+# ------------------------------------------------------------------ executors
+def spin_ready(executor, limit: int, timeout: float = 0.0) -> int:
+    """Run up to `limit` callbacks that are ready (the first wait up to `timeout` s, the rest
+    without waiting); an exception raised in a callback is raised here. Returns how many ran.
+
+    The one spin helper of the runner. Relies on: ``Executor.wait_for_ready_callbacks``
+    returning (handler, entity, node) and raising TimeoutException when nothing is ready,
+    and the handler keeping a callback's exception (``handler.exception()``) instead of
+    raising it."""
+    from rclpy.executors import TimeoutException
+    n = 0
+    wait = timeout
+    while n < limit:
+        try:
+            handler, _, _ = executor.wait_for_ready_callbacks(timeout_sec=wait)
+        except TimeoutException:
+            break
+        wait = 0.0
+        handler()
+        exc = handler.exception()
+        if exc is not None:
+            raise exc
+        n += 1
+    return n

@@ -1,0 +1,127 @@
+"""Pins every rclpy behaviour the runner relies on (catheter_bringup.rclpy_adapter). A new
+rclpy that changes one of them fails the test named after it, not a lockstep run somewhere
+downstream."""
+import pytest
+from builtin_interfaces.msg import Time
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+
+from catheter_bringup import rclpy_adapter as A
+from catheter_common.qos import QOS_DEFAULT
+
+pytestmark = pytest.mark.ros
+
+
+def _clock(ns: int) -> Clock:
+    return Clock(clock=Time(sec=ns // 10 ** 9, nanosec=ns % 10 ** 9))
+
+
+def _sim_node(ros, name):
+    from rclpy.parameter import Parameter
+    import rclpy
+    node = rclpy.create_node(name, context=ros.context,
+                             parameter_overrides=[Parameter('use_sim_time', value=True)])
+    return ros.add(node)
+
+
+def test_installed_rclpy_is_a_tested_version():
+    tested, version = A.check_rclpy()
+    assert tested, (f'rclpy {version} is not in rclpy_adapter.TESTED_RCLPY '
+                    f'{A.TESTED_RCLPY}: check every function of rclpy_adapter against it')
+
+
+def test_intercept_publish_replaces_what_the_node_calls(ros):
+    node = ros.node('adapter_pub')
+    pub = node.create_publisher(String, 'adapter/pub', QOS_DEFAULT)
+    seen = []
+    orig = A.intercept_publish(pub, seen.append)
+    pub.publish(String(data='a'))                      # what a node's code does
+    assert [m.data for m in seen] == ['a']
+    got = []
+    probe = ros.node('adapter_pub_probe')
+    probe.create_subscription(String, 'adapter/pub', got.append, QOS_DEFAULT)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    orig(String(data='b'))                             # the original still goes out on DDS
+    assert ros.spin_until(lambda: got, 10.0) and got[0].data == 'b'
+
+
+def test_callback_type_tells_message_only_from_message_info(ros):
+    node = ros.node('adapter_cbtype')
+    one = node.create_subscription(String, 'adapter/a', lambda m: None, QOS_DEFAULT)
+    two = node.create_subscription(String, 'adapter/b', lambda m, info: None, QOS_DEFAULT)
+    assert A.callback_wants_info(one) is False
+    assert A.callback_wants_info(two) is True
+
+
+def test_take_and_wrap_callback_redirect_what_the_executor_delivers(ros):
+    node = ros.node('adapter_sub')
+    first, taken, wrapped = [], [], []
+    sub = node.create_subscription(String, 'adapter/sub', first.append, QOS_DEFAULT)
+    old, wants = A.take_callback(sub, taken.append)
+    assert old == first.append and wants is False
+
+    def wrapper(cb):
+        def inner(msg):
+            wrapped.append(msg.data)
+            return cb(msg)
+        return inner
+    A.wrap_callback(sub, wrapper)
+    pub = ros.node('adapter_sub_pub').create_publisher(String, 'adapter/sub', QOS_DEFAULT)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    pub.publish(String(data='x'))
+    assert ros.spin_until(lambda: taken, 10.0)
+    assert first == [] and [m.data for m in taken] == ['x'] and wrapped == ['x']
+
+
+def test_detach_clock_removes_the_clock_subscription_and_set_time_sets_the_clock(ros):
+    node = _sim_node(ros, 'adapter_clock')
+    clock_subs = [s for s in node.subscriptions if s.topic_name == '/clock']
+    assert len(clock_subs) == 1
+    ts = A.detach_clock(node)
+    assert ts is not None
+    assert not [s for s in node.subscriptions if s.topic_name == '/clock']
+    A.set_time(ts, _clock(5_000_000_123))
+    assert node.get_clock().now().nanoseconds == 5_000_000_123
+    # a /clock message published now does not move the node's time any more
+    pub = ros.node('adapter_clock_pub').create_publisher(Clock, '/clock', QOS_DEFAULT)
+    pub.publish(_clock(1))
+    ros.spin_for(0.2)
+    assert node.get_clock().now().nanoseconds == 5_000_000_123
+    assert A.detach_clock(node) is ts                  # idempotent
+
+
+def test_fire_timer_runs_the_callback_and_advances_the_timer(ros):
+    node = _sim_node(ros, 'adapter_timer')
+    ts = A.detach_clock(node)
+    A.set_time(ts, _clock(1_000_000_000))
+    calls = []
+    tmr = node.create_timer(0.010, lambda: calls.append(node.get_clock().now().nanoseconds))
+    assert A.timer_ready(tmr) is False
+    assert A.timer_due_in_ns(tmr) == 10_000_000
+    A.set_time(ts, _clock(1_010_000_000))
+    assert A.timer_ready(tmr) is True
+    assert A.timer_due_in_ns(tmr) <= 0
+    A.fire_timer(tmr)
+    assert calls == [1_010_000_000]
+    assert A.timer_ready(tmr) is False                 # the period was marked as called
+    assert A.timer_due_in_ns(tmr) == 10_000_000
+    node.destroy_timer(tmr)
+    assert A.timer_ready(tmr) is None and A.timer_due_in_ns(tmr) is None
+
+
+def test_spin_ready_runs_ready_callbacks_and_raises_their_exceptions(ros):
+    node = _sim_node(ros, 'adapter_spin')
+    ts = A.detach_clock(node)
+    A.set_time(ts, _clock(0))
+    calls = []
+    node.create_timer(0.001, lambda: calls.append(1))
+    assert A.spin_ready(ros.executor, 10) == 0         # nothing due: returns at once
+    A.set_time(ts, _clock(1_000_000))
+    assert A.spin_ready(ros.executor, 10) >= 1 and calls == [1]
+
+    def boom():
+        raise RuntimeError('boom in a callback')
+    node.create_timer(0.001, boom)
+    A.set_time(ts, _clock(2_000_000))
+    with pytest.raises(RuntimeError, match='boom in a callback'):
+        A.spin_ready(ros.executor, 10)

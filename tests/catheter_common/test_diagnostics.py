@@ -1,0 +1,108 @@
+"""catheter_common.diagnostics: levels rise with their conditions and fall when the conditions
+clear (held conditions when the node clears them, events after their hold time on the node
+clock), bad inputs are counted and logged rate-limited, and what is published says it."""
+import pytest
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+
+from catheter_bringup.rclpy_adapter import detach_clock, set_time
+from catheter_common.diagnostics import ERROR, OK, WARN, Diagnostics
+
+pytestmark = pytest.mark.ros
+
+
+class SimClockNode:
+    def __init__(self, ros, name='diag_test'):
+        import rclpy
+        self.node = ros.add(rclpy.create_node(name, context=ros.context, parameter_overrides=[
+            Parameter('use_sim_time', value=True)]))
+        self.ts = detach_clock(self.node)
+        self.at(1.0)
+
+    def at(self, t: float):
+        ns = int(round(t * 1e9))
+        set_time(self.ts, Clock(clock=Time(sec=ns // 10 ** 9, nanosec=ns % 10 ** 9)))
+
+
+def test_held_conditions_rise_and_clear(ros):
+    c = SimClockNode(ros)
+    d = Diagnostics(c.node)
+    assert d.level() == (OK, 'ok')
+    d.condition('link_outage', WARN, 'link outage')
+    assert d.level() == (WARN, 'link outage')
+    d.condition('stuck', ERROR, 'stuck for 10 s')
+    lvl, msg = d.level()
+    assert lvl == ERROR and msg.index('stuck') < msg.index('link outage')   # worst first
+    c.at(100.0)                                         # held: time does not clear them
+    assert d.level()[0] == ERROR
+    d.condition('stuck', OK)
+    assert d.level() == (WARN, 'link outage')
+    d.condition('link_outage', OK)
+    assert d.level() == (OK, 'ok')
+
+
+def test_events_clear_after_their_hold_on_the_node_clock(ros):
+    c = SimClockNode(ros, 'diag_events')
+    d = Diagnostics(c.node)
+    d.event('clamped', WARN, 'clamped', hold=0.5)
+    c.at(1.4)
+    assert d.level()[0] == WARN
+    d.event('clamped', WARN, 'clamped again', hold=0.5)    # refreshed
+    c.at(1.8)
+    assert d.level() == (WARN, 'clamped again')
+    c.at(1.95)
+    assert d.level() == (OK, 'ok')
+    d.event('x', ERROR, 'boom', hold=1.0)
+    c.at(0.5)                                               # the clock jumped back: cleared
+    assert d.level()[0] == OK
+
+
+def test_bad_input_counts_logs_rate_limited_and_warns(ros):
+    c = SimClockNode(ros, 'diag_bad')
+    d = Diagnostics(c.node, log_period=60.0)
+    logged = []
+    d._node.get_logger = lambda: type('L', (), {'warning': logged.append,
+                                                'error': logged.append})()
+    for k in range(5):
+        d.bad_input('command', f'position[0] must be finite, got nan ({k})')
+    assert d.get('bad_messages') == 5 and d.get('bad_command') == 5
+    assert len(logged) == 1 and 'bad command' in logged[0]
+    assert d.level()[0] == WARN
+    c.at(3.5)
+    assert d.level()[0] == OK
+
+
+def test_published_status_has_level_message_counters_and_conditions(ros):
+    c = SimClockNode(ros, 'diag_pub')
+    d = Diagnostics(c.node)
+    d.count('frames', 3)
+    d.set('mode', 'ima')
+    polled = {'n': 0}
+
+    def updater():
+        polled['n'] += 1
+        d.condition('no_model', WARN, 'no valid model yet')
+    d.add_updater(updater)
+    st = d.status()
+    assert polled['n'] >= 1
+    assert st.level == DiagnosticStatus.WARN and st.message == 'no valid model yet'
+    kv = {x.key: x.value for x in st.values}
+    assert kv['frames'] == '3' and kv['mode'] == 'ima'
+    assert kv['condition.no_model'] == 'WARN: no valid model yet'
+    d._updaters.clear()
+    d.condition('no_model', OK)
+    st = d.status()
+    assert st.level == DiagnosticStatus.OK and st.message == 'ok'
+    assert not any(x.key.startswith('condition.') for x in st.values)
+
+
+def test_log_limited_logs_warnings_and_errors_of_one_kind(ros):
+    """rclpy refuses two severities from one line of code ('Logger severity cannot be changed
+    between calls'): found by the node fuzz."""
+    c = SimClockNode(ros, 'diag_sev')
+    d = Diagnostics(c.node, log_period=0.0)
+    d.log_limited('k', 'a warning', WARN)
+    d.log_limited('k', 'an error', ERROR)
+    d.log_limited('k', 'a warning again', WARN)

@@ -1,0 +1,80 @@
+"""catheter_common.ros_node.run_node in-process: a signal at any moment (while the node is
+being built, while its timers publish) ends in close(), destroy, exit code 0; a failing node
+exits 1; --help builds nothing."""
+import os
+import signal
+
+import pytest
+from rclpy.node import Node
+from std_msgs.msg import String
+
+from catheter_common.params import Param
+from catheter_common.qos import QOS_DEFAULT
+from catheter_common.ros_node import node_help, run_node
+
+pytestmark = pytest.mark.ros
+
+
+class _Probe(Node):
+    """Publishes from a 1 ms timer; sends itself `sig` at construction or after `after` ticks."""
+    PARAMS = (Param('demo', 1.0, 'a demo parameter', 0.0, 2.0),)
+    events = []
+
+    def __init__(self, sig, at_start=False, after=20, fail=False):
+        super().__init__('run_node_probe')
+        self.sig, self.after, self.fail, self.n = sig, after, fail, 0
+        self.pub = self.create_publisher(String, 'run_node_probe/out', QOS_DEFAULT)
+        self.timer = self.create_timer(0.001, self._tick)
+        if at_start:
+            os.kill(os.getpid(), sig)
+
+    def _tick(self):
+        self.n += 1
+        self.pub.publish(String(data=str(self.n)))
+        if self.fail and self.n == 5:
+            raise RuntimeError('simulated failure')
+        if self.n == self.after:
+            os.kill(os.getpid(), self.sig)
+
+    def close(self):
+        self.pub.publish(String(data='closing'))      # a node may still publish in close()
+        _Probe.events.append(('closed', self.n))
+
+
+@pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGINT], ids=['SIGTERM', 'SIGINT'])
+@pytest.mark.parametrize('at_start', [True, False], ids=['while-starting', 'while-running'])
+def test_signal_stops_the_node_cleanly(sig, at_start, capfd):
+    _Probe.events.clear()
+    old = signal.getsignal(sig)
+    code = run_node(lambda: _Probe(sig, at_start=at_start), args=['probe'])
+    assert code == 0
+    assert len(_Probe.events) == 1 and _Probe.events[0][0] == 'closed'
+    if not at_start:
+        assert _Probe.events[0][1] >= 20
+    err = capfd.readouterr().err
+    assert 'FATAL' not in err and 'Traceback' not in err, err
+    assert signal.getsignal(sig) is old                 # the handlers are restored
+
+
+def test_a_failing_node_exits_1_and_is_still_closed(capfd):
+    _Probe.events.clear()
+    code = run_node(lambda: _Probe(signal.SIGTERM, after=10 ** 9, fail=True), args=['probe'])
+    assert code == 1 and _Probe.events and _Probe.events[0][0] == 'closed'
+    assert 'simulated failure' in capfd.readouterr().err
+
+
+def test_help_builds_nothing(capsys):
+    built = []
+    _Probe.PARAMS  # noqa: B018  (the table is what --help prints)
+
+    class Factory:
+        PARAMS = _Probe.PARAMS
+        __module__ = __name__
+
+        def __new__(cls, *a, **k):
+            built.append(1)
+            raise AssertionError('--help must not build the node')
+    assert run_node(Factory, args=['demo_node', '--help', '--ros-args', '-p', 'x:=1']) == 0
+    out = capsys.readouterr().out
+    assert not built and 'demo (float [0, 2]' in out and 'a demo parameter' in out
+    assert 'demo_node' in node_help(Factory, 'demo_node')

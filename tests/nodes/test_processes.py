@@ -1,0 +1,113 @@
+"""The node executables as a ROS 2 user runs them (ros_ws/install/<pkg>/lib/<pkg>/<exe>):
+
+- the whole graph under one namespace (``-r __ns:=/robot1``) puts every topic under it,
+  except the ROS-wide ones (/diagnostics, /rosout, /parameter_events, /clock);
+- every node stops on SIGINT and on SIGTERM with exit code 0 and no FATAL / Traceback /
+  "context is invalid" line, also while its timers publish at 1 kHz (issue 10 item 7: on
+  SIGTERM, ima_master_node, sim_haptic_node and camera_node logged `[FATAL] ... publisher's
+  context is invalid` and exited 1);
+- ``--help`` prints the parameters and exits 0 without starting the node (recorder_node
+  --help left an empty bag).
+All processes of a test start at once: startup dominates the cost on 2 shared cores."""
+import os
+import pathlib
+import signal
+import subprocess
+
+import pytest
+
+from catheter_common import topics as T
+
+from node_cases import NODE_MODULES, NODE_PACKAGES, node_class
+
+pytestmark = pytest.mark.ros
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+NS = '/robot1'
+EXECUTABLES = dict(NODE_PACKAGES, recorder_node='catheter_bringup')
+
+
+def _exe(name):
+    pkg = EXECUTABLES[name]
+    path = ROOT / 'ros_ws' / 'install' / pkg / 'lib' / pkg / name
+    assert path.exists(), path
+    return str(path)
+
+
+def _start(name, args, env=None, cwd=None):
+    return subprocess.Popen([_exe(name)] + list(args), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=env or dict(os.environ),
+                            cwd=cwd)
+
+
+def _stop_all(procs):
+    for p in procs.values():
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+
+
+@pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGINT], ids=['SIGTERM', 'SIGINT'])
+def test_namespaced_graph_stops_cleanly_on_signal(ros, tmp_path, sig):
+    from catheter_bringup.recorder import read_run_metadata
+    bag = tmp_path / 'rec.mcap'
+    procs = {}
+    try:
+        for name in EXECUTABLES:
+            args = ['--ros-args', '-r', f'__ns:={NS}']
+            if name == 'recorder_node':
+                args += ['-p', f'path:={bag}']
+            procs[name] = _start(name, args)
+        probe = ros.node('proc_probe', namespace=NS)
+
+        def all_up():
+            return set(EXECUTABLES) <= {n for n, ns in probe.get_node_names_and_namespaces()
+                                        if ns == NS}
+        up = ros.spin_until(all_up, 60.0)
+        early = {n: p.stdout.read() for n, p in procs.items() if p.poll() is not None}
+        assert up and not early, early
+        ros.spin_for(1.5)                     # traffic: the 1 kHz loops run against each other
+        topics = {t for t, _ in probe.get_topic_names_and_types()}
+        outside = sorted(t for t in topics if not t.startswith(NS + '/') and t not in T.GLOBAL)
+        assert outside == [], f'topics outside {NS}: {outside}'
+        for t in (T.SLAVE_FORCE, T.MASTER_RENDERED_FORCE, T.CAMERA_IMAGE, T.TIP_WRENCH,
+                  T.FAM_SHAPE):
+            assert T.resolve(t, NS) in topics, t
+        for p in procs.values():
+            p.send_signal(sig)
+        outs = {}
+        for name, p in procs.items():
+            try:
+                p.wait(timeout=30)
+            finally:
+                outs[name] = (p.returncode, p.stdout.read())
+    finally:
+        _stop_all(procs)
+    for name, (code, out) in outs.items():
+        assert code == 0, f'{name} exited {code} on {sig.name}:\n{out[-3000:]}'
+        for bad in ('FATAL', 'Traceback', 'context is invalid'):
+            assert bad not in out, f'{name} on {sig.name}:\n{out[-3000:]}'
+        assert 'shut down cleanly' in out, f'{name}:\n{out[-3000:]}'
+    meta = read_run_metadata(bag)
+    assert meta['status'] == 'complete'
+
+
+def test_help_prints_the_parameters_and_starts_nothing(tmp_path):
+    env = dict(os.environ, CATHETER_WS_ROOT=str(tmp_path))
+    procs = {name: _start(name, ['--help'], env=env, cwd=tmp_path) for name in EXECUTABLES}
+    procs['run_scenario'] = subprocess.Popen(
+        [str(ROOT / 'ros_ws/install/catheter_bringup/lib/catheter_bringup/run_scenario'),
+         '--help'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+        cwd=tmp_path)
+    try:
+        outs = {n: (p.wait(timeout=60), p.stdout.read()) for n, p in procs.items()}
+    finally:
+        _stop_all(procs)
+    for name, (code, out) in outs.items():
+        assert code == 0, f'{name} --help exited {code}:\n{out}'
+        assert 'usage' in out.lower(), out
+        assert 'running' not in out and '[INFO]' not in out, f'{name} started:\n{out}'
+        if name in NODE_MODULES:
+            for p in node_class(name).PARAMS:
+                assert f'  {p.name} (' in out, (name, p.name)
+            assert 'runtime' in out or 'start only' in out
+    assert list(tmp_path.iterdir()) == [], 'no file may be written (recorder_node: no bag)'
