@@ -29,6 +29,7 @@ Every mode of a comparison uses the same seeds (trajectory, links, vessel, senso
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Dict, Optional, Tuple
 
@@ -98,8 +99,8 @@ class ExperimentConfig:
     vessel_params: Tuple[Tuple[str, float], ...] = ()
     operator: str = 'minjerk'
     operator_params: Tuple[Tuple[str, object], ...] = ()
-    anchoring: str = 'none'
-    anchor_length: float = float('inf')
+    anchoring: str = 'local'
+    anchor_length: Optional[float] = None
     ident_params: Tuple[Tuple[str, object], ...] = ()
 
     def __post_init__(self):
@@ -187,7 +188,8 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
         renderer = ImaRenderer(limit=cfg.limit, dt=dt, blend_time=cfg.blend_time,
                                max_rate=cfg.max_rate, passivity=cfg.passivity,
                                anchoring='full' if cfg.mode == 'anchored' else cfg.anchoring,
-                               anchor_length=cfg.anchor_length)
+                               anchor_length=(math.inf if cfg.mode == 'anchored'
+                                              else cfg.anchor_length))
     imp_every = max(1, int(round(cfg.rate / cfg.impedance_rate)))
 
     keys = ('t', 'x_hand', 'x_master', 'xd_master', 'x_slave', 'f_hand', 'f_desired', 'reference',
