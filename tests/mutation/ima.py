@@ -78,10 +78,6 @@ MUTANTS = [
            '                fric = np.abs(grid(imp.F)) + np.abs(grid(imp.B))',
            'the force bound misses the breakaway state range (not the maximum any more)'),
     # -- the second round's default (issue 12)
-    Mutant('I17', I + 'history_params.py',
-           '    static_ridge: float = 0.01\n',
-           '    static_ridge: float = 1.0\n',
-           'the first round\'s static prior: a wall seen in one direction is called friction'),
     Mutant('I18', I + 'rendering.py',
            '            g = (math.exp(-d / self.anchor_length) if d else 1.0)',
            '            g = 1.0',

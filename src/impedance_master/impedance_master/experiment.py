@@ -73,7 +73,10 @@ class ExperimentConfig:
     fields, noise_std); sensor noise: the vessel's ``noise_std`` (phantom 0.01 N);
     operator: the hand's motion family, a name of `operator.OPERATORS` ('minjerk', the
     thesis's, default; 'sines'; 'human'), over the experiment's duration;
-    operator_params: {name: value} keyword parameters of that family.
+    operator_params: {name: value} keyword parameters of that family;
+    anchoring, anchor_length: the ImaRenderer's (default 'local', None: its default 5 mm);
+    mode 'anchored' renders 'full' at any distance (the anchored baseline);
+    ident_params: {name: value} HistoryParams overrides of the default identifier.
     """
     experiment: str = 'II'
     mode: str = 'ima'
