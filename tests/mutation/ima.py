@@ -77,6 +77,15 @@ MUTANTS = [
            '                fric = np.abs(grid(imp.F)) + (2.0 + imp.beta) * np.abs(grid(imp.B))',
            '                fric = np.abs(grid(imp.F)) + np.abs(grid(imp.B))',
            'the force bound misses the breakaway state range (not the maximum any more)'),
+    # -- the second round's default (issue 12)
+    Mutant('I18', I + 'rendering.py',
+           '            g = (math.exp(-d / self.anchor_length) if d else 1.0)',
+           '            g = 1.0',
+           'the local anchor correction does not fade with depth (the anchored baseline)'),
+    Mutant('I19', I + 'rendering.py',
+           '                g *= max(0.0, 1.0 - 0.5 * abs(z1 - self._za))',
+           '                pass',
+           'the local anchor correction does not fade at a reversal'),
     # -- operator and vessel families (issue 12)
     Mutant('I16', I + 'operator.py',
            '        self._amp = min((self.x_hi - self.x_lo) / span if span > 0 else math.inf,',

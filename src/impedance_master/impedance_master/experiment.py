@@ -29,6 +29,7 @@ Every mode of a comparison uses the same seeds (trajectory, links, vessel, senso
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Dict, Optional, Tuple
 
@@ -72,7 +73,10 @@ class ExperimentConfig:
     fields, noise_std); sensor noise: the vessel's ``noise_std`` (phantom 0.01 N);
     operator: the hand's motion family, a name of `operator.OPERATORS` ('minjerk', the
     thesis's, default; 'sines'; 'human'), over the experiment's duration;
-    operator_params: {name: value} keyword parameters of that family.
+    operator_params: {name: value} keyword parameters of that family;
+    anchoring, anchor_length: the ImaRenderer's (default 'local', None: its default 5 mm);
+    mode 'anchored' renders 'full' at any distance (the anchored baseline);
+    ident_params: {name: value} HistoryParams overrides of the default identifier.
     """
     experiment: str = 'II'
     mode: str = 'ima'
@@ -98,8 +102,8 @@ class ExperimentConfig:
     vessel_params: Tuple[Tuple[str, float], ...] = ()
     operator: str = 'minjerk'
     operator_params: Tuple[Tuple[str, object], ...] = ()
-    anchoring: str = 'none'
-    anchor_length: float = float('inf')
+    anchoring: str = 'local'
+    anchor_length: Optional[float] = None
     ident_params: Tuple[Tuple[str, object], ...] = ()
 
     def __post_init__(self):
@@ -187,7 +191,8 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
         renderer = ImaRenderer(limit=cfg.limit, dt=dt, blend_time=cfg.blend_time,
                                max_rate=cfg.max_rate, passivity=cfg.passivity,
                                anchoring='full' if cfg.mode == 'anchored' else cfg.anchoring,
-                               anchor_length=cfg.anchor_length)
+                               anchor_length=(math.inf if cfg.mode == 'anchored'
+                                              else cfg.anchor_length))
     imp_every = max(1, int(round(cfg.rate / cfg.impedance_rate)))
 
     keys = ('t', 'x_hand', 'x_master', 'xd_master', 'x_slave', 'f_hand', 'f_desired', 'reference',

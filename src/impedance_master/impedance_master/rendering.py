@@ -42,7 +42,9 @@ from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
 from impedance_master.impedance import FrictionState, Impedance
 from impedance_master.safety import ERROR, OK, WARN, RendererStatus, SafeOutput, check_number
 
-ANCHORING = ('none', 'full', 'residual')
+ANCHORING = ('none', 'full', 'residual', 'local')
+#: m, default reach in depth of the 'local' anchor correction (see ImaRenderer)
+LOCAL_ANCHOR_LENGTH = 0.005
 #: s, smallest time constant of the take-over from the fallback to the model's force
 RECOVER_TIME = 0.05
 
@@ -119,10 +121,18 @@ class ImaRenderer(_Rendered):
         stale_time: s, a model not received again for longer is reported 'held' (WARN).
         state_box: (x_lo, x_hi, max_speed, max_accel) of acceptable master states (None:
             the envelope's workspace with margins, see module doc).
-        anchoring: 'none' (default), 'full' (the anchored baseline: the model's anchor
-            force plus the model's change from the anchor state to the master's) or
+        anchoring: how the model's miss at its anchor (the slave's latest sample: measured
+            force minus the model there) enters: 'local' (default) the model plus that miss,
+            fading with the distance in depth from the anchor (exp(-d / anchor_length)) and
+            with the change of the friction direction state from the anchor's (to half at
+            a full reversal): the latest measurement corrects the model where the
+            catheter is near the anchor's depth and direction, and the model alone speaks
+            for the changes it has data for; 'none' the model alone; 'full' (the
+            anchored baseline: the anchor's force plus the model's change from the anchor
+            state to the master's, at any distance unless anchor_length is given);
             'residual' (the model plus the identifier's low-passed residual at the anchor,
-            fading with distance from it over `anchor_length` m).
+            fading with distance over `anchor_length` m).
+        anchor_length: m (None: LOCAL_ANCHOR_LENGTH = 5 mm for 'local', inf otherwise).
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
     (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
     `n_bad_input`, `n_clamped`, `energy` (J, observer), `n_passivity` (steps with added
@@ -134,7 +144,7 @@ class ImaRenderer(_Rendered):
                  max_damping: float = 50.0, envelope: Optional[ModelEnvelope] = None,
                  fallback_time: float = 0.5, stale_time: float = 0.1,
                  state_box: Optional[Tuple[float, float, float, float]] = None,
-                 anchoring: str = 'none', anchor_length: float = math.inf):
+                 anchoring: str = 'local', anchor_length: Optional[float] = None):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -159,6 +169,8 @@ class ImaRenderer(_Rendered):
         if anchoring not in ANCHORING:
             raise ValueError(f'anchoring must be one of {ANCHORING}, got {anchoring!r}')
         self.anchoring = anchoring
+        if anchor_length is None:
+            anchor_length = LOCAL_ANCHOR_LENGTH if anchoring == 'local' else math.inf
         self.anchor_length = float(anchor_length) if anchor_length == math.inf else \
             positive('anchor_length', anchor_length)
         self.model: Optional[Impedance] = None
@@ -168,6 +180,7 @@ class ImaRenderer(_Rendered):
         self._z = (0.0, 0.0)
         self._rho = 0.0
         self._xa = 0.0
+        self._za = 0.0
         self._age = math.inf
         self._refused_since_accept = False
         self._bad_now = False
@@ -230,7 +243,11 @@ class ImaRenderer(_Rendered):
         f = m.force(x, xd, xdd, self._z if self._state is not None else None)
         if self._rho:
             d = abs(x - self._xa)
-            f += self._rho * (math.exp(-d / self.anchor_length) if d else 1.0)
+            g = (math.exp(-d / self.anchor_length) if d else 1.0)
+            if self.anchoring == 'local':     # ... and with the change of direction
+                z1 = self._z[0] if self._state is not None else math.tanh(xd / m.v_s)
+                g *= max(0.0, 1.0 - 0.5 * abs(z1 - self._za))
+            f += self._rho * g
         return f
 
     def _switch(self, x: float, xd: float, xdd: float) -> None:
@@ -253,7 +270,8 @@ class ImaRenderer(_Rendered):
         self._rho = 0.0
         if self.anchoring != 'none' and a is not None:
             self._xa = a.x
-            if self.anchoring == 'full':
+            self._za = a.z1
+            if self.anchoring in ('full', 'local'):
                 self._rho = a.f - new.force(a.x, a.xd, a.xdd, (a.z1, a.z2))
             else:
                 self._rho = a.r

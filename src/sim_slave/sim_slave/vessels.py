@@ -32,9 +32,16 @@ Names (forces quoted at 56 mm and 41.3 mm/s, the thesis's deepest point and top 
 * ``stiff_wall``: a static-dominated vessel: little friction (linear, 1 N/m), a stiff
   linear wall contact from 25 mm (12 N/m, Hunt-Crossley exponent 1): the same force
   whichever way the catheter moves; noise 5 mN. About 0.43 N.
+
+Randomised worlds (`draw_vessel(family, rng)`): a new physical draw of a family, keeping
+its structure (which terms are present) and drawing every parameter of it within the
+physical range documented in `DRAW_RULES` (for held-out worlds of a generalisation test:
+`impedance_master.generalisation`).
 """
 from __future__ import annotations
 
+import math
+import random
 from dataclasses import dataclass, fields, replace
 from typing import Dict, Optional, Tuple
 
@@ -136,6 +143,77 @@ def vessel_spec(name: str = 'phantom', **overrides) -> VesselSpec:
                              'fields or noise_std)')
     return VesselSpec(key, replace(VesselParams(), **p_kw), replace(VesselExtras(), **e_kw),
                       nonneg('noise_std', noise))
+
+
+#: How `draw_vessel` draws each parameter of a family's vessel: field -> (rule, a, b, why).
+#: Rules: 'scale' multiplies the family's value by a log-uniform factor in [a, b] (only
+#: terms the family has, value > 0); 'depth' draws the depth uniformly in [a, b] m (only if
+#: the family has that contact); 'uniform' draws the value uniformly in [a, b] (always);
+#: 'excess' scales the excess over 1 of a ratio by a uniform factor in [a, b]. The ranges
+#: are physical: forces stay in the clinical 0.1-1 N at 56 mm, lengths and rates in what
+#: catheters, vessels, hearts and lungs show.
+DRAW_RULES = {
+    'friction_per_length': ('scale', 0.6, 1.6, 'Coulomb level: catheter coating, wet or dry '
+                            'lumen, vessel tortuosity'),
+    'capstan_length': ('uniform', 0.05, 0.30, 'm, capstan growth (only a capstan family)'),
+    'friction_quadratic': ('scale', 0.6, 1.6, 'quadratic friction growth (more wrapped bends)'),
+    'friction_step': ('scale', 0.6, 1.6, 'N per side branch or valve passed'),
+    'friction_step_spacing': ('uniform', 0.008, 0.016, 'm between side branches'),
+    'stribeck_ratio': ('excess', 0.5, 1.5, 'static over kinetic friction 1.1-2.2'),
+    'stribeck_velocity': ('scale', 0.5, 2.0, 'm/s, 1-6 mm/s Stribeck scale'),
+    'presliding_displacement': ('scale', 0.5, 2.0, 'm, shaft / vessel-bed compliance'),
+    'coulomb_velocity': ('scale', 0.5, 2.0, 'm/s, smooth Coulomb velocity scale'),
+    'viscous_per_length': ('scale', 0.5, 2.0, 'drag: blood or saline film, lumen gap'),
+    'wall_depth': ('depth', 0.018, 0.048, 'm, where the tip meets the wall or a bend'),
+    'wall_stiffness': ('scale', 0.6, 1.6, 'tissue stiffness'),
+    'wall_damping': ('scale', 0.5, 2.0, 'Hunt-Crossley damping'),
+    'wall_viscous': ('scale', 0.5, 2.0, 'Kelvin-Voigt damper of the tissue'),
+    'stenosis_depth': ('depth', 0.026, 0.046, 'm, where the narrowing is'),
+    'stenosis_length': ('scale', 0.7, 1.5, 'm, 2-6 mm narrowing'),
+    'stenosis_force': ('scale', 0.6, 1.6, 'N, how tight the narrowing is'),
+    'stenosis_friction': ('scale', 0.6, 1.6, 'N, friction of the shaft in it'),
+    'shaft_stiffness': ('scale', 0.5, 2.0, 'N/m, shaft compliance (stick-slip)'),
+    'cardiac_amplitude': ('uniform', 0.005, 0.015, 'N, cardiac disturbance'),
+    'cardiac_frequency': ('uniform', 1.0, 1.7, 'Hz, 60-100 beats per minute'),
+    'breathing_amplitude': ('scale', 0.5, 1.5, 'N, breathing disturbance (if the family '
+                            'breathes)'),
+    'breathing_frequency': ('uniform', 0.2, 0.33, 'Hz, 12-20 breaths per minute (if the family '
+                            'breathes)'),
+    'noise_std': ('uniform', 0.005, 0.02, 'N, force-sensor noise (issue 12: 5-20 mN)'),
+}
+
+
+def draw_vessel(family: str, rng: random.Random) -> Dict[str, float]:
+    """A randomised physical draw of the named family (see `DRAW_RULES`): the overrides to
+    pass to `vessel_spec(family, **overrides)` (or `ExperimentConfig.vessel_params`). The
+    family's structure is kept: terms it does not have stay off. rng: a `random.Random`
+    (the draw is a deterministic function of its state)."""
+    spec = vessel_spec(family)
+    if not isinstance(rng, random.Random):
+        raise ValueError(f'rng must be a random.Random, got {type(rng).__name__}')
+    base = spec.as_dict()
+    has = {'wall_depth': spec.params.wall_stiffness > 0.0,
+           'stenosis_depth': spec.extras.stenosis,
+           'stenosis_length': spec.extras.stenosis,
+           'capstan_length': base['capstan_length'] < 1.0 and base['friction_per_length'] > 0,
+           'breathing_frequency': base['breathing_amplitude'] > 0.0,
+           'friction_step_spacing': base['friction_step'] > 0.0}
+    out = {}
+    for name, (rule, a, b, _) in DRAW_RULES.items():   # fixed order: one rng draw per rule
+        u = rng.random()
+        v = base[name]
+        if not has.get(name, True):
+            continue
+        if rule == 'scale':
+            if v > 0.0:
+                out[name] = v * math.exp(math.log(a) + u * (math.log(b) - math.log(a)))
+        elif rule == 'excess':
+            if v > 1.0:
+                out[name] = 1.0 + (v - 1.0) * (a + u * (b - a))
+        else:                                           # 'depth' and 'uniform'
+            out[name] = a + u * (b - a)
+    vessel_spec(family, **out)                          # every draw is a valid vessel
+    return dict(sorted(out.items()))
 
 
 def make_vessel(name: str = 'phantom', seed: Optional[int] = 0, **overrides) -> VesselModel:

@@ -1,0 +1,70 @@
+"""The generalisation protocol's worlds (issue 12, second round): randomised physical draws
+of every vessel family (sim_slave.vessels.draw_vessel) and the fresh held-out cases built
+from them (impedance_master.generalisation.drawn_cases). Only the draws are checked here,
+never a result on them (the fresh worlds are run once, by bench_ima_general)."""
+import math
+import random
+
+import pytest
+
+from impedance_master.generalisation import FRESH_SEEDS, drawn_cases
+from impedance_master.operator import OPERATORS
+from sim_slave.vessels import DRAW_RULES, VESSELS, draw_vessel, make_vessel, vessel_spec
+
+
+def test_draws_are_deterministic_and_differ_between_rngs():
+    for v in VESSELS:
+        a = draw_vessel(v, random.Random('a'))
+        assert a == draw_vessel(v, random.Random('a'))
+        assert a != draw_vessel(v, random.Random('b'))
+
+
+def test_draws_keep_the_family_structure_and_stay_in_their_ranges():
+    for v in VESSELS:
+        base = vessel_spec(v)
+        b = base.as_dict()
+        for i in range(20):
+            d = draw_vessel(v, random.Random(i))
+            spec = vessel_spec(v, **d)                     # a valid vessel
+            assert set(d) <= set(DRAW_RULES)
+            # terms the family does not have stay off
+            assert (spec.params.wall_stiffness > 0) == (base.params.wall_stiffness > 0)
+            assert spec.extras.stenosis == base.extras.stenosis
+            assert (spec.extras.breathing_amplitude > 0) == (base.extras.breathing_amplitude > 0)
+            assert (spec.extras.coulomb_velocity > 0) == (base.extras.coulomb_velocity > 0)
+            assert (spec.params.shaft_stiffness > 0) == (base.params.shaft_stiffness > 0)
+            assert (spec.extras.friction_step > 0) == (base.extras.friction_step > 0)
+            for name, value in d.items():
+                rule, lo, hi, _ = DRAW_RULES[name]
+                if rule == 'scale':
+                    assert lo * b[name] * (1 - 1e-12) <= value <= hi * b[name] * (1 + 1e-12)
+                elif rule == 'excess':
+                    assert 1 + lo * (b[name] - 1) - 1e-12 <= value <= 1 + hi * (b[name] - 1) \
+                        + 1e-12
+                else:
+                    assert lo <= value <= hi, (v, name, value)
+            assert 0.005 <= spec.noise_std <= 0.02
+            # a clinical force: 0.05-1.5 N at the thesis's deepest point and top speed
+            m = make_vessel(v, **{k: x for k, x in d.items() if k != 'noise_std'})
+            f = m.steady_force(0.056, 0.0413)
+            assert 0.05 < f < 1.5, (v, d, f)
+
+
+def test_draw_vessel_refuses_bad_arguments():
+    with pytest.raises(ValueError, match='vessel must be one of'):
+        draw_vessel('aorta', random.Random(0))
+    with pytest.raises(ValueError, match='rng must be a random.Random'):
+        draw_vessel('soft', 3)
+
+
+def test_fresh_cases_are_every_family_operator_and_seed_each_its_own_world():
+    todo = drawn_cases(FRESH_SEEDS)
+    assert len(todo) == len(VESSELS) * len(OPERATORS) * len(FRESH_SEEDS) == 90
+    assert {c[0] for c in todo} == set(VESSELS) and {c[1] for c in todo} == set(OPERATORS)
+    assert {c[2] for c in todo} == set(FRESH_SEEDS)
+    assert len({c[3] for c in todo}) == len(todo)           # no two worlds alike
+    # a case's draw does not depend on which other cases are asked for
+    one = drawn_cases([FRESH_SEEDS[2]], vessels=('stiff_wall',), operators=('human',))
+    assert one[0] in todo
+    for v, op, s, params in todo[:3]:
+        assert all(math.isfinite(x) for _, x in params)
