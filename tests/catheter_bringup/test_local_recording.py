@@ -127,3 +127,18 @@ def test_read_part_refuses_a_file_that_is_not_mcap(tmp_path):
     p.write_bytes(b'not an mcap file at all')
     with pytest.raises(ValueError, match='path'):
         read_part(p)
+
+
+def test_a_part_whose_clock_stepped_back_is_merged_in_log_time_order(tmp_path):
+    """The wall clock can step back (NTP); the bag is still in log-time order."""
+    a, b = str(tmp_path / 'c.a.part.mcap'), str(tmp_path / 'c.b.part.mcap')
+    _part(a, {'/a': WRENCH}, [50, 10, 40]).close('complete')
+    _part(b, {'/b': WRENCH}, [30, 20]).close('complete')
+    out = McapRecorder(tmp_path / 'c.mcap')
+    merge_parts(out, {'a': a, 'b': b})
+    out.close('complete')
+    from mcap.reader import make_reader
+    with open(tmp_path / 'c.mcap', 'rb') as f:
+        times = [m.log_time for _s, _c, m in make_reader(f).iter_messages(
+            log_time_order=False)]
+    assert times == [10, 20, 30, 40, 50]
