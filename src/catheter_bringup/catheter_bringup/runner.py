@@ -14,7 +14,8 @@ failing node stops the run; the recording is closed either way and its ``cathete
 metadata says how far the run got and why it stopped (which signal, or the node's error).
 
 Layout split (real time): every node in a worker process (master, slave, vision; see
-`catheter_bringup.scenario.PROCESSES`), this process records through DDS.
+`catheter_bringup.scenario.PROCESSES`); each worker records its own nodes' messages into a
+part file and this process merges the parts into the bag (`local_recording`).
 
 The parts: `node_start` (building the node instances), `bus` (the in-process transport and
 the counters), `stepping` (the lockstep and real-time loops), `worker` (the worker processes
