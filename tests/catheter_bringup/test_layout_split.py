@@ -72,7 +72,10 @@ def test_split_recording_is_complete_and_readable(split_run):
         for conn, _t, raw in reader.messages():
             reader.deserialize(raw, conn.msgtype)
             counts[conn.topic] = counts.get(conn.topic, 0) + 1
-    for topic in ('/master/command', '/slave/force', '/master/rendered_force'):
+    # every stream, also those their nodes publish only while subscribed (nobody but the
+    # recorder takes /master/hand_force and /master/dfr/rendered_force)
+    for topic in ('/master/command', '/slave/force', '/master/rendered_force',
+                  '/master/hand_force', '/master/dfr/rendered_force', '/slave/joint_state'):
         assert counts.get(topic, 0) > 100, counts
     # every worker recorded every message its nodes published (its part file), and the
     # bag holds all of them: nothing lost, per topic

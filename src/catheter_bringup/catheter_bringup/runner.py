@@ -40,7 +40,7 @@ from rosgraph_msgs.msg import Clock
 from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
 from catheter_bringup.local_recording import PartRecorder, merge_parts, part_path, wanted
 from catheter_bringup.node_start import available_instances, start_node
-from catheter_bringup.rclpy_adapter import detach_clock
+from catheter_bringup.rclpy_adapter import count_extra_subscriber, detach_clock
 from catheter_bringup.recorder import McapRecorder
 from catheter_bringup.result import RunResult  # noqa: F401  (re-exported: part of the API)
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
@@ -299,6 +299,9 @@ class ScenarioRunner(Stepping):
                 if wanted(pub.topic_name, rec['exclude'], rec.get('only') or None):
                     self.part.add_topic(pub.topic_name, type_name_of(pub.msg_type),
                                         [qos_to_dict(pub.qos_profile)])
+                    # the part records it: a subscriber, as the DDS recorder was (nodes that
+                    # publish only while someone subscribes keep publishing it)
+                    count_extra_subscriber(pub)
         self.bus.record = self.part.record
 
     def _start_children(self):
