@@ -6,8 +6,8 @@ reference measured in the same run, and the ratio.
 1. Lockstep: the 12 s Experiment II scenario (whatever of its graph exists) on the 1 ms simulated
    clock: real-time factor with the in-process bus, with and without recording; reference: the
    same graph in lockstep through DDS (waiting for delivery each step), 1.5 s.
-2. Real time, the split layout (master / slave / vision processes over DDS, the runner's
-   process recording) beside the one-process layout (reference), on the machine as it is
+2. Real time, the split layout (master / slave / vision processes over DDS, each recording
+   its own nodes' messages, merged into the bag by the runner) beside the one-process layout (reference), on the machine as it is
    ("quiet") and with a busy-loop process occupying one core ("loaded"), 6 s of Experiment II
    each with 5 % injected link loss: rate and period p50/p99/max of every 1 kHz stream,
    measured where it is published; image -> tip force latency in the vision process; what
@@ -192,7 +192,7 @@ def realtime(duration):
             row('lost by DDS on the link topics (target 0) vs injected link loss',
                 100.0 * lost / sent, 100.0 * INJECTED_LOSS, ' %', fmt='{:.2f}')
         rec = sum(r_split.recorded.values())
-        note('  split: recorded / published (recorder in its own process, best effort)',
+        note('  split: recorded / published (each worker records its own nodes)',
              f'{rec} / {sum(r_split.published.get(t, 0) for t in r_split.recorded)}')
         for name, rep in sorted(r_split.processes.items()):
             if name == 'link':

@@ -45,6 +45,16 @@ def test_intercept_publish_replaces_what_the_node_calls(ros):
     assert ros.spin_until(lambda: got, 10.0) and got[0].data == 'b'
 
 
+def test_count_extra_subscriber_adds_one_to_what_dds_knows(ros):
+    node = ros.node('adapter_count')
+    pub = node.create_publisher(String, 'adapter/count', QOS_DEFAULT)
+    A.count_extra_subscriber(pub)
+    assert pub.get_subscription_count() == 1          # what a node's code calls
+    probe = ros.node('adapter_count_probe')
+    probe.create_subscription(String, 'adapter/count', lambda m: None, QOS_DEFAULT)
+    assert ros.spin_until(lambda: pub.get_subscription_count() == 2, 10.0)
+
+
 def test_callback_type_tells_message_only_from_message_info(ros):
     node = ros.node('adapter_cbtype')
     one = node.create_subscription(String, 'adapter/a', lambda m: None, QOS_DEFAULT)

@@ -117,6 +117,9 @@ class LocalBus:
         self.counts: Dict[str, int] = {}
         self.delivered = 0
         self.dds = dds
+        #: a worker of the split layout: called with (topic, cdr bytes) for every publish,
+        #: to record it in the process (`catheter_bringup.local_recording`); None: off
+        self.record: Optional[Callable[[str, bytes], None]] = None
         self.subs: Dict[str, list] = {}
         self.cost = CallbackCost()
         #: topics also published on DDS (their subscribers run in another process)
@@ -146,6 +149,8 @@ class LocalBus:
                 if bus.dds or _topic in bus.dds_topics:
                     _orig(data)       # the bytes already serialised: not serialised twice
                 bus.counts[_topic] += 1
+                if bus.record is not None:
+                    bus.record(_topic, data)
                 bus.queue.append((_topic, data))
                 if bus.times is not None:
                     bus.note_times(_topic, msg)

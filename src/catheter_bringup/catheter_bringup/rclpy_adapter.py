@@ -46,6 +46,16 @@ def intercept_publish(pub, fn: Callable) -> Callable:
     return orig
 
 
+def count_extra_subscriber(pub) -> None:
+    """Make ``pub.get_subscription_count()`` count one subscriber more than DDS knows of (a
+    recorder that takes the messages in the publishing process: nodes that work only while
+    subscribed keep publishing for it).
+
+    Relies on: as `intercept_publish`, an instance attribute shadows the method."""
+    orig = pub.get_subscription_count
+    pub.get_subscription_count = lambda _orig=orig: _orig() + 1
+
+
 # ------------------------------------------------------------------ subscriptions
 def callback_wants_info(sub) -> bool:
     """True if the subscription's callback takes (msg, message_info).

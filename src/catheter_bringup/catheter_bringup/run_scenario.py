@@ -37,6 +37,9 @@ def build_parser():
     p.add_argument('--go', default=None,
                    help='wait until this file exists before starting the loop (a worker '
                         'process: its run starts with the others, once the recorder listens)')
+    p.add_argument('--part-bag', default=None,
+                   help='a worker process of layout split: record what its nodes publish '
+                        'into this .mcap part (the runner merges the parts into the bag)')
     p.add_argument('--report', default=None,
                    help='write what this process published, took and spent to this JSON file')
     return p
@@ -131,7 +134,8 @@ def main(args=None):
     runner = ScenarioRunner(sc, bag=bag, mode=opts.mode,
                             duration=opts.duration, progress=not opts.quiet,
                             record=False if opts.no_record else None,
-                            only=opts.only.split(',') if opts.only else None)
+                            only=opts.only.split(',') if opts.only else None,
+                            part_bag=opts.part_bag)
     runner.process = opts.process
     runner.go_file = opts.go
     install_stop_handlers(runner)
@@ -153,7 +157,8 @@ def write_report(path: str, process: str, res) -> None:
     import json
     with open(path, 'w') as f:
         json.dump({'process': process, 'status': res.status, 'reason': res.reason,
-                   'nodes': res.nodes, 'published': res.published, 'received': res.received,
+                   'nodes': res.nodes, 'published': res.published, 'recorded': res.recorded,
+                   'received': res.received,
                    'cost': res.cost, 'realtime': res.realtime, 'wall_s': res.wall_time}, f)
 
 

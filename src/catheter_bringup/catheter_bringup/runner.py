@@ -14,7 +14,8 @@ failing node stops the run; the recording is closed either way and its ``cathete
 metadata says how far the run got and why it stopped (which signal, or the node's error).
 
 Layout split (real time): every node in a worker process (master, slave, vision; see
-`catheter_bringup.scenario.PROCESSES`), this process records through DDS.
+`catheter_bringup.scenario.PROCESSES`); each worker records its own nodes' messages into a
+part file and this process merges the parts into the bag (`local_recording`).
 
 The parts: `node_start` (building the node instances), `bus` (the in-process transport and
 the counters), `stepping` (the lockstep and real-time loops), `worker` (the worker processes
@@ -37,8 +38,9 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
+from catheter_bringup.local_recording import PartRecorder, merge_parts, part_path, wanted
 from catheter_bringup.node_start import available_instances, start_node
-from catheter_bringup.rclpy_adapter import detach_clock
+from catheter_bringup.rclpy_adapter import count_extra_subscriber, detach_clock
 from catheter_bringup.recorder import McapRecorder
 from catheter_bringup.result import RunResult  # noqa: F401  (re-exported: part of the API)
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
@@ -91,7 +93,7 @@ class ScenarioRunner(Stepping):
     def __init__(self, scenario, bag: Optional[str] = None, mode: Optional[str] = None,
                  duration: Optional[float] = None, progress: bool = True,
                  registry=None, record: Optional[bool] = None, log=print,
-                 only: Optional[List[str]] = None):
+                 only: Optional[List[str]] = None, part_bag: Optional[str] = None):
         self.scenario = load_scenario(scenario) if not isinstance(scenario, Mapping) \
             else scenario
         if mode is not None:
@@ -114,6 +116,14 @@ class ScenarioRunner(Stepping):
 
         #: start only these node instances (a real-time worker process runs a subset)
         self.only = set(only) if only else None
+        #: a worker of the split layout: record what its nodes publish into this part file
+        #: (`catheter_bringup.local_recording`; the runner merges the parts into the bag)
+        self.part_bag = part_bag
+        self.part: Optional[PartRecorder] = None
+        #: layout split, recording: per worker process, its part file (merged at the end)
+        self.parts: Dict[str, str] = {}
+        #: after the merge: per worker process, what its part held (`merge_parts`)
+        self.part_info: Dict[str, dict] = {}
         self.children: Optional[Workers] = None   # worker processes of a real-time run
         #: process name -> node instances that run in a worker process
         self.child_groups: Dict[str, List[str]] = {}
@@ -185,6 +195,10 @@ class ScenarioRunner(Stepping):
             self.child_groups = {g: [i.name for i in insts] for g, insts in groups.items()}
             self.child_nodes = [n for names in self.child_groups.values() for n in names]
             self._child_produces = {t for i in chosen for t in i.spec.produces}
+            if self.bag and sc.get('realtime_transport', 'local') == 'local':
+                # each worker records its own nodes' messages (no DDS hop, nothing lost);
+                # this process merges the parts at the end
+                self.parts = {g: part_path(self.bag, g) for g in self.child_groups}
             chosen, wanted_all = [], []
         elif (not lockstep and sc.get('realtime_processes', 2) >= 2
               and sc.get('realtime_transport', 'local') == 'local'
@@ -252,17 +266,20 @@ class ScenarioRunner(Stepping):
                     self.counter.wrap_node(node)
             if lockstep:
                 self._drive_clock_of(node)
+        if self.part_bag and self.bus is not None:
+            self._record_part()
         if self.bag:
             # real time: small chunks, so compressing one (inside a write, in the loop's thread)
             # takes a fraction of a 1 ms period; 1 MB chunks took up to 6 ms (measured)
             self.recorder = McapRecorder(self.bag, chunk_size=REALTIME_CHUNK if not lockstep
                                          else 1 << 20)
-            self.sink = RecordingSink(self.runner_node, self.recorder,
-                                      exclude=sc['record']['exclude'],
-                                      only=sc['record'].get('only') or None)
-            self.sink.now_ns = (lambda: self._now_ns) if lockstep else None
-            self.sink.buffered = lockstep
-            self._record_publishers()
+            if not self.parts:
+                self.sink = RecordingSink(self.runner_node, self.recorder,
+                                          exclude=sc['record']['exclude'],
+                                          only=sc['record'].get('only') or None)
+                self.sink.now_ns = (lambda: self._now_ns) if lockstep else None
+                self.sink.buffered = lockstep
+                self._record_publishers()
             # what the run is, in the file before the first step: a run killed with SIGKILL
             # still says it (recover_bag carries it over; analyze reads it)
             self.recorder.start(run_start_info(sc, self.nodes))
@@ -271,10 +288,26 @@ class ScenarioRunner(Stepping):
             self._start_children()
         return self
 
+    def _record_part(self):
+        """A worker of the split layout: every publish of its nodes' recorded topics goes,
+        as the bytes the bus serialised, into its part file."""
+        from catheter_bringup.ros_recording import qos_to_dict
+        rec = self.scenario['record']
+        self.part = PartRecorder(self.part_bag, self.process)
+        for node in self.nodes.values():
+            for pub in list(node.publishers):
+                if wanted(pub.topic_name, rec['exclude'], rec.get('only') or None):
+                    self.part.add_topic(pub.topic_name, type_name_of(pub.msg_type),
+                                        [qos_to_dict(pub.qos_profile)])
+                    # the part records it: a subscriber, as the DDS recorder was (nodes that
+                    # publish only while someone subscribes keep publishing it)
+                    count_extra_subscriber(pub)
+        self.bus.record = self.part.record
+
     def _start_children(self):
         """Start the worker processes (real time) and wait until their nodes are in the
         graph."""
-        self.children = Workers(self.scenario, self.child_groups, self.log)
+        self.children = Workers(self.scenario, self.child_groups, self.log, parts=self.parts)
         if not self.children.wait_in_graph(self.runner_node.get_node_names):
             self.children = None
             if not self.nodes:
@@ -400,6 +433,13 @@ class ScenarioRunner(Stepping):
         if self.sink is not None:
             self.sink.flush()
         recorded = dict(self.sink.received) if self.sink else {}
+        if self.part is not None:
+            self.bus.record = None
+            self.part.close(status, reason)
+            recorded = self.part.counts
+        if self.parts and self.recorder is not None:
+            self.part_info = merge_parts(self.recorder, self.parts)
+            recorded = dict(self.recorder.counts)
         published = dict(self.counter.counts)
         for t, n in self.child_published.items():
             published[t] = published.get(t, 0) + n
@@ -423,6 +463,7 @@ class ScenarioRunner(Stepping):
                 'start_errors': self.start_errors,
                 'fallbacks': self.fallbacks,
                 'published': published,
+                **({'parts': self.part_info} if self.parts else {}),
                 'scenario_yaml': scenario_text(self.scenario),
             })
         # shares of the time the loop ran (a worker's wall time includes its wait for go)
@@ -450,6 +491,8 @@ class ScenarioRunner(Stepping):
         for sig, handler in self._old_handlers.items():
             signal.signal(sig, handler)
         self._old_handlers = {}
+        if self.part is not None and not self.part.recorder.closed:
+            self.part.close('interrupted', 'closed before the run finished')
         if self.recorder is not None and not self.recorder.closed:
             self.recorder.close('interrupted', 'closed before the run finished')
         if self.executor is not None:

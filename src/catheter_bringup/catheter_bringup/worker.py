@@ -7,7 +7,9 @@
   slave, vision), the runner's process only records.
 
 At its end each worker writes a JSON report (what it published and took from DDS per topic,
-its callback cost, GC pauses, the scheduling it got), which `Workers.reports` collects."""
+its callback cost, GC pauses, the scheduling it got; in layout split also what it recorded
+into its part file, see `catheter_bringup.local_recording`), which `Workers.reports`
+collects."""
 from __future__ import annotations
 
 import json
@@ -27,7 +29,7 @@ class Worker:
     SIGINT."""
 
     def __init__(self, scenario: dict, nodes: List[str], log: Callable[[str], None],
-                 name: str = 'vision'):
+                 name: str = 'vision', part: Optional[str] = None):
         self.nodes = list(nodes)
         self.name = name
         self.log = log
@@ -44,6 +46,8 @@ class Worker:
                'realtime', '--no-record', '--quiet', '--only', ','.join(self.nodes),
                '--process', name, '--report', self._report, '--go', self._go,
                '--duration', str(scenario['duration'] + 60.0)]
+        if part:
+            cmd += ['--part-bag', part]    # records its nodes' messages itself
         self._log_file = tempfile.TemporaryFile(mode='w+')
         self.proc: Optional[subprocess.Popen] = subprocess.Popen(
             cmd, stdout=subprocess.DEVNULL, stderr=self._log_file, text=True)
@@ -98,9 +102,11 @@ class Workers:
     together (SIGINT to all, then wait), reports collected."""
 
     def __init__(self, scenario: dict, groups: Dict[str, List[str]],
-                 log: Callable[[str], None]):
+                 log: Callable[[str], None], parts: Optional[Dict[str, str]] = None):
         self.log = log
-        self.workers = [Worker(scenario, nodes, log, name) for name, nodes in groups.items()]
+        parts = parts or {}
+        self.workers = [Worker(scenario, nodes, log, name, parts.get(name))
+                        for name, nodes in groups.items()]
         self.reports: Dict[str, dict] = {}
         #: after `stop`: per link topic and receiving process, sent / taken / lost by DDS
         self.link: Dict[str, dict] = {}
