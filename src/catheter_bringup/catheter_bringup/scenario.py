@@ -22,7 +22,8 @@ A scenario file::
     strict: false             # a node that fails to start fails the run (else it is left out)
     realtime_processes: 2     # real time: 2 = the image pipeline in a worker process, 1 = none
     layout: one               # one | split (real time only: master, slave, vision processes
-                              # talking over DDS, the runner's process records; see PROCESSES)
+                              # talking over DDS, each records its own nodes' messages and
+                              # the runner merges them into the bag; see PROCESSES)
     realtime_priority: 30     # SCHED_FIFO priority of the real-time processes that run 1 kHz
                               # loops (0: normal scheduling; falls back with a log line)
     record: {exclude: [/clock]}   # and/or only: [topics] (everything else is not recorded)
