@@ -102,3 +102,26 @@ def test_ctrl_c_inside_the_with_block_is_an_interrupted_run_not_a_failed_one(tmp
             raise KeyboardInterrupt
     meta = read_run_metadata(path)
     assert meta['status'] == 'interrupted' and meta['reason'] == 'KeyboardInterrupt'
+
+
+@pytest.mark.parametrize('offered', [
+    ['reliable'], ['best_effort'], ['reliable', 'best_effort'], ['best_effort', 'reliable']])
+def test_the_recording_subscription_is_compatible_with_every_offered_publisher(offered):
+    """A reliable subscription to a best-effort publisher receives nothing: the recorder's
+    subscription must be compatible (rclpy's own check) with each publisher it records."""
+    from rclpy.qos import QoSCompatibility, qos_check_compatible
+    from catheter_bringup.ros_recording import recording_qos
+    rel = {'reliable': QoSReliabilityPolicy.RELIABLE,
+           'best_effort': QoSReliabilityPolicy.BEST_EFFORT}
+    pubs = [QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1, reliability=rel[r],
+                       durability=d)
+            for r in offered for d in (QoSDurabilityPolicy.VOLATILE,
+                                       QoSDurabilityPolicy.TRANSIENT_LOCAL)]
+    sub = recording_qos(pubs)
+    for pub in pubs:
+        compat, why = qos_check_compatible(pub, sub)
+        # WARNING only says that liveliness is left to the system default on both sides
+        assert compat != QoSCompatibility.ERROR, why
+    assert sub.depth >= 100          # deep enough not to drop while the executor is busy
+    if offered == ['reliable']:
+        assert sub.reliability == QoSReliabilityPolicy.RELIABLE   # no loss it could avoid
