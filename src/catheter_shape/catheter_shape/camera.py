@@ -26,6 +26,8 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from catheter_shape.scene import sub_polyline
+
 __all__ = ['SyntheticCamera', 'SyntheticFrame', 'make_psi', 'psi_to_pixels', 'pixels_to_metres',
            'BLAZER_DIAMETER', 'SYSTEM_CAMERA', 'system_psi']
 
@@ -310,7 +312,7 @@ class SyntheticCamera:
                               cv2.LINE_AA, _SHIFT)
             if self.electrodes:
                 for a, b in ((0.0, 0.004), (0.006, 0.007), (0.009, 0.010), (0.012, 0.013)):
-                    sel = self._sub_polyline(px - off, s_m, L - b, L - a)
+                    sel = sub_polyline(px - off, s_m, L - b, L - a)
                     if sel is not None:
                         cv2.polylines(level, [np.rint(sel * _SCALE).astype(np.int32)
                                               .reshape(-1, 1, 2)], False, 245,
@@ -346,17 +348,6 @@ class SyntheticCamera:
         return SyntheticFrame(image=image, background=background, psi=self.psi.copy(),
                               centerline_m=c, centerline_px=px, visible_centerline_m=visible,
                               in_view=in_view)
-
-    @staticmethod
-    def _sub_polyline(px: np.ndarray, s: np.ndarray, a: float, b: float):
-        """The polyline between arc lengths a < b (m), interpolated at both ends."""
-        a, b = max(a, 0.0), min(b, s[-1])
-        if b - a <= 0:
-            return None
-        inside = (s > a) & (s < b)
-        pa = np.array([np.interp(a, s, px[:, 0]), np.interp(a, s, px[:, 1])])
-        pb = np.array([np.interp(b, s, px[:, 0]), np.interp(b, s, px[:, 1])])
-        return np.vstack([pa, px[inside], pb])
 
     def _tissue(self, c, px, s_m, depth):
         """Background with a tissue blob hiding the last `depth` m; the visible centreline."""
