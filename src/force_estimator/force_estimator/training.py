@@ -99,6 +99,17 @@ def svr_arrays(models: Sequence, ) -> Dict[str, np.ndarray]:
                 intercept=np.array([float(m.intercept_[0]) for m in models]))
 
 
+def _standardised(X, Y, val_frac: float, seed: int):
+    """Checked (X, Y), their scaling, the standardised Z, T and the (train, validation)
+    index split both trainers use."""
+    X, Y = _check_xy(X, Y)
+    sc = scaling(X, Y)
+    Z = (X - sc['x_mean']) / sc['x_scale']
+    T = (Y - sc['y_mean']) / sc['y_scale']
+    tr, va = _split(len(X), val_frac, seed)
+    return X, Y, sc, Z, T, tr, va
+
+
 def fit_svr(X, Y, C: float = SVR_C, epsilons_n: Iterable[float] = SVR_EPSILONS_N,
             gammas: Iterable[float] = SVR_GAMMAS, val_frac: float = 0.2, seed: int = 0,
             extra_header: Optional[dict] = None,
@@ -113,12 +124,8 @@ def fit_svr(X, Y, C: float = SVR_C, epsilons_n: Iterable[float] = SVR_EPSILONS_N
     Returns (model, report) with report = chosen hyper-parameters, validation table, fit time.
     """
     from sklearn.svm import SVR
-    X, Y = _check_xy(X, Y)
     t0 = time.perf_counter()
-    sc = scaling(X, Y)
-    Z = (X - sc['x_mean']) / sc['x_scale']
-    T = (Y - sc['y_mean']) / sc['y_scale']
-    tr, va = _split(len(X), val_frac, seed)
+    X, Y, sc, Z, T, tr, va = _standardised(X, Y, val_frac, seed)
     tr = tr[:max_search]
     chosen, table = [], []
     for k in range(N_TARGETS):
@@ -171,12 +178,8 @@ def fit_mlp(X, Y, hidden_layer_sizes: Tuple[int, ...] = (10,), alpha: float = 1e
 
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.neural_network import MLPRegressor
-    X, Y = _check_xy(X, Y)
     t0 = time.perf_counter()
-    sc = scaling(X, Y)
-    Z = (X - sc['x_mean']) / sc['x_scale']
-    T = (Y - sc['y_mean']) / sc['y_scale']
-    tr, va = _split(len(X), val_frac, seed)
+    X, Y, sc, Z, T, tr, va = _standardised(X, Y, val_frac, seed)
 
     def make(rs):
         return MLPRegressor(hidden_layer_sizes=tuple(hidden_layer_sizes), activation='relu',
