@@ -11,6 +11,9 @@ A mutant list is a module ``tests/mutation/<name>.py`` that defines
     TESTS = ['tests/fam_solver', '-k', 'not node']     # pytest arguments for this list
     MUTANTS = [Mutant('M01', 'src/pkg/pkg/mod.py', 'old text', 'new text', 'what it breaks'), ...]
 
+A mutant may name its own pytest arguments (``tests=(...)``), e.g. the one test file that
+kills it quickly where the whole selection would crawl through slow failures first.
+
 A mutant that survives and is known to be harmless (equivalent in every outcome the package
 promises) carries the reason in ``harmless=``; it is reported as such, not as a failure.
 
@@ -49,6 +52,7 @@ class Mutant:
     new: str
     why: str            # the property the mutant breaks
     harmless: str = ''  # for a known survivor: why it does no harm (an equivalent mutant)
+    tests: tuple = ()   # pytest arguments for this mutant instead of the list's TESTS
 
 
 def load_list(name: str):
@@ -109,7 +113,8 @@ def run_list(name: str, k: str, timeout: float):
     """Run one mutant list: [(Mutant, 'killed' | 'SURVIVED' | 'INVALID')], or None when the
     list selects nothing or its baseline fails."""
     tests, mutants = load_list(name)
-    mutants = [m for m in mutants if k in m.id]
+    keys = [x for x in k.split(',')] if k else ['']
+    mutants = [m for m in mutants if any(x in m.id for x in keys)]
     if not mutants:
         print(f'{name}: no mutants selected')
         return None
@@ -122,7 +127,7 @@ def run_list(name: str, k: str, timeout: float):
         return None
     results = []
     for m in mutants:
-        res, secs, last = apply_and_test(m, tests, timeout)
+        res, secs, last = apply_and_test(m, list(m.tests) or tests, timeout)
         results.append((m, res))
         print(f'{m.id} {res:8s} {secs:5.0f} s  {m.file}: {m.why}' +
               (f'  [{last}]' if res != 'killed' else ''), flush=True)
@@ -172,7 +177,7 @@ def table(results) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('name', nargs='?', help="mutant list: tests/mutation/<name>.py, or 'all'")
-    ap.add_argument('-k', default='', help='only mutants whose id contains this text')
+    ap.add_argument('-k', default='', help='only mutants whose id contains this text (or one of several, comma-separated)')
     ap.add_argument('--timeout', type=float, default=600.0, help='seconds per pytest run')
     ap.add_argument('--list', action='store_true', help='print the mutant lists and exit')
     a = ap.parse_args(argv)
