@@ -34,7 +34,7 @@ MUTANTS = [
            '    np.cumsum(d, out=s[1:])\n    s /= total',
            '    np.cumsum(d, out=s[1:])\n    s /= s.size',
            'Eq. 2: chord-length parameters not normalised to [0, 1]',
-           tests=('tests/catheter_shape/test_bezier.py',)),   # the whole selection: 270 s
+           tests=('tests/catheter_shape/test_bezier.py', '-k', 'chord_length')),  # else 280 s
     # -- Eq. 1 and the plausibility checks (refuse a wrong shape with a status)
     Mutant('C06', P + 'sensor.py',
            '        return uv @ self.psi[:, :2].T + self._origin',
