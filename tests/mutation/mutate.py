@@ -5,6 +5,7 @@ selection against each, restore the file, and report which mutants survive.
     python tests/mutation/mutate.py fam -k M03     # mutants whose id contains 'M03'
     python tests/mutation/mutate.py --list         # the mutant lists there are
     python tests/mutation/mutate.py all            # every list; a table per package and the total
+    python tests/mutation/mutate.py all --check    # only check that every old text occurs once
 
 A mutant list is a module ``tests/mutation/<name>.py`` that defines
 
@@ -180,11 +181,23 @@ def main(argv=None) -> int:
     ap.add_argument('-k', default='', help='only mutants whose id contains this text (or one of several, comma-separated)')
     ap.add_argument('--timeout', type=float, default=600.0, help='seconds per pytest run')
     ap.add_argument('--list', action='store_true', help='print the mutant lists and exit')
+    ap.add_argument('--check', action='store_true',
+                    help='run nothing: check that each old text occurs exactly once (after edits)')
     a = ap.parse_args(argv)
     if a.list or not a.name:
         print('mutant lists: ' + ', '.join(lists()))
         return 0 if a.list else 2
     names = lists() if a.name == 'all' else [a.name]
+    if a.check:
+        bad = 0
+        for name in names:
+            for m in load_list(name)[1]:
+                n = (ROOT / m.file).read_text().count(m.old)
+                if n != 1:
+                    bad += 1
+                    print(f'{name} {m.id}: old text found {n} times in {m.file}')
+        print(f'{bad} mutant(s) need their old text updated' if bad else 'every old text found once')
+        return 1 if bad else 0
     results, status = [], 0
     for name in names:
         if len(names) > 1:
