@@ -305,7 +305,6 @@ def recorder_loss(rate, seconds):
         t_end = time.monotonic() + 2.0
         while sink.received['/bench/force'] < sent[0] and time.monotonic() < t_end:
             ex.spin_once(timeout_sec=0.05)
-        elapsed = time.monotonic() - t0
         rec.close()
         got = rec.counts['/bench/force']
     ex.shutdown()

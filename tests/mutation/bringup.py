@@ -24,7 +24,8 @@ MUTANTS = [
            '                                publish_time=log_time_ns, sequence=seq, data=data)',
            'issue 14 survivor: the publish time given is dropped (log time recorded instead)'),
     Mutant('B03', P + 'recorder.py',
-           '            if self.first_time_ns is None:\n                self.first_time_ns = log_time_ns',
+           '            if self.first_time_ns is None:\n                self.first_time_ns = '
+           'log_time_ns',
            '            if True:\n                self.first_time_ns = log_time_ns',
            'issue 14 survivor: first_log_time_ns is the last message\'s time'),
     Mutant('B04', P + 'recorder.py',
@@ -32,7 +33,8 @@ MUTANTS = [
            '                else log_time_ns',
            'issue 14 survivor: last_log_time_ns goes back with a late (out of order) message'),
     Mutant('B05', P + 'ros_recording.py',
-           "        'durability': 'transient_local' if qos.durability == QoSDurabilityPolicy.TRANSIENT_LOCAL\n"
+           "        'durability': 'transient_local' if qos.durability == "
+           "QoSDurabilityPolicy.TRANSIENT_LOCAL\n"
            "        else 'volatile',",
            "        'durability': 'volatile',",
            'issue 14 survivor: a latched (transient local) topic is recorded as volatile'),

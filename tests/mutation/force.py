@@ -16,7 +16,8 @@ MUTANTS = [
     Mutant('E01', P + 'models.py',
            '            ok = bool(y2 <= self._fmax2)',
            '            ok = True',
-           'issue 14 survivor: one sample beyond the trained force range is neither scaled back nor flagged'),
+           'issue 14 survivor: one sample beyond the trained force range is neither scaled back '
+           'nor flagged'),
     Mutant('E02', P + 'models.py',
            '        xc = np.clip(x, self._lo, self._hi)          # bounded: no extrapolation',
            '        xc = x',

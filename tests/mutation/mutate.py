@@ -84,7 +84,8 @@ def run_tests(tests, timeout: float) -> tuple:
         env = dict(os.environ, PYTHONPYCACHEPREFIX=cache, PYTHONDONTWRITEBYTECODE='1')
         t0 = time.perf_counter()
         try:
-            r = subprocess.run([sys.executable, '-m', 'pytest', '-x', '-q', '-p', 'no:cacheprovider',
+            r = subprocess.run([sys.executable, '-m', 'pytest', '-x', '-q',
+                                '-p', 'no:cacheprovider',
                                 *tests], cwd=ROOT, env=env, capture_output=True, text=True,
                                timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -122,7 +123,8 @@ def run_list(name: str, k: str, timeout: float):
     for f in sorted({m.file for m in mutants}):
         check_clean(ROOT / f)
     ok, secs, last = run_tests(tests, timeout)
-    print(f'baseline: pytest {" ".join(tests)}: {"passed" if ok else "FAILED"} in {secs:.0f} s ({last})',
+    print(f'baseline: pytest {" ".join(tests)}: {"passed" if ok else "FAILED"} in '
+          f'{secs:.0f} s ({last})',
           flush=True)
     if not ok:
         return None
@@ -178,7 +180,8 @@ def table(results) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('name', nargs='?', help="mutant list: tests/mutation/<name>.py, or 'all'")
-    ap.add_argument('-k', default='', help='only mutants whose id contains this text (or one of several, comma-separated)')
+    ap.add_argument('-k', default='', help='only mutants whose id contains this text (or one '
+                                           'of several, comma-separated)')
     ap.add_argument('--timeout', type=float, default=600.0, help='seconds per pytest run')
     ap.add_argument('--list', action='store_true', help='print the mutant lists and exit')
     ap.add_argument('--check', action='store_true',
@@ -196,7 +199,8 @@ def main(argv=None) -> int:
                 if n != 1:
                     bad += 1
                     print(f'{name} {m.id}: old text found {n} times in {m.file}')
-        print(f'{bad} mutant(s) need their old text updated' if bad else 'every old text found once')
+        print(f'{bad} mutant(s) need their old text updated' if bad
+              else 'every old text found once')
         return 1 if bad else 0
     results, status = [], 0
     for name in names:

@@ -16,7 +16,8 @@ MUTANTS = [
     Mutant('C01', P + 'sensor.py',
            "base_px=None, method: str = 'flatfield', degree: int = 3, refine: int = 1,",
            "base_px=None, method: str = 'flatfield', degree: int = 3, refine: int = 0,",
-           'issue 14 survivor: the sensor runs the plain chord-length fit (refine=0), not the corrected one'),
+           'issue 14 survivor: the sensor runs the plain chord-length fit (refine=0), not the '
+           'corrected one'),
     Mutant('C02', P + 'sensor.py',
            '        q1 = bp + 0.5 * gap * self._ex_px',
            '        q1 = 0.5 * (bp + q2)',

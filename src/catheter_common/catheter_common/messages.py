@@ -137,13 +137,13 @@ def impedance_fields(msg) -> Dict[str, float]:
     n = len(tables[0])
     if n < 2:
         raise ValueError(f'msg.s_table must have >= 2 nodes for a table model, got {n}')
-    for (_, attr), t in zip(TABLES, tables):
+    for (_, attr), t in zip(TABLES, tables, strict=True):
         if len(t) != n:
             raise ValueError(f'msg.{attr} must have {n} nodes like s_table, got {len(t)}')
     for name in TABLE_SCALARS:
         d[name] = finite(f'msg.{name}', getattr(msg, name))
     d['n'] = float(n)
-    for (prefix, attr), t in zip(TABLES, tables):
+    for (prefix, attr), t in zip(TABLES, tables, strict=True):
         for i, v in enumerate(t):
             d[f'{prefix}{i}'] = finite(f'msg.{attr}[{i}]', v)
     return d

@@ -353,11 +353,11 @@ class SyntheticCamera:
         """Background with a tissue blob hiding the last `depth` m; the visible centreline."""
         L = s_m[-1]
         depth = min(depth, 0.9 * L)
-        j = int(np.searchsorted(s_m, L - depth))
         t = px[-1] - px[max(len(px) - 4, 0)]
         t = t / (np.linalg.norm(t) + 1e-12)
         R = 0.012 * self._px_per_m                     # 12 mm radius tissue blob
-        p_surf = np.array([np.interp(L - depth, s_m, px[:, 0]), np.interp(L - depth, s_m, px[:, 1])])
+        p_surf = np.array([np.interp(L - depth, s_m, px[:, 0]),
+                           np.interp(L - depth, s_m, px[:, 1])])
         centre = p_surf + R * t
         m = np.zeros((self.height, self.width), np.uint8)
         cv2.circle(m, tuple(int(x) for x in np.rint(centre * _SCALE)), int(round(R * _SCALE)), 255,

@@ -87,7 +87,7 @@ def svr_arrays(models: Sequence, ) -> Dict[str, np.ndarray]:
     sv, coef, gamma = [], [], []
     for k, m in enumerate(models):
         g = float(m._gamma)
-        for j, (idx, vec) in enumerate(zip(m.support_, m.support_vectors_)):
+        for j, (idx, vec) in enumerate(zip(m.support_, m.support_vectors_, strict=True)):
             key = (g, int(idx))
             if key not in rows:
                 rows[key] = len(sv)
@@ -161,7 +161,7 @@ def mlp_arrays(mlp) -> Dict[str, np.ndarray]:
     if mlp.activation != 'relu' or mlp.out_activation_ != 'identity':
         raise ValueError('mlp must use ReLU hidden layers and an identity output')
     out = {}
-    for i, (W, b) in enumerate(zip(mlp.coefs_, mlp.intercepts_)):
+    for i, (W, b) in enumerate(zip(mlp.coefs_, mlp.intercepts_, strict=True)):
         out[f'W{i}'] = np.array(W)
         out[f'b{i}'] = np.array(b)
     return out

@@ -75,7 +75,7 @@ def fields_from_msg(msg: JointState) -> dict:
     if len(msg.name) != len(msg.position):
         raise ValueError(f'name ({len(msg.name)}) and position ({len(msg.position)}) '
                          'must have the same length')
-    return dict(zip(msg.name, msg.position))
+    return dict(zip(msg.name, msg.position, strict=True))
 
 
 def set_core_limit(renderer, limit: float) -> bool:
