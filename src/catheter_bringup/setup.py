@@ -19,7 +19,8 @@ setup(
     zip_safe=True,
     maintainer='Catheter teleoperation team',
     maintainer_email='dev@catheter-teleop.example',
-    description='Scenario runner (launchless, lockstep or real time), MCAP recorder, replay, analysis and plots for the catheter node graph.',
+    description='Scenario runner (launchless, lockstep or real time), MCAP recorder, replay, '
+                'analysis and plots for the catheter node graph.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

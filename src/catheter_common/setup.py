@@ -14,7 +14,8 @@ setup(
     zip_safe=True,
     maintainer='Catheter teleoperation team',
     maintainer_email='dev@catheter-teleop.example',
-    description='Shared ROS 2 plumbing for the catheter packages: topic names and QoS, node runner with clean shutdown, diagnostics helper.',
+    description='Shared ROS 2 plumbing for the catheter packages: topic names and QoS, node runner '
+                'with clean shutdown, diagnostics helper.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

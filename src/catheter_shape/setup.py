@@ -14,7 +14,8 @@ setup(
     zip_safe=True,
     maintainer='Catheter teleoperation team',
     maintainer_email='dev@catheter-teleop.example',
-    description='Image-based shape sensing: camera frame to ordered centreline to Bezier control points; synthetic camera.',
+    description='Image-based shape sensing: camera frame to ordered centreline to Bezier control '
+                'points; synthetic camera.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -14,7 +14,8 @@ setup(
     zip_safe=True,
     maintainer='Catheter teleoperation team',
     maintainer_email='dev@catheter-teleop.example',
-    description='Finite Arc Method (FAM) forward model of a planar catheter, a reference Kirchhoff rod solver, and the fam_solver_node.',
+    description='Finite Arc Method (FAM) forward model of a planar catheter, a reference Kirchhoff '
+                'rod solver, and the fam_solver_node.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -21,7 +21,8 @@ setup(
     zip_safe=True,
     maintainer='Catheter teleoperation team',
     maintainer_email='dev@catheter-teleop.example',
-    description='Tip force estimation from Bezier control points: learned models (SVR, MLP) trained on simulation, and FAM inversion.',
+    description='Tip force estimation from Bezier control points: learned models (SVR, MLP) '
+                'trained on simulation, and FAM inversion.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -14,7 +14,8 @@ setup(
     zip_safe=True,
     maintainer='Catheter teleoperation team',
     maintainer_email='dev@catheter-teleop.example',
-    description='Impedance-matching force feedback: slave-side identification, master-side IMA and DFR rendering, simulated haptic device and operator.',
+    description='Impedance-matching force feedback: slave-side identification, master-side IMA and '
+                'DFR rendering, simulated haptic device and operator.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

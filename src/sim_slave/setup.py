@@ -14,7 +14,8 @@ setup(
     zip_safe=True,
     maintainer='Catheter teleoperation team',
     maintainer_email='dev@catheter-teleop.example',
-    description='Simulated patient side: insertion robot, vessel interaction, force sensor, camera stream, UDP-like link.',
+    description='Simulated patient side: insertion robot, vessel interaction, force sensor, camera '
+                'stream, UDP-like link.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -113,21 +113,23 @@ def bvp_solve(cat, loads, tol, guess=None):
 
 def table1():
     print('## 1. Run time against error (tip error in % of L vs solve_elastica rtol=1e-12)')
-    print(f'load average: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores (shared machine: wall times noisy)')
+    print(f'load average: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores (shared machine: wall '
+          'times noisy)')
     sets = [('thesis 40 mm', THESIS, thesis_cases()), ('Blazer 65 mm', BLAZER, blazer_cases())]
     refs = {}
     t_ref = {}
     for name, cat, cases in sets:
         rs, ts = [], []
         for ld in cases:
-            w, c, r = timed(lambda: solve_elastica(cat, ld), 1)
+            w, c, r = timed(lambda cat=cat, ld=ld: solve_elastica(cat, ld), 1)
             assert r.converged, ld
             rs.append(r)
             ts.append(w)
         refs[name] = rs
         t_ref[name] = float(np.median(ts))
         alphas = [ld.load_parameter(cat) for ld in cases]
-        print(f'{name}: {len(cases)} cases, load parameter (|F| L^2 + |M| L)/EI up to {max(alphas):.1f}; '
+        print(f'{name}: {len(cases)} cases, load parameter (|F| L^2 + |M| L)/EI up to '
+              f'{max(alphas):.1f}; '
               f'reference median {t_ref[name] * 1e3:.1f} ms')
     print()
     hdr = ('| case set | model | spacing | N | max err %L | mean err %L | order | median wall ms '
@@ -144,8 +146,10 @@ def table1():
                         continue
                     rep = 9 if n <= 48 else (3 if n <= 1000 else 1)
                     errs, walls, cpus, conv = [], [], [], 0
-                    for ld, ref in zip(cases, refs[name]):
-                        w, c, sh = timed(lambda: solve_fam(cat, ld, n_arcs=n, arc_model=model,
+                    for ld, ref in zip(cases, refs[name], strict=True):
+                        w, c, sh = timed(lambda cat=cat, ld=ld, n=n, model=model,
+                                         spacing=spacing: solve_fam(cat, ld, n_arcs=n,
+                                                                    arc_model=model,
                                                            spacing=spacing), rep)
                         errs.append(np.max(np.abs(sh.tip - ref.tip)) / cat.length * 100)
                         walls.append(w)
@@ -158,11 +162,14 @@ def table1():
                     errs_by_n.append(max(errs))
                     ns.append(n)
                     summary[(name, model, spacing, n)] = (max(errs), mw, mc)
-                    print(f'| {name} | {model} | {spacing} | {n} | {max(errs):.2e} | {np.mean(errs):.2e} | '
-                          f'{order:.2f} | {mw:.3f} | {mc:.3f} | {mw / TARGET_MS:.2f}x | {mw / THESIS_MS:.3f}x | '
+                    print(f'| {name} | {model} | {spacing} | {n} | {max(errs):.2e} | '
+                          f'{np.mean(errs):.2e} | '
+                          f'{order:.2f} | {mw:.3f} | {mc:.3f} | {mw / TARGET_MS:.2f}x | '
+                          f'{mw / THESIS_MS:.3f}x | '
                           f'{conv}/{len(cases)} |')
-                mono = all(a > b or max(a, b) < FLOOR for a, b in zip(errs_by_n[:-1], errs_by_n[1:]))
-                floor = [n for n, e in zip(ns, errs_by_n) if e < FLOOR]
+                mono = all(a > b or max(a, b) < FLOOR
+                           for a, b in zip(errs_by_n[:-1], errs_by_n[1:], strict=True))
+                floor = [n for n, e in zip(ns, errs_by_n, strict=True) if e < FLOOR]
                 note = (f' (from N = {floor[0]} below {FLOOR:g} % L: the reference\'s own accuracy)'
                         if floor else '')
                 print(f'| {name} | {model} | {spacing} | error falls monotonically with N up to '
@@ -174,8 +181,9 @@ def table1():
     for name, cat, cases in sets:
         for rtol in (1e-4, 1e-6, 1e-8, 1e-10):
             errs, walls, conv = [], [], 0
-            for ld, ref in zip(cases, refs[name]):
-                w, c, r = timed(lambda: solve_elastica(cat, ld, rtol=rtol), 1)
+            for ld, ref in zip(cases, refs[name], strict=True):
+                w, c, r = timed(lambda cat=cat, ld=ld,
+                                rtol=rtol: solve_elastica(cat, ld, rtol=rtol), 1)
                 errs.append(np.max(np.abs(r.tip - ref.tip)) / cat.length * 100)
                 walls.append(w)
                 conv += r.converged
@@ -183,8 +191,8 @@ def table1():
                   f'{np.median(walls) * 1e3:.2f} | {conv}/{len(cases)} |')
         for tol in (1e-3, 1e-6, 1e-8):
             errs, walls, conv = [], [], 0
-            for ld, ref in zip(cases, refs[name]):
-                w, c, (tip, ok) = timed(lambda: bvp_solve(cat, ld, tol), 1)
+            for ld, ref in zip(cases, refs[name], strict=True):
+                w, c, (tip, ok) = timed(lambda cat=cat, ld=ld, tol=tol: bvp_solve(cat, ld, tol), 1)
                 errs.append(np.max(np.abs(tip - ref.tip)) / cat.length * 100)
                 walls.append(w)
                 conv += ok
@@ -192,16 +200,18 @@ def table1():
                   f'{max(errs):.2e} | {np.median(walls) * 1e3:.2f} | {conv}/{len(cases)} |')
         for tol in (1e-3, 1e-6, 1e-8):
             errs, walls, conv = [], [], 0
-            for ld, ref in zip(cases, refs[name]):
+            for ld, ref in zip(cases, refs[name], strict=True):
                 g = solve_fam(cat, ld, n_arcs=12)
-                w, c, (tip, ok) = timed(lambda: bvp_solve(cat, ld, tol, guess=g), 1)
+                w, c, (tip, ok) = timed(lambda cat=cat, ld=ld, tol=tol,
+                                        g=g: bvp_solve(cat, ld, tol, guess=g), 1)
                 errs.append(np.max(np.abs(tip - ref.tip)) / cat.length * 100)
                 walls.append(w)
                 conv += ok
             print(f'| {name} | scipy solve_bvp (FAM N=12 guess, time excl. FAM) | tol {tol:.0e} | '
                   f'{max(errs):.2e} | {np.median(walls) * 1e3:.2f} | {conv}/{len(cases)} |')
     print()
-    print(f'### N = 12 against the targets (defaults: arc_model {DEFAULT_ARC_MODEL}, spacing {DEFAULT_SPACING})')
+    print(f'### N = 12 against the targets (defaults: arc_model {DEFAULT_ARC_MODEL}, spacing '
+          f'{DEFAULT_SPACING})')
     print('| what | this project | target / reference | ratio |')
     print('|---|---|---|---|')
     for name, cat, cases in sets:
@@ -209,32 +219,38 @@ def table1():
             for spacing in ('uniform', 'graded'):
                 e, w, c = summary[(name, model, spacing, 12)]
                 k = f'{name} {model} {spacing}'
-                print(f'| {k}: max tip error | {e:.3f} % L | {TARGET_ERR} % L | {e / TARGET_ERR:.2f} |')
-                print(f'| {k}: median solve (wall) | {w:.3f} ms | {TARGET_MS} ms | {w / TARGET_MS:.2f} |')
-                print(f'| {k}: median solve (cpu) | {c:.3f} ms | {TARGET_MS} ms | {c / TARGET_MS:.2f} |')
+                print(f'| {k}: max tip error | {e:.3f} % L | {TARGET_ERR} % L | '
+                      f'{e / TARGET_ERR:.2f} |')
+                print(f'| {k}: median solve (wall) | {w:.3f} ms | {TARGET_MS} ms | '
+                      f'{w / TARGET_MS:.2f} |')
+                print(f'| {k}: median solve (cpu) | {c:.3f} ms | {TARGET_MS} ms | '
+                      f'{c / TARGET_MS:.2f} |')
                 print(f'| {k}: vs reference in this run | {w:.3f} ms | solve_elastica '
                       f'{t_ref[name] * 1e3:.1f} ms | {w / (t_ref[name] * 1e3):.4f} |')
         for spacing in ('uniform', 'graded'):
             for n in (16, 20):
                 e = max(np.max(np.abs(solve_fam(cat, ld, n_arcs=n, spacing=spacing,
                                                 arc_model='exact').tip - r.tip)) / cat.length * 100
-                        for ld, r in zip(cases, refs[name]))
-                print(f'| {name} exact {spacing}: max tip error at N = {n} | {e:.3f} % L | {TARGET_ERR} % L | '
+                        for ld, r in zip(cases, refs[name], strict=True))
+                print(f'| {name} exact {spacing}: max tip error at N = {n} | {e:.3f} % L | '
+                      f'{TARGET_ERR} % L | '
                       f'{e / TARGET_ERR:.2f} |')
     print()
-    print('### N = 12 per case, tip error % L: circular arcs uniform -> graded, clothoid arcs uniform')
+    print('### N = 12 per case, tip error % L: circular arcs uniform -> graded, clothoid arcs '
+          'uniform')
     print('| case set | tip force N | tip moment N m | F L^2/EI | exact uniform | exact graded | '
           'graded / uniform | clothoid uniform | clothoid / exact graded |')
     print('|---|---|---|---|---|---|---|---|---|')
     for name, cat, cases in sets:
-        for ld, ref in zip(cases, refs[name]):
+        for ld, ref in zip(cases, refs[name], strict=True):
             eu, eg, ec = (np.max(np.abs(solve_fam(cat, ld, n_arcs=12, spacing=sp, arc_model=md).tip
                                         - ref.tip)) / cat.length * 100
                           for md, sp in (('exact', 'uniform'), ('exact', 'graded'),
                                          ('clothoid', 'uniform')))
             fx, fy = ld.tip_force
             nan = float('nan')
-            print(f'| {name} | ({fx:.3f}, {fy:.3f}) | {ld.tip_moment:g} | {ld.load_parameter(cat):.1f} | '
+            print(f'| {name} | ({fx:.3f}, {fy:.3f}) | {ld.tip_moment:g} | '
+                  f'{ld.load_parameter(cat):.1f} | '
                   f'{eu:.4f} | {eg:.4f} | {eg / eu if eu > 0 else nan:.2f} | {ec:.2e} | '
                   f'{ec / eg if eg > 0 else nan:.3f} |')
     print()
@@ -243,18 +259,21 @@ def table1():
 def table1b():
     print('### thesis Study II: 504 mm catheter, three point forces (0.463 N at s=0.165, '
           '-0.065 N at 0.577, 0.007 N at 0.968)')
-    I = math.pi / 64 * (2.14 ** 4 - 1.56 ** 4) * 1e-12      # OD 2.14 mm, wall 0.29 mm
-    cat = Catheter(0.504, 1592.3e6 * I)
+    area_moment = math.pi / 64 * (2.14 ** 4 - 1.56 ** 4) * 1e-12   # OD 2.14 mm, wall 0.29 mm
+    cat = Catheter(0.504, 1592.3e6 * area_moment)
     ld = Loads(point_forces=((0.165, 0.0, 0.463), (0.577, 0.0, -0.065), (0.968, 0.0, 0.007)))
     w, c, ref = timed(lambda: solve_elastica(cat, ld), 1)
-    print(f'EI = {cat.ei:.4g} N m^2; reference tip ({ref.tip[0] * 1e3:.2f}, {ref.tip[1] * 1e3:.2f}) mm '
+    print(f'EI = {cat.ei:.4g} N m^2; reference tip ({ref.tip[0] * 1e3:.2f}, '
+          f'{ref.tip[1] * 1e3:.2f}) mm '
           f'in {w * 1e3:.0f} ms')
-    print('| model | spacing | N | tip error mm | tip error %L | median wall ms | median cpu ms | thesis (C++, vs experiment) |')
+    print('| model | spacing | N | tip error mm | tip error %L | median wall ms | median cpu ms | '
+          'thesis (C++, vs experiment) |')
     print('|---|---|---|---|---|---|---|---|')
     for model in ('clothoid', 'exact'):
         for spacing in ('uniform', 'graded'):
             for n in (12, 24, 48, 100, 500):
-                w, c, sh = timed(lambda: solve_fam(cat, ld, n_arcs=n, spacing=spacing,
+                w, c, sh = timed(lambda n=n, spacing=spacing,
+                                 model=model: solve_fam(cat, ld, n_arcs=n, spacing=spacing,
                                                    arc_model=model), 5)
                 e = float(np.max(np.abs(sh.tip - ref.tip)))
                 print(f'| {model} | {spacing} | {n} | {e * 1e3:.4f} | {e / cat.length * 100:.5f} | '
@@ -278,7 +297,8 @@ def random_cases(rng, count):
         elif k == 'compressive':
             a = rng.uniform(0, 50)
             b = np.pi + rng.normal(0, 0.3)
-            ld = Loads(tip_force=(a * np.cos(b), a * np.sin(b)), tip_moment=rng.choice([0.0, rng.normal(0, 0.5)]))
+            ld = Loads(tip_force=(a * np.cos(b), a * np.sin(b)),
+                       tip_moment=rng.choice([0.0, rng.normal(0, 0.5)]))
         elif k == 'follower':
             a = rng.uniform(0, 8)
             ld = Loads(tip_force=(a * np.cos(ang), a * np.sin(ang)), follower=True,
@@ -309,7 +329,8 @@ def table2():
 
 
 def stress_table(cases, sub, refs, spacing, model):
-    print(f'## 2. Stress: seeded random sweep (N = 12, {model} model, {spacing} arcs, unit catheter '
+    print(f'## 2. Stress: seeded random sweep (N = 12, {model} model, {spacing} arcs, unit '
+          'catheter '
           f'L = 1, EI = 1)')
     count = len(cases)
     cat = Catheter(1.0, 1.0)
@@ -342,23 +363,31 @@ def stress_table(cases, sub, refs, spacing, model):
         errs.setdefault(k, []).append(e)
         if e > worst.get(k, (-1, None))[0]:
             worst[k] = (e, ld.load_parameter(cat))
-    print(f'{count} cases in {wall:.1f} s wall ({wall / count * 1e3:.2f} ms per solve incl. continuation fallbacks)')
+    print(f'{count} cases in {wall:.1f} s wall ({wall / count * 1e3:.2f} ms per solve incl. '
+          'continuation fallbacks)')
     med_all = float(np.median(np.concatenate([s['t'] for s in stats.values()])))
-    print(f'CPU time per solve: median {med_all:.3f} ms over all kinds; per kind the median, and how many '
+    print(f'CPU time per solve: median {med_all:.3f} ms over all kinds; per kind the median, and '
+          'how many '
           f'solves took over {CLIFF_RATIO:g}x the overall median')
-    print('| kind | cases | non-converged | NaN | flagged unstable | snap-through | max iterations | worst tip error %L (subsample) | at load parameter | mean tip error %L (subsample) | median cpu ms | over 3x median |')
+    print('| kind | cases | non-converged | NaN | flagged unstable | snap-through | max iterations '
+          '| worst tip error %L (subsample) | at load parameter | mean tip error %L (subsample) | '
+          'median cpu ms | over 3x median |')
     print('|---|---|---|---|---|---|---|---|---|---|---|---|')
     tot = dict(n=0, nonconv=0, nan=0, unstable=0, snap=0)
     for k, s in stats.items():
         e, a = worst.get(k, (float('nan'), float('nan')))
         me = float(np.mean(errs[k])) if errs.get(k) else float('nan')
         t = np.array(s['t'])
-        print(f'| {k} | {s["n"]} | {s["nonconv"]} | {s["nan"]} | {s["unstable"]} | {s["snap"]} | {s["maxit"]} | '
-              f'{e:.3f} | {a:.1f} | {me:.4f} | {np.median(t):.3f} | {int(np.sum(t > CLIFF_RATIO * med_all))} |')
+        print(f'| {k} | {s["n"]} | {s["nonconv"]} | {s["nan"]} | {s["unstable"]} | {s["snap"]} | '
+              f'{s["maxit"]} | '
+              f'{e:.3f} | {a:.1f} | {me:.4f} | {np.median(t):.3f} | '
+              f'{int(np.sum(t > CLIFF_RATIO * med_all))} |')
         for key in tot:
             tot[key] += s[key]
-    print(f'| total | {tot["n"]} | {tot["nonconv"]} (target 0) | {tot["nan"]} (target 0) | {tot["unstable"]} | {tot["snap"]} | | | | |')
-    print('(errors at N = 12 are discretisation errors; they grow with the load parameter, up to 50 here)')
+    print(f'| total | {tot["n"]} | {tot["nonconv"]} (target 0) | {tot["nan"]} (target 0) | '
+          f'{tot["unstable"]} | {tot["snap"]} | | | | |')
+    print('(errors at N = 12 are discretisation errors; they grow with the load parameter, up to '
+          '50 here)')
     print()
 
 
@@ -369,11 +398,13 @@ def table3():
     mag = rng.uniform(0, 0.3, B)
     ang = rng.uniform(0, np.pi, B)
     F = np.stack([mag * np.cos(ang), mag * np.sin(ang)], axis=1)
-    print('| model | spacing | what | this project | reference in this run | target | ratio to target |')
+    print('| model | spacing | what | this project | reference in this run | target | ratio to '
+          'target |')
     print('|---|---|---|---|---|---|---|')
     for model in ('clothoid', 'exact'):
         for spacing in ('uniform', 'graded'):
-            w, c, bt = timed(lambda: solve_fam_batch(BLAZER, F, n_arcs=12, spacing=spacing,
+            w, c, bt = timed(lambda spacing=spacing,
+                             model=model: solve_fam_batch(BLAZER, F, n_arcs=12, spacing=spacing,
                                                      arc_model=model), 1)
             nloop = 1000 if QUICK else 3000
             w0, c0 = time.perf_counter(), time.process_time()
@@ -382,11 +413,14 @@ def table3():
             wl, cl = time.perf_counter() - w0, time.process_time() - c0
             diff = np.max(np.abs(tips - bt.tips[:nloop]))
             k = f'{model} | {spacing}'
-            print(f'| {k} | batch solves/s (wall) | {B / w:,.0f} | single-solve loop {nloop / wl:,.0f}/s | '
+            print(f'| {k} | batch solves/s (wall) | {B / w:,.0f} | single-solve loop '
+                  f'{nloop / wl:,.0f}/s | '
                   f'{TARGET_BATCH:,} | {B / w / TARGET_BATCH:.2f} |')
-            print(f'| {k} | batch solves/s (cpu) | {B / c:,.0f} | single-solve loop {nloop / cl:,.0f}/s | '
+            print(f'| {k} | batch solves/s (cpu) | {B / c:,.0f} | single-solve loop '
+                  f'{nloop / cl:,.0f}/s | '
                   f'{TARGET_BATCH:,} | {B / c / TARGET_BATCH:.2f} |')
-            print(f'| {k} | batch converged | {int(bt.converged.sum())}/{B} | max |batch - single| tip '
+            print(f'| {k} | batch converged | {int(bt.converged.sum())}/{B} | max |batch - single| '
+                  'tip '
                   f'{diff:.1e} m | all | |')
     print()
 

@@ -101,7 +101,7 @@ def cliff_report(title, times, noise, ns, labels, ref_ms):
         d = 1.0 - meds[j] / meds[k]
         if d > drop:
             drop, where, nz = d, f' (N = {ns[k]} -> {ns[j]})', noise[ns[k]] + noise[ns[j]]
-    cells = ' | '.join(f'{m:.3f} / {r:.2f}' for m, r in zip(meds, ratios))
+    cells = ' | '.join(f'{m:.3f} / {r:.2f}' for m, r in zip(meds, ratios, strict=True))
     ok_ratio = max(ratios) <= CLIFF_RATIO
     smooth = (f'{meds[ns.index(100)] / meds[ns.index(48)]:.2f}'
               if 48 in ns and 100 in ns else '')
@@ -126,9 +126,10 @@ def table_cliffs():
     ns = [n for n in CLIFF_NS if not (QUICK and n > 100)]
     print(f'### Performance cliffs (issue 15): per N, median CPU ms over the cases / slowest case '
           f'over that median (target <= {CLIFF_RATIO:g}); is the median non-decreasing in N')
-    print(f'CPU times: every (N, case) once per round, rounds interleaved ({CLIFF_ROUNDS[0]} rounds '
-          f'for N <= 100, {CLIFF_ROUNDS[1]} beyond), the minimum over the rounds; noise: medians from '
-          f'the even against the odd rounds; reference: clothoid N = 12, Blazer 0.2 N lateral, '
+    print(f'CPU times: every (N, case) once per round, rounds interleaved ({CLIFF_ROUNDS[0]} '
+          f'rounds for N <= 100, {CLIFF_ROUNDS[1]} beyond), the minimum over the rounds; noise: '
+          f'medians from the even against the odd rounds; reference: clothoid N = 12, Blazer '
+          f'0.2 N lateral, '
           f'interleaved in the same rounds. load average {os.getloadavg()[0]:.1f} on '
           f'{os.cpu_count()} cores')
     cliff_header(ns)
@@ -139,7 +140,8 @@ def table_cliffs():
         for model in MODELS:
             for spacing in ('uniform', 'graded'):
                 times, noise, ref_ms = cliff_times(
-                    lambda ld, n: solve_fam(cat, ld, n_arcs=n, arc_model=model, spacing=spacing),
+                    lambda ld, n, cat=cat, model=model, spacing=spacing: solve_fam(
+                        cat, ld, n_arcs=n, arc_model=model, spacing=spacing),
                     cases, ns, ref)
                 rows.append(cliff_report(f'{name}, {model}, {spacing}', times, noise, ns, labels,
                                          ref_ms))
@@ -161,7 +163,8 @@ def table_cliffs():
     for model in ('clothoid', 'exact'):
         for spacing in ('uniform', 'graded'):
             times, noise, ref_ms = cliff_times(
-                lambda ld, n: solve_fam(cat, ld, n_arcs=n, arc_model=model, spacing=spacing),
+                lambda ld, n, model=model, spacing=spacing: solve_fam(
+                    cat, ld, n_arcs=n, arc_model=model, spacing=spacing),
                 cases, ns2, ref)
             rows.append(cliff_report(f'Blazer force + moment, {model}, {spacing}', times, noise,
                                      ns2, labels, ref_ms))

@@ -95,7 +95,7 @@ def run_styles(F, cls, estimators, seed):
     for k, style in enumerate(STYLES):
         rng = np.random.default_rng(seed + 100 * k)
         rows = []
-        for f, c in zip(F, cls):
+        for f, c in zip(F, cls, strict=True):
             fr = render_style(style, c, rng=rng)
             obs = ShapeSensor(fr.psi, background=fr.background, base_px=fr.base_px,
                               length=0.065).process(fr.image)
@@ -157,14 +157,15 @@ def angle_table(res):
     ang = np.degrees(np.abs(np.array([np.arctan2(r['force'][1], r['force'][0]) for r in R])))
     edges = (0, 5, 15, 30, 60, 90, 120, 150, 165, 175, 180.01)
     rows = []
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
         k = [i for i in range(len(R)) if lo <= ang[i] < hi]
         if not k:
             continue
         cells = [f'{lo:.0f}-{min(hi, 180):.0f} deg', len(k)]
         for m in METHODS:
             es = [R[i]['est'][m] for i in k]
-            err = np.array([np.hypot(*(e.force - R[i]['force'])) for e, i in zip(es, k)])
+            err = np.array([np.hypot(*(e.force - R[i]['force']))
+                            for e, i in zip(es, k, strict=True)])
             cells.append(pct(err.mean()))
         fam = [R[i]['est']['fam'] for i in k]
         svr = [R[i]['est']['svr'] for i in k]
@@ -173,7 +174,7 @@ def angle_table(res):
         cells.append(f'{np.mean([e.status == "axial_unobservable" for e in fam]):.0%}')
         for ests in (fam, svr):
             cov = []
-            for e, i in zip(ests, k):
+            for e, i in zip(ests, k, strict=True):
                 d = e.force - R[i]['force']
                 cov.append(float(d @ np.linalg.solve(e.covariance, d)) < 5.991)
             cells.append(f'{np.mean(cov):.0%}')
@@ -203,11 +204,11 @@ def speed_tables(shipped, fam, fam_fd, cp_all, cat):
     xf = x1.reshape(1, 12)
     rows = []
     for name, m, thz in (('svr', svr_g, 917.0), ('mlp', mlp_g, 646.0)):
-        t_np = timeit(lambda: m.predict(x1))
-        t_sk = timeit(lambda: sklearn_predict(m, xf), n=300)
+        t_np = timeit(lambda m=m: m.predict(x1))
+        t_sk = timeit(lambda m=m: sklearn_predict(m, xf), n=300)
         s = shipped[name].model
-        t_sh = timeit(lambda: s.predict(x1))
-        t_est = timeit(lambda: s.estimate(x1), n=500)
+        t_sh = timeit(lambda s=s: s.predict(x1))
+        t_est = timeit(lambda s=s: s.estimate(x1), n=500)
         rows.append((f'{name} (grid model): numpy forward, us/estimate', f'{1e6 * t_np:.1f}',
                      f'{1e6 * t_sk:.1f} sklearn predict', f'{t_sk / t_np:.0f}x faster'))
         rows.append((f'{name} (shipped, {s}): predict, estimates/s', f'{1 / t_sh:,.0f}',
@@ -289,7 +290,8 @@ def speed_tables(shipped, fam, fam_fd, cp_all, cat):
     for name in ('svr', 'mlp'):
         h = shipped[name].model.header
         rows.append((f'shipped blazer-{name}: recipe {h.get("dataset", {}).get("features")}, '
-                     f'{h.get("n_train")} samples, fit s', f'{h.get("fit_time_s", float("nan")):.1f}'))
+                     f'{h.get("n_train")} samples, fit s',
+                     f'{h.get("fit_time_s", float("nan")):.1f}'))
     table('Training', rows, ('what', 'value'))
 
 

@@ -28,7 +28,7 @@ for pkg in ('impedance_master', 'sim_slave', 'catheter_common'):
     if p not in sys.path:
         sys.path.insert(0, p)
 
-from impedance_master.experiment import (EXPERIMENT_II_OUTAGES, ExperimentConfig,  # noqa: E402
+from impedance_master.experiment import (ExperimentConfig,  # noqa: E402
                                          run_experiment)
 from impedance_master.identification import (SlidingWindowIdentifier,  # noqa: E402
                                              make_identifier)
@@ -151,7 +151,6 @@ def visited(res_by_label, delay=0.2, margin=1e-3):
         e1, e2, e3 = [], [], []
         for r in results:
             s = r.series
-            n = s['t'].size
             lag = int(round(2 * delay * 1000))
             xs, xm = s['x_slave'], s['x_master']
             run_lo = np.minimum.accumulate(xs)
@@ -165,7 +164,8 @@ def visited(res_by_label, delay=0.2, margin=1e-3):
                 out1 = xm[k] < w.min() - margin or xm[k] > w.max() + margin
                 never = xm[k] < run_lo[j] - margin or xm[k] > run_hi[j] + margin
                 (e2 if never else e1 if out1 else e3).append(err[k])
-        f = lambda e: f'{np.mean(e):.4f}/{np.max(e):.4f}' if e else '-'
+        def f(e):
+            return f'{np.mean(e):.4f}/{np.max(e):.4f}' if e else '-'
         print(f'{label:<30} {f(e1):>25} {f(e2):>22} {f(e3):>18} {len(e1):>14d} {len(e2):>10d}')
 
 
@@ -286,7 +286,7 @@ def timing():
         print(f'{name:<34} {amort:12.2f} {np.median(per):7.2f} '
               f'{np.percentile(per, 99):7.2f} {per.max():8.1f} | {ref_us:7.2f} '
               f'{amort / ref_us:6.3f} | {amort / 320:.3f} of thesis')
-    print(f'(ref: numpy lstsq of Eq. 34 over the 1000-sample window, per sample, same run)')
+    print('(ref: numpy lstsq of Eq. 34 over the 1000-sample window, per sample, same run)')
 
 
 def main(argv=None):

@@ -82,7 +82,7 @@ def fuzz_renderers(n, seed=0):
         sent = refused = nonfinite = over = crashes = 0
         limit = 2.0
         x = 0.03
-        for i in range(n):
+        for _ in range(n):
             u = rng.random()
             sent += 1
             try:

@@ -63,7 +63,7 @@ def run_all(todo, jobs):
 def report(title, todo, results, counted):
     """Print the tables of one section. todo: (vessel, operator, seed, params) cases;
     counted(case) -> whether the case counts (held out)."""
-    res = dict(zip(todo, results))
+    res = dict(zip(todo, results, strict=True))
     print(f'\n## {title}: every case, MAE normal / MAE outage / max |e| (N); beats DFR = '
           'normal < DFR, outage < DFR/2, max < DFR; <= anchored = all-interval MAE no worse')
     print(f'{"vessel":<15} {"operator":<8} {"seed":>4} | ' + ' | '.join(

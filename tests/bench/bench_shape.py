@@ -166,7 +166,8 @@ def stage_table(cls, seed, n=120):
               f'{med(ref_skel):.3f} skeletonize', f'{med(T["skeleton"]) / med(ref_skel):.2f}'),
              ('fit (regularized) vs the thesis chord-length fit', f'{med(T["fit"]):.3f}',
               f'{med(t_thesis):.3f} thesis fit', f'{med(T["fit"]) / med(t_thesis):.2f}')]
-    table(f'Stage timings, ms (system style, 640x480, background given, {len(T["total"])} ok frames)',
+    table(f'Stage timings, ms (system style, 640x480, background given, {len(T["total"])} ok '
+          'frames)',
           ('stage', 'median ms', 'same-run reference', 'ratio'), rows)
 
 
@@ -233,7 +234,9 @@ def main():
             bez = max([x['bez'] for x in R]) * 1e3
             ms = med([x['ms'] for x in R])
             name = style + (' (held out)' if style in HELD_OUT_STYLES else '')
-            rows.append((name, f'{r["ok_view"]}/{r["n_view"]} = {100 * r["ok_view"] / max(r["n_view"], 1):.1f} %',
+            rows.append((name,
+                         f'{r["ok_view"]}/{r["n_view"]} = '
+                         f'{100 * r["ok_view"] / max(r["n_view"], 1):.1f} %',
                          f'{len(r["wrong"])} / {r["status"].total()}', f'{mean:.4f}', f'{tip:.3f}',
                          f'{bez:.3f} ({1e3 * max(best):.3f})', f'{ms:.2f} / {med(blur):.2f} = '
                          f'{ms / med(blur):.1f}'))

@@ -84,14 +84,14 @@ def core_cost(quick):
     for _ in range(3):
         sim = SlaveSimulation()
         t0 = time.perf_counter()
-        for a, b in zip(tl, cl):
+        for a, b in zip(tl, cl, strict=True):
             sim.step(a, b)
         best_ours = min(best_ours, (time.perf_counter() - t0) / len(tl))
         # reference: the thesis's linear environment with the same robot and sensor
         r, s = SlaveRobot(), ForceSensor()
         m, c, k = 0.05, 2.0, 5.0
         t0 = time.perf_counter()
-        for a, b in zip(tl, cl):
+        for _a, b in zip(tl, cl, strict=True):
             x, xd, xdd = r.step(b)
             s.measure(m * xdd + c * xd + k * x)
         best_ref = min(best_ref, (time.perf_counter() - t0) / len(tl))
@@ -135,7 +135,7 @@ def tracking():
         r = SlaveRobot()
         held = 0.0
         xs = []
-        for ti, c in zip(t, cmd):
+        for ti, c in zip(t, cmd, strict=True):
             link.send(ti, c)
             got = link.receive(ti)
             held = held if got is None else got
@@ -163,7 +163,7 @@ def nonlinearity():
     for name in ('vessel', 'linear'):
         sim = SlaveSimulation(vessel=VesselModel(seed=1), sensor=ForceSensor(0.01, seed=2))
         rows = []
-        for a, b in zip(t, cmd):
+        for a, b in zip(t, cmd, strict=True):
             s = sim.step(a, b)
             if name == 'linear':   # the thesis's model, roughly the vessel's scale, same noise
                 f_true = 0.05 * s.xdd + 2.0 * s.xd + 5.0 * s.x
@@ -247,7 +247,7 @@ def realtime(seconds):
         rclpy.init()
         node = rclpy.create_node('bench_probe_' + name)
         stamps = []
-        node.create_subscription(JointState, topics[name], lambda m: stamps.append(
+        node.create_subscription(JointState, topics[name], lambda m, stamps=stamps: stamps.append(
             m.header.stamp.sec + m.header.stamp.nanosec * 1e-9), QOS_FAST)
         exe = EventsExecutor()
         exe.add_node(node)

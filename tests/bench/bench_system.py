@@ -7,8 +7,9 @@ reference measured in the same run, and the ratio.
    clock: real-time factor with the in-process bus, with and without recording; reference: the
    same graph in lockstep through DDS (waiting for delivery each step), 1.5 s.
 2. Real time, the split layout (master / slave / vision processes over DDS, each recording
-   its own nodes' messages, merged into the bag by the runner) beside the one-process layout (reference), on the machine as it is
-   ("quiet") and with a busy-loop process occupying one core ("loaded"), 6 s of Experiment II
+   its own nodes' messages, merged into the bag by the runner) beside the one-process layout
+   (reference), on the machine as it is ("quiet") and with a busy-loop process occupying one
+   core ("loaded"), 6 s of Experiment II
    each with 5 % injected link loss: rate and period p50/p99/max of every 1 kHz stream,
    measured where it is published; image -> tip force latency in the vision process; what
    DDS lost on the link topics (from the header stamps both ends saw) against the injected
@@ -426,7 +427,6 @@ def recorder_loss(rate, seconds):
         t_end = time.monotonic() + 2.0
         while sink.received['/bench/force'] < sent[0] and time.monotonic() < t_end:
             ex.spin_once(timeout_sec=0.05)
-        elapsed = time.monotonic() - t0
         rec.close()
         got = rec.counts['/bench/force']
     ex.shutdown()

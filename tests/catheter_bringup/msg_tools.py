@@ -71,7 +71,7 @@ def slot_strategy(slot, max_len: int):
 def message_strategy(cls, max_len: int = 9):
     """Any instance of the generated message class ``cls`` (sequences up to max_len)."""
     fields = list(cls.get_fields_and_field_types())
-    parts = {f: slot_strategy(s, max_len) for f, s in zip(fields, cls.SLOT_TYPES)}
+    parts = {f: slot_strategy(s, max_len) for f, s in zip(fields, cls.SLOT_TYPES, strict=True)}
     return st.fixed_dictionaries(parts).map(lambda kw: cls(**kw))
 
 
@@ -106,7 +106,7 @@ def sample_message(cls, rng, max_len: int = 6):
             return bytes(rng.randrange(256) for _ in range(n))
         return [value(vt) for _ in range(n)]
     fields = list(cls.get_fields_and_field_types())
-    return cls(**{f: value(s) for f, s in zip(fields, cls.SLOT_TYPES)})
+    return cls(**{f: value(s) for f, s in zip(fields, cls.SLOT_TYPES, strict=True)})
 
 
 # ----------------------------------------------------------------------------- rosbags side
@@ -193,7 +193,7 @@ def _same(a, b, path):
             _same(a[k], b[k], f'{path}.{k}')
     elif isinstance(a, list):
         assert isinstance(b, list) and len(a) == len(b), f'{path}: {len(a)} vs {b!r}'
-        for i, (x, y) in enumerate(zip(a, b)):
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
             _same(x, y, f'{path}[{i}]')
     elif isinstance(a, float) or isinstance(b, float):
         fa, fb = float(a), float(b)

@@ -54,7 +54,8 @@ def _write(path, delay=0.2, outages=((1.0, 0.5),), err_normal=0.01, err_outage=0
                   serialize_message(_wrench(0.3 * math.sin(t + delay) + 2 * e, t)), ns)
         if with_estimate and k % 33 == 0:
             rec.write('/truth', serialize_message(_wrench(0.1, t)), ns)
-            rec.write('/catheter/tip_wrench', serialize_message(_wrench(0.1 + 0.02, t)), ns + 5_000_000)
+            rec.write('/catheter/tip_wrench', serialize_message(_wrench(0.1 + 0.02, t)),
+                      ns + 5_000_000)
     rec.close('complete', extra={'scenario_yaml': yaml.safe_dump(sc), 'mode': 'lockstep',
                                  'sim_time_reached_s': duration})
     return path

@@ -119,6 +119,6 @@ def test_exact_length_equals_what_dds_delivers(ros):
             pub.publish(m)
     assert ros.spin_until(lambda: all(len(g) == len(m) for _, _, m, g, _ in cases), 10.0)
     for type_name, cls, msgs, got, _ in cases:
-        for m, raw in zip(msgs, got):
+        for m, raw in zip(msgs, got, strict=True):
             assert len(exact_bytes(m)) == len(raw), type_name
             assert cdr_end(raw, cls) == len(raw), type_name

@@ -20,7 +20,7 @@ def _close(a, b, path='$'):
             _close(a[k], b[k], f'{path}.{k}')
     elif isinstance(a, list):
         assert len(a) == len(b), path
-        for i, (x, y) in enumerate(zip(a, b)):
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
             _close(x, y, f'{path}[{i}]')
     elif isinstance(a, float) or isinstance(b, float):
         assert a is not None and b is not None, f'{path}: {a} vs {b}'

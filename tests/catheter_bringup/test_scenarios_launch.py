@@ -46,7 +46,8 @@ def _fake_launch_modules(scenario_name, layout=''):
             assert self.args in (('scenario',), ('layout',))
             return scenario_name if self.args == ('scenario',) else layout
     mods = {n: types.ModuleType(n) for n in
-            ('launch', 'launch.actions', 'launch.substitutions', 'launch_ros', 'launch_ros.actions')}
+            ('launch', 'launch.actions', 'launch.substitutions', 'launch_ros',
+             'launch_ros.actions')}
     mods['launch'].LaunchDescription = _Recorder
     mods['launch.actions'].DeclareLaunchArgument = _Recorder
     mods['launch.actions'].OpaqueFunction = _Recorder
@@ -78,7 +79,8 @@ def test_scenario_loads_and_the_launch_file_starts_its_nodes(name, monkeypatch):
         assert dict(kw.get('remappings', [])) == dict(inst.remap)
     assert started['recorder_node']['parameters'][0]['path'] == f'bags/{name}.mcap'
     assert started['recorder_node']['parameters'][0]['scenario'] == sc['source']
-    assert launch_entries(sc) == [{k: v for k, v in n.kwargs.items() if k != 'output'} for n in launched]
+    assert launch_entries(sc) == [{k: v for k, v in n.kwargs.items() if k != 'output'}
+                                  for n in launched]
 
 
 def test_launch_with_layout_split_starts_master_slave_vision_processes(monkeypatch):

@@ -101,8 +101,10 @@ def test_residual_is_the_mean_perpendicular_distance(vals, seed):
     dense = bezier_eval(fit.control_points, ss)
     idx = np.argmin(np.sum((pts[:, None, :] - dense[None]) ** 2, -1), axis=1)
     brute = []
-    for p, i in zip(pts, idx):
-        res = minimize_scalar(lambda t: np.sum((bezier_eval(fit.control_points, [t])[0] - p) ** 2),
+    for p, i in zip(pts, idx, strict=True):
+        def d2(t, p=p):
+            return np.sum((bezier_eval(fit.control_points, [t])[0] - p) ** 2)
+        res = minimize_scalar(d2,
                               bounds=(max(ss[i] - 1e-4, 0.0), min(ss[i] + 1e-4, 1.0)),
                               method='bounded', options={'xatol': 1e-12})
         brute.append(np.sqrt(min(res.fun, np.sum((dense[i] - p) ** 2))))

@@ -38,7 +38,8 @@ def test_derivatives_by_finite_differences():
     for phi in (-2.0, -0.3, 1e-4, 0.7, 1.5, 2.9):
         h = 1e-6
         gp_, qp_ = [(a - b) / (2 * h) for a, b in zip(arcs.arc_funcs(np.array([phi + h]))[:2],
-                                                     arcs.arc_funcs(np.array([phi - h]))[:2])]
+                                                     arcs.arc_funcs(np.array([phi - h]))[:2],
+                                                     strict=True)]
         _, _, gp, qp = arcs.arc_funcs(np.array([phi]))
         assert abs(gp[0] - gp_[0]) < 1e-8 and abs(qp[0] - qp_[0]) < 1e-8
 

@@ -44,7 +44,8 @@ def test_fourth_order_convergence_to_the_closed_form(closed_form):
         # N = 8 is pre-asymptotic at alpha >= 10 (measured 9e-6 .. 5e-5 L); from N = 16 on the
         # error falls towards 16x per doubling (measured 11.6 then 15.0 at alpha = 21)
         ratios = np.array(errs[1:-1]) / np.array(errs[2:])
-        assert np.all((ratios > 10.0) & (ratios < 20.0)) and ratios[-1] > 14.0, (alpha, errs, ratios)
+        assert np.all((ratios > 10.0) & (ratios < 20.0)) and ratios[-1] > 14.0, (alpha, errs,
+                                                                                 ratios)
         assert errs[0] < 2e-4          # N = 8 already below 0.02 % L
 
 
@@ -192,6 +193,7 @@ def test_general_jacobian_matches_finite_differences(tip, pfs, follower):
         p[0, j] += h
         q[0, j] -= h
         Jn[:, j] = (equations.evaluate(p, prob.l, prob.w, loads, m, jac=False, clothoid=True)[0][0]
-                    - equations.evaluate(q, prob.l, prob.w, loads, m, jac=False, clothoid=True)[0][0]) / (2 * h)
+                    - equations.evaluate(q, prob.l, prob.w, loads, m, jac=False,
+                                         clothoid=True)[0][0]) / (2 * h)
     tol = 1e-3 if pfs else 1e-7
     assert np.abs(J - Jn).max() < tol * np.abs(Jn - np.eye(n)).max()

@@ -12,7 +12,8 @@ BLAZER = Catheter(length=0.065, ei=6e-5)
 
 def _loads_alpha(cat, alpha, beta=np.pi / 2, mom=0.0, follower=False):
     F = alpha * cat.ei / cat.length ** 2
-    return Loads(tip_force=(F * np.cos(beta), F * np.sin(beta)), tip_moment=mom * cat.ei / cat.length,
+    return Loads(tip_force=(F * np.cos(beta), F * np.sin(beta)),
+                 tip_moment=mom * cat.ei / cat.length,
                  follower=follower)
 
 
@@ -81,7 +82,8 @@ def test_n12_accuracy_against_reference(model, spacing, tol):
 
 def test_follower_and_point_forces_against_reference():
     cases = [Loads(tip_force=(0.0, 5.0), follower=True),
-             Loads(tip_force=(0.5, 2.0), tip_moment=-1.0, point_forces=((0.165, 0.0, 3.0), (0.577, 0.0, -0.5), (0.968, 0.0, 0.1))),
+             Loads(tip_force=(0.5, 2.0), tip_moment=-1.0,
+                   point_forces=((0.165, 0.0, 3.0), (0.577, 0.0, -0.5), (0.968, 0.0, 0.1))),
              Loads(point_forces=((0.3, 1.0, 4.0), (1.0, 0.0, -1.0)))]
     cat = Catheter(1.0, 1.0)
     for k, ld in enumerate(cases):
@@ -162,7 +164,8 @@ def test_batch_equals_single(spacing):
         assert bt.tips.shape == (20, 2) and bt.converged.all()
         assert bt.centerlines(9).shape == (20, 9, 2) and bt.arc_angles.shape == (20, 12)
         for b in range(0, 20, 4):
-            sh = solve_fam(BLAZER, Loads(tip_force=F[b], tip_moment=M[b], follower=follower), n_arcs=12,
+            sh = solve_fam(BLAZER, Loads(tip_force=F[b], tip_moment=M[b], follower=follower),
+                           n_arcs=12,
                            spacing=spacing)
             assert np.max(np.abs(sh.tip - bt.tips[b])) < 1e-12
             assert abs(sh.tip_angle - bt.tip_angles[b]) < 1e-10
@@ -187,8 +190,10 @@ finite = st.floats(-1.0, 1.0, allow_nan=False)
 @given(fx=finite, fy=finite, m=finite, follower=st.booleans())
 @settings(max_examples=25, deadline=None)
 def test_mirror_symmetry(fx, fy, m, follower):
-    a = solve_fam(BLAZER, Loads(tip_force=(0.3 * fx, 0.3 * fy), tip_moment=1e-3 * m, follower=follower))
-    b = solve_fam(BLAZER, Loads(tip_force=(0.3 * fx, -0.3 * fy), tip_moment=-1e-3 * m, follower=follower))
+    a = solve_fam(BLAZER,
+                  Loads(tip_force=(0.3 * fx, 0.3 * fy), tip_moment=1e-3 * m, follower=follower))
+    b = solve_fam(BLAZER,
+                  Loads(tip_force=(0.3 * fx, -0.3 * fy), tip_moment=-1e-3 * m, follower=follower))
     assert a.converged and b.converged
     if a.stable and b.stable:
         assert np.allclose(a.tip * [1, -1], b.tip, atol=1e-12 * BLAZER.length + 1e-13)
@@ -200,7 +205,8 @@ def test_mirror_symmetry(fx, fy, m, follower):
 def test_scaling_same_normalised_load_same_normalised_shape(fx, fy, m, k):
     a_cat, b_cat = Catheter(0.04, 7.5e-4), Catheter(0.04 * k, 7.5e-4 * k ** 3 / 2)
     def loads(cat):
-        return Loads(tip_force=(8 * fx * cat.ei / cat.length ** 2, 8 * fy * cat.ei / cat.length ** 2),
+        return Loads(tip_force=(8 * fx * cat.ei / cat.length ** 2,
+                                8 * fy * cat.ei / cat.length ** 2),
                      tip_moment=2 * m * cat.ei / cat.length)
     a, b = solve_fam(a_cat, loads(a_cat)), solve_fam(b_cat, loads(b_cat))
     assume(a.stable and b.stable)

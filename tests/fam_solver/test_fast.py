@@ -80,7 +80,8 @@ def test_kernel_jacobian_is_the_derivative_of_its_residual(follower, clothoid, n
 def test_arc_values_equal_the_arc_functions_at_every_angle():
     rng = np.random.default_rng(0)
     for lo, hi in ((0, 1e-3), (0, 0.1), (0, 1), (1, 2.9), (2.9, 3.1), (3, 9)):
-        for coef, f in ((fast_newton._COEF4, arcs.arc_funcs), (fast_newton._COEF8, arcs.clothoid_funcs)):
+        for coef, f in ((fast_newton._COEF4, arcs.arc_funcs),
+                        (fast_newton._COEF8, arcs.clothoid_funcs)):
             for n in (3, 300):        # few arcs, and the blocked product of many
                 phi = rng.uniform(lo, hi, n) * rng.choice([-1, 1], n)
                 V = np.empty((n, fast_newton._K_FAST))

@@ -48,7 +48,8 @@ def test_graded_is_second_order(model, closed_form):
 
 def test_graded_error_keeps_falling_for_large_n(closed_form):
     exact, _ = closed_form(5.0)
-    errs = [np.max(np.abs(solve_fam(UNIT, Loads(tip_force=(0, 5.0)), n_arcs=n, spacing='graded').tip - exact))
+    errs = [np.max(np.abs(solve_fam(UNIT, Loads(tip_force=(0, 5.0)), n_arcs=n,
+                                    spacing='graded').tip - exact))
             for n in (100, 400, 1600)]
     assert errs[0] > errs[1] > errs[2] and errs[1] / errs[2] > 10, errs
 
@@ -83,12 +84,14 @@ def test_mesh_follows_the_curvature_change():
     frac = sh.arc_lengths / BLAZER.length
     assert frac[0] == frac.max() and frac[0] > 1.5 * frac.min() and 2 <= np.argmin(frac) <= 8
     # bounded grading: the floor keeps every arc within sqrt(1 + f^2)/f of the longest
-    assert frac.max() / frac.min() <= np.hypot(1.0, mesh.GRADE_FLOOR) / mesh.GRADE_FLOOR * (1 + 1e-9)
+    assert frac.max() / frac.min() <= np.hypot(1.0,
+                                               mesh.GRADE_FLOOR) / mesh.GRADE_FLOOR * (1 + 1e-9)
 
 
 def test_pure_moment_and_zero_load_keep_equal_arcs():
     th = 2.0
-    sh = solve_fam(BLAZER, Loads(tip_moment=th * BLAZER.ei / BLAZER.length), spacing='graded', n_arcs=7)
+    sh = solve_fam(BLAZER, Loads(tip_moment=th * BLAZER.ei / BLAZER.length), spacing='graded',
+                   n_arcs=7)
     assert np.allclose(sh.arc_lengths, BLAZER.length / 7, rtol=0, atol=1e-18)
     L = BLAZER.length
     assert np.max(np.abs(sh.tip - [L * np.sin(th) / th, L * (1 - np.cos(th)) / th])) < 1e-15
@@ -107,9 +110,11 @@ def test_graded_shape_geometry_is_consistent():
     th_end = np.cumsum(sh.arc_angles)
     th0 = th_end - sh.arc_angles
     d = sh.arc_lengths * np.exp(1j * th0) * np.where(
-        sh.arc_angles == 0, 1.0, (np.exp(1j * sh.arc_angles) - 1) / (1j * np.where(sh.arc_angles == 0, 1, sh.arc_angles)))
+        sh.arc_angles == 0, 1.0,
+        (np.exp(1j * sh.arc_angles) - 1) / (1j * np.where(sh.arc_angles == 0, 1, sh.arc_angles)))
     P = np.cumsum(d)
-    assert np.allclose(sh.points_at(np.minimum(s_end, 1.0)), np.stack([P.real, P.imag], 1), atol=1e-15)
+    assert np.allclose(sh.points_at(np.minimum(s_end, 1.0)), np.stack([P.real, P.imag], 1),
+                       atol=1e-15)
     assert np.allclose(sh.angles_at(s_end[:-1]), th_end[:-1], atol=1e-14)
 
 
@@ -155,7 +160,8 @@ def test_remap_keeps_the_tangent_angle_curve():
     new /= new.sum(axis=1, keepdims=True)
     p2 = mesh.remap(phi, new)
     assert np.allclose(p2.sum(axis=1), phi.sum(axis=1), atol=1e-14)
-    back = mesh.remap(p2, np.full((3, 8), 1 / 8), new)       # equal arcs' ends are nodes of p2's curve?
+    # equal arcs' ends are nodes of p2's curve?
+    back = mesh.remap(p2, np.full((3, 8), 1 / 8), new)
     # theta is piecewise linear on the old arcs; sampling it at the new nodes and back at the
     # old nodes reproduces the old nodes exactly only where they coincide: check the ends
     assert np.allclose(back.sum(axis=1), phi.sum(axis=1), atol=1e-14)
@@ -178,7 +184,9 @@ def test_jacobian_with_unequal_arcs_per_case():
             for j in range(7):
                 p = phi.copy()
                 p[b, j] += h
-                Jn[:, j] = (equations.evaluate(p, prob.l, prob.w, loads, m, jac=False)[0][b] - r[b]) / h
+                Jn[:,
+                   j] = (equations.evaluate(p, prob.l, prob.w, loads, m,
+                                            jac=False)[0][b] - r[b]) / h
             assert np.max(np.abs(J[b] - Jn)) < 1e-5
         rhs = rng.normal(size=(2, 7))
         x = linsolve.structured_solve(prob.w, fac, rhs)

@@ -61,7 +61,7 @@ def test_energy_stable_agrees_with_the_eigenvalues(follower, clothoid):
     n = 10
     rng = np.random.default_rng(11)
     seen = set()
-    for k in range(80):
+    for _ in range(80):
         F = rng.uniform(0, 40) * np.exp(1j * rng.uniform(np.pi / 2, 3 * np.pi / 2))
         prob = problem.make_problem(n, 1.0, 1.0, np.array([F]), follower, np.array([0.0]), [],
                                     clothoid=clothoid)

@@ -47,13 +47,14 @@ def test_features_are_the_camera_fit_of_the_fam_centreline():
     np.testing.assert_allclose(ds['magnitude'], np.hypot(F[:, 0], F[:, 1]))
     assert (ds['split'] == 1).sum() == 1
     cat = Catheter(length=D.BLAZER_LENGTH, ei=D.BLAZER_EI)
-    for f, cp in zip(F, ds['control_points']):
+    for f, cp in zip(F, ds['control_points'], strict=True):
         cl = solve_fam(cat, Loads(tip_force=tuple(f)), n_arcs=D.N_ARCS,
                        arc_model='exact', spacing='graded').centerline(D.N_CENTERLINE)
         ref = fit_bezier(np.c_[cl, np.zeros(len(cl))], degree=3)
         np.testing.assert_allclose(cp, ref, atol=1e-9)
     # unloaded: a straight catheter along +x, p0 at the clamp and p3 at x = L
-    np.testing.assert_allclose(ds['control_points'][0][[0, 3]], [[0, 0, 0], [D.BLAZER_LENGTH, 0, 0]],
+    np.testing.assert_allclose(ds['control_points'][0][[0, 3]],
+                               [[0, 0, 0], [D.BLAZER_LENGTH, 0, 0]],
                                atol=1e-9)
     # a positive fy bends the catheter towards +y
     assert ds['control_points'][1][3, 1] > 0.01
@@ -82,7 +83,7 @@ def test_rendered_features_follow_the_shape():
     cls, conv = D.fam_centerlines(F)
     cp, ok = D.render_control_points(cls, seed=3)
     assert ok.all() and conv.all()
-    for c, cl in zip(cp, cls):
+    for c, cl in zip(cp, cls, strict=True):
         curve = bezier_eval(c[:, :2], np.linspace(0, 1, 400))
         d = np.sqrt(((curve[:, None, :] - cl[None, :, :]) ** 2).sum(-1)).min(axis=1)
         assert d.max() < 1e-3 and d.mean() < 2.5e-4          # m

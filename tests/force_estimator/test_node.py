@@ -185,7 +185,7 @@ def test_every_message_gets_a_typed_estimate_and_only_normal_ones_a_wrench(
     for msg, _ in cases:
         node._on_points(msg)
     assert len(typed) == len(cases)
-    for t, (msg, status) in zip(typed, cases):
+    for t, (msg, status) in zip(typed, cases, strict=True):
         v = tip_force_values(t)
         assert t.header.stamp.sec == msg.header.stamp.sec
         assert v['status_name'] == status, (msg.header.stamp.sec, v)

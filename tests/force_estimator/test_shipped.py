@@ -81,7 +81,7 @@ def test_shipped_models_answer_lateral_forces_themselves(name):
     cls, _ = D.fam_centerlines(F)
     cp, ok = D.render_control_points(cls, seed=3)
     h = make_estimator(name.split('-')[1])
-    for c, f in zip(cp[ok], F[ok]):
+    for c, f in zip(cp[ok], F[ok], strict=True):
         e = h.estimate(c)
         assert e.method == name.split('-')[1] and e.status == 'ok', (e.status, e.message)
         assert np.hypot(*(e.force - f)) < 0.01

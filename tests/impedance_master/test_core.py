@@ -113,7 +113,7 @@ def test_sliding_window_recovers_the_linear_model(cutoff):
     ident = SlidingWindowIdentifier(window=1.0, rate=1000.0, cutoff=cutoff, mass_ridge=0.0,
                                     stiffness_ridge=0.0, ridge=1e-9)
     x, xd, xdd, f = linear_data(3000)
-    outs = [ident.update(*s) for s in zip(x, xd, xdd, f)]
+    outs = [ident.update(*s) for s in zip(x, xd, xdd, f, strict=True)]
     assert all(o is None for o in outs[:999]) and outs[999] is not None
     imp = outs[-1]
     assert imp.valid and ident.status == 'ok'
@@ -123,7 +123,7 @@ def test_sliding_window_recovers_the_linear_model(cutoff):
 def test_sliding_window_running_sums_equal_direct_sums():
     ident = SlidingWindowIdentifier(window=0.1, rate=1000.0, cutoff=None)
     x, xd, xdd, f = linear_data(1234, noise=0.01)
-    for s in zip(x, xd, xdd, f):
+    for s in zip(x, xd, xdd, f, strict=True):
         ident.update(*s)
     S = list(ident._S)
     ident._resum()
@@ -138,8 +138,8 @@ def test_sliding_window_holds_at_rest_and_says_so():
     ident = SlidingWindowIdentifier(window=0.5, rate=1000.0, mass_ridge=0.0,
                                     stiffness_ridge=0.0)
     x, xd, xdd, f = linear_data(1500)
-    for s in zip(x, xd, xdd, f):
-        good = ident.update(*s)
+    for s in zip(x, xd, xdd, f, strict=True):
+        ident.update(*s)
     assert ident.status == 'ok'
     for _ in range(1200):           # catheter stops: no velocity excitation
         imp = ident.update(x[-1], 0.0, 0.0, 30.0 * x[-1] + 0.02)
@@ -179,7 +179,7 @@ def test_sliding_window_derives_missing_derivatives():
     ident = SlidingWindowIdentifier(window=1.0, rate=1000.0, mass_ridge=0.0, offset=True,
                                     stiffness_ridge=0.0)
     x, xd, xdd, f = linear_data(3000, m=0.0)
-    for s in zip(x, f):
+    for s in zip(x, f, strict=True):
         imp = ident.update(s[0], None, None, s[1])
     assert (imp.c, imp.k, imp.offset) == pytest.approx((2.0, 30.0, 0.02), rel=2e-2, abs=1e-3)
 
@@ -190,7 +190,8 @@ def drive(model, traj, rate=1000.0, noise=0.0, seed=0):
     rng = np.random.default_rng(seed)
     t, x, xd, xdd = traj.arrays(rate)
     fs = model.make_state()
-    f = np.array([model.force(a, b, c, fs.update(a, b)) for a, b, c in zip(x, xd, xdd)])
+    f = np.array([model.force(a, b, c, fs.update(a, b)) for a, b,
+                  c in zip(x, xd, xdd, strict=True)])
     return x, xd, xdd, f + noise * rng.normal(size=f.size)
 
 
@@ -199,7 +200,7 @@ def test_default_identifier_recovers_a_table_model_and_bounds_parameters():
     truth = truth.copy(x0=0.0, dx=0.005)
     ident = make_identifier()
     x, xd, xdd, f = drive(truth, OperatorTrajectory(duration=20.0, seed=3), noise=0.005)
-    for s in zip(x, xd, xdd, f):
+    for s in zip(x, xd, xdd, f, strict=True):
         imp = ident.update(*s)
     assert imp.valid and imp.kind == 1
     assert min(imp.F) >= 0.0 and min(imp.B) >= 0.0 and min(imp.C) + imp.c >= -1e-12
@@ -207,7 +208,8 @@ def test_default_identifier_recovers_a_table_model_and_bounds_parameters():
     # prediction along a new trajectory inside the visited range
     x2, xd2, xdd2, f2 = drive(truth, OperatorTrajectory(duration=6.0, seed=4))
     fs = imp.make_state()
-    pred = np.array([imp.force(a, b, c, fs.update(a, b)) for a, b, c in zip(x2, xd2, xdd2)])
+    pred = np.array([imp.force(a, b, c, fs.update(a, b)) for a, b,
+                     c in zip(x2, xd2, xdd2, strict=True)])
     err = np.abs(pred - f2)[500:]
     assert err.mean() < 0.004 and err.max() < 0.03
 
@@ -220,10 +222,9 @@ def test_default_identifier_remembers_regions_the_window_left():
     seg2 = OperatorTrajectory(duration=4.0, seed=6, x_start=0.008, x_max=0.025)
     best, thesis = make_identifier(), SlidingWindowIdentifier(mass_ridge=0.0)
     for traj in (seg1, seg2):
-        for s in zip(*drive(truth, traj, noise=0.005)):
+        for s in zip(*drive(truth, traj, noise=0.005), strict=True):
             b = best.update(*s)
             th = thesis.update(*s)
-    fs_true, fs_b = truth.make_state(), b.make_state()
     errs_b, errs_t = [], []
     for xx in np.linspace(0.035, 0.055, 200):
         for v in (0.02, -0.02):
@@ -270,7 +271,7 @@ def test_default_identifier_holds_at_rest():
     truth = table_model(n=17).copy(x0=0.0, dx=0.005)
     ident = make_identifier()
     x, xd, xdd, f = drive(truth, OperatorTrajectory(duration=5.0, seed=1))
-    for s in zip(x, xd, xdd, f):
+    for s in zip(x, xd, xdd, f, strict=True):
         imp = ident.update(*s)
     for _ in range(40):        # the last moving samples leave the input median (2 samples)
         imp = ident.update(x[-1], 0.0, 0.0, f[-1])
@@ -313,12 +314,13 @@ def test_ima_first_model_blends_in_without_a_step_and_output_is_clamped():
     exact = ImaRenderer(blend_time=0.0)                 # no blending: the model as is
     exact.set_impedance(imp)
     assert exact.desired_force(0.03, 0.02, 0.5) == pytest.approx(imp.force(0.03, 0.02, 0.5))
-    ima = ImaRenderer()                                 # default: the first model blends in from 0 N
+    # default: the first model blends in from 0 N
+    ima = ImaRenderer()
     ima.set_impedance(imp)
     target = imp.force(0.03, 0.02, 0.5)
     out = [ima.desired_force(0.03, 0.02, 0.5) for _ in range(400)]
     assert abs(out[0]) < 0.03 * abs(target)             # no step at the hand
-    assert max(abs(b - a) for a, b in zip([0.0] + out, out)) < 0.03 * abs(target)
+    assert max(abs(b - a) for a, b in zip([0.0] + out[:-1], out, strict=True)) < 0.03 * abs(target)
     assert out[-1] == pytest.approx(target, rel=1e-3)   # 8 blend time constants later
     strong = ImaRenderer(blend_time=0.0)
     strong.set_impedance(Impedance(0.0, 0.0, 40.0, 0.0))     # 4 N at 0.1 m, in the envelope
@@ -373,7 +375,7 @@ def test_passivity_controller_keeps_an_active_model_passive():
     # a passive (dissipative) model is untouched
     ima = ImaRenderer(passivity=True, blend_time=0.0)   # passivity alone, no blend-in
     ima.set_impedance(Impedance(0.0, 3.0, 0.0, 0.0))
-    for k in range(500):
+    for _ in range(500):
         assert ima.desired_force(0.03, 0.02, 0.0) == pytest.approx(0.06)
     assert ima.n_passivity == 0
 
@@ -443,8 +445,8 @@ def test_operator_trajectories_respect_the_thesis_limits(exp, dur):
 def test_default_identifier_state_round_trips_through_json(tmp_path):
     truth = table_model(n=17).copy(x0=0.0, dx=0.005)
     a = make_identifier()
-    for s in zip(*drive(truth, OperatorTrajectory(duration=4.0, seed=2), noise=0.005)):
-        imp_a = a.update(*s)
+    for s in zip(*drive(truth, OperatorTrajectory(duration=4.0, seed=2), noise=0.005), strict=True):
+        a.update(*s)
     path = tmp_path / 'state.json'
     a.save_state(str(path))
     b = make_identifier()
@@ -465,7 +467,7 @@ def test_default_identifier_reports_the_linear_part_in_m_c_k_offset():
     ident = make_identifier()
     t, x, xd, xdd = OperatorTrajectory(duration=10.0, seed=9).arrays()
     rng = np.random.default_rng(0)
-    for s in zip(x, xd, xdd, 30.0 * x + 0.02 + 0.005 * rng.normal(size=x.size)):
+    for s in zip(x, xd, xdd, 30.0 * x + 0.02 + 0.005 * rng.normal(size=x.size), strict=True):
         imp = ident.update(*s)
     assert imp.k == pytest.approx(30.0, rel=0.05) and imp.offset == pytest.approx(0.02, abs=3e-3)
     visited = slice(2, 11)            # nodes at 10..50 mm (the script spans 8..56 mm)

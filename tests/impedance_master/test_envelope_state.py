@@ -43,7 +43,7 @@ def test_force_bound_is_the_brute_force_maximum(lin, n, tabs, beta, x0, dx):
 def test_envelope_accepts_the_identifiers_models_and_refuses_absurd_ones():
     ident = make_identifier()
     t, x, xd, xdd = OperatorTrajectory(duration=4.0, seed=3).arrays()
-    for s in zip(x, xd, xdd, 0.1 * np.sign(xd) + 3.0 * x):
+    for s in zip(x, xd, xdd, 0.1 * np.sign(xd) + 3.0 * x, strict=True):
         imp = ident.update(*s)
     assert DEFAULT_ENVELOPE.check(imp) is None
     for bad, what in ((Impedance(1e308, -1e308, 0, 0), 'm'), (Impedance(0, 0, 1e300, 0), 'k'),
@@ -63,7 +63,8 @@ def learned(seconds=4.0):
     ident = make_identifier()
     t, x, xd, xdd = OperatorTrajectory(duration=seconds, seed=5).arrays()
     rng = np.random.default_rng(1)
-    for s in zip(x, xd, xdd, 0.1 * np.tanh(xd / 0.002) + 3.0 * x + 0.005 * rng.normal(size=x.size)):
+    for s in zip(x, xd, xdd, 0.1 * np.tanh(xd / 0.002) + 3.0 * x + 0.005 * rng.normal(size=x.size),
+                 strict=True):
         ident.update(*s)
     return ident
 
@@ -107,7 +108,7 @@ def test_a_rejected_state_file_is_kept_and_the_new_state_goes_beside(tmp_path, d
     sf = StateFile(str(path))
     assert sf.load(ident) is None and not sf.loaded and sf.rejected
     assert sf.save_path == str(tmp_path / 'ident.1.json') and 'kept' in sf.message
-    for s in zip(*OperatorTrajectory(duration=1.5, seed=2).arrays()[1:], [0.1] * 1500):
+    for s in zip(*OperatorTrajectory(duration=1.5, seed=2).arrays()[1:], [0.1] * 1500, strict=True):
         ident.update(*s)
     written = sf.save(ident)
     assert written == str(tmp_path / 'ident.1.json')

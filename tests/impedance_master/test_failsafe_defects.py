@@ -88,8 +88,8 @@ def clean_samples(seconds, seed=1):
     st = truth.make_state()
     rng = np.random.default_rng(seed)
     f = [truth.force(a, b, c, st.update(a, b)) + 0.005 * n
-         for a, b, c, n in zip(x, xd, xdd, rng.normal(size=x.size))]
-    return list(zip(x.tolist(), xd.tolist(), xdd.tolist(), f))
+         for a, b, c, n in zip(x, xd, xdd, rng.normal(size=x.size), strict=True)]
+    return list(zip(x.tolist(), xd.tolist(), xdd.tolist(), f, strict=True))
 
 
 def probe(model):

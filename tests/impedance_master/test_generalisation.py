@@ -66,5 +66,5 @@ def test_fresh_cases_are_every_family_operator_and_seed_each_its_own_world():
     # a case's draw does not depend on which other cases are asked for
     one = drawn_cases([FRESH_SEEDS[2]], vessels=('stiff_wall',), operators=('human',))
     assert one[0] in todo
-    for v, op, s, params in todo[:3]:
+    for _v, _op, _s, params in todo[:3]:
         assert all(math.isfinite(x) for _, x in params)

@@ -35,8 +35,8 @@ def samples(seconds, seed=1, sigma=3e-4, noise=0.005):
     st_ = truth.make_state()
     rng = np.random.default_rng(seed)
     f = [truth.force(a, b, c, st_.update(a, b)) + noise * n
-         for a, b, c, n in zip(x, xd, xdd, rng.normal(size=x.size))]
-    return list(zip(x.tolist(), xd.tolist(), xdd.tolist(), f))
+         for a, b, c, n in zip(x, xd, xdd, rng.normal(size=x.size), strict=True)]
+    return list(zip(x.tolist(), xd.tolist(), xdd.tolist(), f, strict=True))
 
 
 CLEAN = samples(6.0)
@@ -195,7 +195,7 @@ def test_no_friction_no_friction_rendered_whatever_the_selection():
     ident = make_identifier()
     t, x, xd, xdd = OperatorTrajectory(duration=10.0, seed=9).arrays()
     rng = np.random.default_rng(0)
-    for s in zip(x, xd, xdd, 30.0 * x + 0.02 + 0.005 * rng.normal(size=x.size)):
+    for s in zip(x, xd, xdd, 30.0 * x + 0.02 + 0.005 * rng.normal(size=x.size), strict=True):
         ident.update(*s)
     imp = ident.last
     assert max(imp.F[2:11]) < 0.015
@@ -212,7 +212,7 @@ def linear_samples(n, m=0.05, c=2.0, k=30.0, o=0.02, seed=0):
     xd = 0.03 * np.cos(3.0 * t) + 0.034 * np.cos(17.0 * t)
     xdd = -0.09 * np.sin(3.0 * t) - 0.578 * np.sin(17.0 * t)
     f = m * xdd + c * xd + k * x + o + 0.0 * rng.normal(size=n)
-    return list(zip(x, xd, xdd, f))
+    return list(zip(x, xd, xdd, f, strict=True))
 
 
 def test_thesis_identifier_without_offset_is_eq29():

@@ -128,7 +128,7 @@ def test_fallback_holds_then_ramps_to_zero_over_fallback_time():
     assert back[0] == pytest.approx(0.0, abs=1e-9)
     assert back[-1] == pytest.approx(f0, rel=1e-3)       # 8 time constants of 50 ms
     # no step: the difference decays with 50 ms, the largest step is f0 (1 - exp(-1/50))
-    step = max(abs(b - a) for a, b in zip(back, back[1:]))
+    step = max(abs(b - a) for a, b in zip(back[:-1], back[1:], strict=True))
     assert step == pytest.approx(abs(f0) * (1 - math.exp(-1e-3 / 0.05)), rel=1e-6)
     assert ren.status().state == 'held'        # rendering again, on a model 0.7 s old
 

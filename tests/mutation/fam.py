@@ -14,7 +14,8 @@ MUTANTS = [
     Mutant('M01', P + 'globalise.py',
            'phic = np.stack([np.interp(sc, sf, phi[b] / prob.l) for b in range(B)]) * coarse.l',
            'phic = np.stack([np.interp(sc, sf, phi[b]) for b in range(B)])',
-           'general path, N > 64: angles not scaled to the coarse arcs (compressed shapes flip to unstable)'),
+           'general path, N > 64: angles not scaled to the coarse arcs (compressed shapes flip to '
+           'unstable)'),
     Mutant('M02', P + 'fast.py',
            'return np.interp(sn, sm, phi) * (m / n)',
            'return np.interp(sn, sm, phi)',
@@ -85,7 +86,7 @@ MUTANTS = [
            '        out = None',
            'fast path: continuation fallback dropped (loads fall to the slow general path)'),
     Mutant('M18', P + 'globalise.py',
-           'starts = [phi[b]] + [phi[b] + k * step / max(np.abs(step.sum()), 1e-12) for k in (0.5, 1.0, 2.0, 3.0)]',
+           'starts = [phi[b]] + [phi[b] + k * unit for k in (0.5, 1.0, 2.0, 3.0)]',
            'starts = []',
            'snap-through: no equilibrium searched beyond the fold',
            harmless='the shapes turned to tip angles up to 2 pi (the later starts) find the '
@@ -118,7 +119,8 @@ MUTANTS = [
            'batch: snap-through flag dropped'),
     # -- mesh grading
     Mutant('M25', P + 'mesh.py',
-           '    rho = (kp * kp + GRADE_FLOOR * GRADE_FLOOR) ** (0.5 * GRADE_POWER)\n    rho[flat] = 1.0',
+           '    rho = (kp * kp + GRADE_FLOOR * GRADE_FLOOR) ** (0.5 * GRADE_POWER)\n    rho[flat] '
+           '= 1.0',
            '    rho = (kp * kp + GRADE_FLOOR) ** (0.5 * GRADE_POWER)\n    rho[flat] = 1.0',
            'graded mesh: floor not squared (batched grading differs from the fast one)'),
     # -- issue 15: no performance cliffs

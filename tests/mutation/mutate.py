@@ -4,11 +4,16 @@ selection against each, restore the file, and report which mutants survive.
     python tests/mutation/mutate.py fam            # every mutant of tests/mutation/fam.py
     python tests/mutation/mutate.py fam -k M03     # mutants whose id contains 'M03'
     python tests/mutation/mutate.py --list         # the mutant lists there are
+    python tests/mutation/mutate.py all            # every list; a table per package and the total
+    python tests/mutation/mutate.py all --check    # only check that every old text occurs once
 
 A mutant list is a module ``tests/mutation/<name>.py`` that defines
 
     TESTS = ['tests/fam_solver', '-k', 'not node']     # pytest arguments for this list
     MUTANTS = [Mutant('M01', 'src/pkg/pkg/mod.py', 'old text', 'new text', 'what it breaks'), ...]
+
+A mutant may name its own pytest arguments (``tests=(...)``), e.g. the one test file that
+kills it quickly where the whole selection would crawl through slow failures first.
 
 A mutant that survives and is known to be harmless (equivalent in every outcome the package
 promises) carries the reason in ``harmless=``; it is reported as such, not as a failure.
@@ -19,7 +24,8 @@ file's bytes are checked to be the original afterwards. Each pytest run gets a f
 cache directory (PYTHONPYCACHEPREFIX), so no stale .pyc of the original or of an earlier mutant
 can be imported. The selection must pass unmutated first (baseline).
 
-Prints one line per mutant (killed / SURVIVED, seconds) and a summary; exit status 0 when
+Prints one line per mutant (killed / SURVIVED, seconds) and a summary (for ``all``: a table
+per package, counted by the mutated file's src/<package>, and the total); exit status 0 when
 every mutant was killed or is a known harmless survivor, 1 otherwise, 2 on a usage or
 baseline error.
 """
@@ -47,6 +53,7 @@ class Mutant:
     new: str
     why: str            # the property the mutant breaks
     harmless: str = ''  # for a known survivor: why it does no harm (an equivalent mutant)
+    tests: tuple = ()   # pytest arguments for this mutant instead of the list's TESTS
 
 
 def load_list(name: str):
@@ -77,7 +84,8 @@ def run_tests(tests, timeout: float) -> tuple:
         env = dict(os.environ, PYTHONPYCACHEPREFIX=cache, PYTHONDONTWRITEBYTECODE='1')
         t0 = time.perf_counter()
         try:
-            r = subprocess.run([sys.executable, '-m', 'pytest', '-x', '-q', '-p', 'no:cacheprovider',
+            r = subprocess.run([sys.executable, '-m', 'pytest', '-x', '-q',
+                                '-p', 'no:cacheprovider',
                                 *tests], cwd=ROOT, env=env, capture_output=True, text=True,
                                timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -103,30 +111,26 @@ def apply_and_test(m: Mutant, tests, timeout: float) -> tuple:
     return ('SURVIVED' if passed else 'killed'), secs, last
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    ap.add_argument('name', nargs='?', help='mutant list: tests/mutation/<name>.py')
-    ap.add_argument('-k', default='', help='only mutants whose id contains this text')
-    ap.add_argument('--timeout', type=float, default=600.0, help='seconds per pytest run')
-    ap.add_argument('--list', action='store_true', help='print the mutant lists and exit')
-    a = ap.parse_args(argv)
-    if a.list or not a.name:
-        print('mutant lists: ' + ', '.join(lists()))
-        return 0 if a.list else 2
-    tests, mutants = load_list(a.name)
-    mutants = [m for m in mutants if a.k in m.id]
+def run_list(name: str, k: str, timeout: float):
+    """Run one mutant list: [(Mutant, 'killed' | 'SURVIVED' | 'INVALID')], or None when the
+    list selects nothing or its baseline fails."""
+    tests, mutants = load_list(name)
+    keys = [x for x in k.split(',')] if k else ['']
+    mutants = [m for m in mutants if any(x in m.id for x in keys)]
     if not mutants:
-        print('no mutants selected')
-        return 2
+        print(f'{name}: no mutants selected')
+        return None
     for f in sorted({m.file for m in mutants}):
         check_clean(ROOT / f)
-    ok, secs, last = run_tests(tests, a.timeout)
-    print(f'baseline: pytest {" ".join(tests)}: {"passed" if ok else "FAILED"} in {secs:.0f} s ({last})')
+    ok, secs, last = run_tests(tests, timeout)
+    print(f'baseline: pytest {" ".join(tests)}: {"passed" if ok else "FAILED"} in '
+          f'{secs:.0f} s ({last})',
+          flush=True)
     if not ok:
-        return 2
+        return None
     results = []
     for m in mutants:
-        res, secs, last = apply_and_test(m, tests, a.timeout)
+        res, secs, last = apply_and_test(m, list(m.tests) or tests, timeout)
         results.append((m, res))
         print(f'{m.id} {res:8s} {secs:5.0f} s  {m.file}: {m.why}' +
               (f'  [{last}]' if res != 'killed' else ''), flush=True)
@@ -134,16 +138,85 @@ def main(argv=None) -> int:
     survived = [m for m, r in results if r == 'SURVIVED']
     invalid = [m for m, r in results if r == 'INVALID']
     unexplained = [m for m in survived if not m.harmless]
-    print(f'{a.name}: {len(results)} mutants, {killed} killed, {len(survived)} survived '
+    print(f'{name}: {len(results)} mutants, {killed} killed, {len(survived)} survived '
           f'({len(survived) - len(unexplained)} known harmless, {len(unexplained)} not)'
           + (f', {len(invalid)} invalid (old text not found once)' if invalid else ''))
     for m in survived:
         print(f'  survivor {m.id}: {m.why}' +
               (f' -- harmless: {m.harmless}' if m.harmless else ' -- NOT EXPLAINED'))
-    for m in mutants:
-        if m.harmless and (m, 'killed') in results:
+    for m, r in results:
+        if m.harmless and r == 'killed':
             print(f'  note: {m.id} is marked harmless but was killed: drop the mark')
-    return 0 if not unexplained and not invalid else 1
+    return results
+
+
+def package_of(m: Mutant) -> str:
+    parts = pathlib.PurePosixPath(m.file).parts
+    return parts[1] if len(parts) > 2 and parts[0] == 'src' else parts[0]
+
+
+def table(results) -> str:
+    """Per package: mutants, killed, harmless survivors, meaningful survivors, invalid."""
+    rows = {}
+    for m, r in results:
+        row = rows.setdefault(package_of(m), [0, 0, 0, 0, 0])
+        row[0] += 1
+        row[1] += r == 'killed'
+        row[2] += r == 'SURVIVED' and bool(m.harmless)
+        row[3] += r == 'SURVIVED' and not m.harmless
+        row[4] += r == 'INVALID'
+    total = [sum(col) for col in zip(*rows.values(), strict=True)] if rows else [0] * 5
+    lines = ['| package | mutants | killed | survived, harmless | survived, meaningful | invalid |',
+             '|---|---|---|---|---|---|']
+    for pkg in sorted(rows):
+        lines.append('| ' + pkg + ' | ' + ' | '.join(str(v) for v in rows[pkg]) + ' |')
+    lines.append('| **total** | ' + ' | '.join(str(v) for v in total) + ' |')
+    meaningful = total[0] - total[2]
+    lines.append(f'meaningful survivors: {total[3]} of {meaningful} meaningful mutants '
+                 f'({100.0 * total[3] / max(meaningful, 1):.0f} %)')
+    return '\n'.join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('name', nargs='?', help="mutant list: tests/mutation/<name>.py, or 'all'")
+    ap.add_argument('-k', default='', help='only mutants whose id contains this text (or one '
+                                           'of several, comma-separated)')
+    ap.add_argument('--timeout', type=float, default=600.0, help='seconds per pytest run')
+    ap.add_argument('--list', action='store_true', help='print the mutant lists and exit')
+    ap.add_argument('--check', action='store_true',
+                    help='run nothing: check that each old text occurs exactly once (after edits)')
+    a = ap.parse_args(argv)
+    if a.list or not a.name:
+        print('mutant lists: ' + ', '.join(lists()))
+        return 0 if a.list else 2
+    names = lists() if a.name == 'all' else [a.name]
+    if a.check:
+        bad = 0
+        for name in names:
+            for m in load_list(name)[1]:
+                n = (ROOT / m.file).read_text().count(m.old)
+                if n != 1:
+                    bad += 1
+                    print(f'{name} {m.id}: old text found {n} times in {m.file}')
+        print(f'{bad} mutant(s) need their old text updated' if bad
+              else 'every old text found once')
+        return 1 if bad else 0
+    results, status = [], 0
+    for name in names:
+        if len(names) > 1:
+            print(f'== {name}', flush=True)
+        res = run_list(name, a.k, a.timeout)
+        if res is None:
+            status = 2
+            continue
+        results += res
+    if len(names) > 1 or results:
+        print(table(results))
+    if status:
+        return status
+    bad = [m for m, r in results if r == 'INVALID' or (r == 'SURVIVED' and not m.harmless)]
+    return 1 if bad else 0
 
 
 if __name__ == '__main__':

@@ -41,7 +41,7 @@ def test_frames_and_truth_follow_the_joint_state(ros, tmp_path):
         m.position = [x if k >= 3 else 0.01, 0.0]
         m.velocity = [0.0, 0.0]
         js.publish(m)
-        ros.spin_until(lambda: node.x == m.position[0], 3.0)
+        ros.spin_until(lambda m=m: node.x == m.position[0], 3.0)
         if k == 6:
             bad = JointState()
             bad.position = [math.nan]
@@ -52,7 +52,7 @@ def test_frames_and_truth_follow_the_joint_state(ros, tmp_path):
         c.clock.sec, c.clock.nanosec = divmod(ms * 1_000_000, 1_000_000_000)
         n = len(images)
         clock.publish(c)
-        ros.spin_until(lambda: len(images) > n, 3.0)
+        ros.spin_until(lambda n=n: len(images) > n, 3.0)
     assert len(images) >= 8 and len(truth) >= 8
     img = images[-1]
     assert (img.encoding, img.width, img.height, img.step) == ('mono8', 800, 800, 800)

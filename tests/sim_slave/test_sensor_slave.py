@@ -4,7 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from sim_slave import ForceSensor, SlaveRobot, SlaveSample, SlaveSimulation, VesselModel, VesselParams
+from sim_slave import (ForceSensor, SlaveRobot, SlaveSample, SlaveSimulation, VesselModel,
+                       VesselParams)
 
 
 def test_noise_statistics_and_determinism():
@@ -32,7 +33,8 @@ def test_bias_quantisation_saturation_and_noiseless():
 
 @pytest.mark.parametrize('kw,name', [(dict(noise_std=-0.1), 'noise_std'),
                                      (dict(noise_std=math.nan), 'noise_std'),
-                                     (dict(bias=math.inf), 'bias'), (dict(resolution=-1), 'resolution'),
+                                     (dict(bias=math.inf), 'bias'),
+                                     (dict(resolution=-1), 'resolution'),
                                      (dict(saturation=0.0), 'saturation'), (dict(seed=-2), 'seed'),
                                      (dict(seed='a'), 'seed')])
 def test_bad_sensor_arguments(kw, name):
@@ -49,7 +51,7 @@ def test_slave_simulation_steps_robot_vessel_sensor(exp1):
     t, cmd = exp1
     sim = SlaveSimulation(vessel=VesselModel(seed=1), sensor=ForceSensor(0.01, seed=2),
                           robot=SlaveRobot(rate=1000.0))
-    out = [sim.step(a, b) for a, b in zip(t, cmd)]
+    out = [sim.step(a, b) for a, b in zip(t, cmd, strict=True)]
     assert isinstance(out[0], SlaveSample) and sim.dt == 0.001
     arr = np.array(out)
     assert np.abs(arr[:, 1] - cmd).max() < 0.05 * 0.056
@@ -58,7 +60,7 @@ def test_slave_simulation_steps_robot_vessel_sensor(exp1):
     assert 0.33 < arr[:, 4].max() < 0.45
     # the same seeds replay the same run; reset restarts it
     sim.reset()
-    again = [sim.step(a, b) for a, b in zip(t[:500], cmd[:500])]
+    again = [sim.step(a, b) for a, b in zip(t[:500], cmd[:500], strict=True)]
     assert again == out[:500]
 
 

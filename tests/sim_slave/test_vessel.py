@@ -16,18 +16,19 @@ def drive(v, xs, t0=0.0):
     xs = np.asarray(xs, float)
     vel = np.gradient(xs, DT) if len(xs) > 1 else np.zeros(1)
     out = []
-    for i, (x, xd) in enumerate(zip(xs, vel)):
+    for i, (x, xd) in enumerate(zip(xs, vel, strict=True)):
         v.force(t0 + (i + 1) * DT, x, xd)
         out.append(v.last)
     return np.array(out)            # columns friction, viscous, wall, cardiac, total
 
 
 def test_force_range_on_experiment_one(exp1):
-    """Thesis Exp. I: max force 0.387 N at up to 56 mm and 41.3 mm/s. The robot moves the catheter."""
+    """Thesis Exp. I: max force 0.387 N at up to 56 mm and 41.3 mm/s. The robot moves the
+    catheter."""
     t, cmd = exp1
     r, v = SlaveRobot(), VesselModel(seed=3)
     f = []
-    for ti, c in zip(t, cmd):
+    for ti, c in zip(t, cmd, strict=True):
         x, xd, _ = r.step(c)
         f.append(v.force(ti, x, xd))
     f = np.array(f)
@@ -81,13 +82,15 @@ def test_retraction_flips_the_friction_sign():
     ret = ins[-1] - 0.02 * DT * np.arange(1, 1001)  # back 20 mm
     a = drive(v, ins)
     b = drive(v, ret, t0=2.0)
-    assert a[-1, 0] == pytest.approx(v.coulomb_force(ins[-1]) * (1 + 0.4 * math.exp(-100)), rel=1e-3)
+    assert a[-1, 0] == pytest.approx(v.coulomb_force(ins[-1]) * (1 + 0.4 * math.exp(-100)),
+                                     rel=1e-3)
     assert a[-1, 4] > 0
     assert b[-1, 0] < 0 and b[-1, 4] < 0
     assert b[-1, 0] == pytest.approx(-v.coulomb_force(ret[-1]), rel=1e-3)
     # the flip takes a few pre-sliding lengths of travel, not a jump
     travel_to_flip = (np.argmax(b[:, 0] < 0) + 1) * 0.02 * DT
-    assert 0.2 * v.params.presliding_displacement < travel_to_flip < 5 * v.params.presliding_displacement
+    d = v.params.presliding_displacement
+    assert 0.2 * d < travel_to_flip < 5 * d
 
 
 def test_stick_at_rest_holds_the_force_below_breakaway():
@@ -101,7 +104,7 @@ def test_stick_at_rest_holds_the_force_below_breakaway():
     # flip; LuGre's reversal slope is 2 Fc/zc from the sliding state (Masing-like hysteresis)
     zc = v.params.presliding_displacement
     d = zc / 6
-    back = drive(v, ins[-1] - d * np.linspace(0, 1, 200)[1:], t0=3.5)
+    drive(v, ins[-1] - d * np.linspace(0, 1, 200)[1:], t0=3.5)     # the small reversal
     held = drive(v, np.full(500, ins[-1] - d), t0=3.7)[:, 0]
     fc = v.coulomb_force(ins[-1])
     assert fc * (1 - 2.2 * d / zc) < held[0] < fc * (1 - 1.0 * d / zc)
@@ -180,7 +183,7 @@ def test_deterministic_for_a_seed_and_reset(exp1):
     xd = np.gradient(x, DT)
 
     def run(v):
-        return [v.force(a, b, c) for a, b, c in zip(t, x, xd)]
+        return [v.force(a, b, c) for a, b, c in zip(t, x, xd, strict=True)]
     a, b, c = run(VesselModel(seed=1)), run(VesselModel(seed=1)), run(VesselModel(seed=2))
     assert a == b
     assert a != c

@@ -45,7 +45,8 @@ def test_phantom_is_the_unchanged_project_vessel():
     t = np.arange(1, 3001) * DT
     x = 0.03 + 0.02 * np.sin(2.0 * t)
     xd = 0.04 * np.cos(2.0 * t)
-    assert [a.force(*s) for s in zip(t, x, xd)] == [b.force(*s) for s in zip(t, x, xd)]
+    assert [a.force(*s) for s in zip(t, x, xd, strict=True)] == [b.force(*s) for s in zip(t, x, xd,
+                                                                                          strict=True)]
 
 
 def test_vessels_differ_in_structure():

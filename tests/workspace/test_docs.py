@@ -5,7 +5,8 @@ import re
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-DOCS = sorted([ROOT / 'README.md', *(ROOT / 'docs').glob('*.md'), *(ROOT / 'src').glob('*/README.md'),
+DOCS = sorted([ROOT / 'README.md', *(ROOT / 'docs').glob('*.md'),
+               *(ROOT / 'src').glob('*/README.md'),
                ROOT / 'ros_ws' / 'README.md'])
 LINK = re.compile(r'\]\(([^)#\s]+)(?:#[^)]*)?\)')
 

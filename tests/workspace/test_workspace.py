@@ -25,7 +25,7 @@ def console_scripts(pkg):
     names = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Dict):
-            for k, v in zip(node.keys, node.values):
+            for k, v in zip(node.keys, node.values, strict=True):
                 if isinstance(k, ast.Constant) and k.value == 'console_scripts':
                     for elt in v.elts:
                         names.append(elt.value.split('=')[0].strip())
@@ -93,7 +93,10 @@ def test_tools_are_installed_and_answer_help(exe):
 
 
 @pytest.mark.ros
-@pytest.mark.parametrize('pkg,exe', _executables() or [pytest.param(None, None, marks=pytest.mark.skip(reason='no executables declared yet'))])
+@pytest.mark.parametrize('pkg,exe',
+                         _executables() or [pytest.param(
+                             None, None,
+                             marks=pytest.mark.skip(reason='no executables declared yet'))])
 def test_executable_starts_joins_graph_and_stops_on_sigint(pkg, exe, ros):
     path = ROOT / 'ros_ws' / 'install' / pkg / 'lib' / pkg / exe
     assert path.exists(), path

@@ -1,1 +1,2 @@
-"""Scenario runner (launchless, lockstep or real time), MCAP recorder, replay, analysis and plots for the catheter node graph."""
+"""Scenario runner (launchless, lockstep or real time), MCAP recorder, replay, analysis and plots
+for the catheter node graph."""

@@ -177,7 +177,8 @@ def analyze(path, skip: Optional[float] = None, delay: Optional[float] = None,
         given = (sc.get('metrics') or {}).get('skip')
         skip = float(given) if given is not None else default_eval_start(delay)
     t0 = _t0(rec)
-    out = {'bag': pathlib.Path(path).name, 'skip_s': skip, 'scenario': sc.get('name', rec.meta.get('scenario', '')),
+    out = {'bag': pathlib.Path(path).name, 'skip_s': skip,
+           'scenario': sc.get('name', rec.meta.get('scenario', '')),
            'status': rec.meta.get('status', 'unknown'), 'reason': rec.meta.get('reason', ''),
            'mode': rec.meta.get('mode', ''), 'seed': sc.get('seed'),
            'delay_s': delay, 'outages': [list(o) for o in outages],

@@ -79,11 +79,11 @@ class LocalBus:
     and queued; `deliver_all` hands each queued message, in publish order, to every in-process
     subscription of its topic (raw subscriptions get the bytes, the others one deserialised
     message, shared: subscribers must not modify what they receive, as in rclcpp's
-    intra-process delivery). Deterministic and without DDS delivery latency. The nodes' own DDS subscriptions
-    stay (subscription counts, "work only while subscribed" keep working) but what DDS delivers
-    to them is dropped (cheaply: they are switched to raw, so nothing is deserialised for
-    them). With ``dds=True`` every message is also published on DDS, for tools outside the
-    process.
+    intra-process delivery). Deterministic and without DDS delivery latency. The nodes' own
+    DDS subscriptions stay (subscription counts, "work only while subscribed" keep working)
+    but what DDS delivers to them is dropped (cheaply: they are switched to raw, so nothing is
+    deserialised for them). With ``dds=True`` every message is also published on DDS, for
+    tools outside the process.
 
     ``immediate=True`` (real time driven by an executor): a publish delivers at once, in the
     publisher's callback (a publish made by a subscriber during delivery is queued and

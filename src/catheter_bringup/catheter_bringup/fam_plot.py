@@ -48,7 +48,7 @@ def fam_accuracy_data(n_arcs=(1, 2, 4, 8, 12, 24, 48, 96, 200), alphas=(1.0, 5.0
     rows = {'n_arcs': [], 'error_frac_l': [], 'time_s': []}
     for n in n_arcs:
         errs, times = [], []
-        for a, (loads, tip_ref) in refs.items():
+        for _a, (loads, tip_ref) in refs.items():
             best = float('inf')
             for _ in range(repeats):
                 t = time.perf_counter()
@@ -75,7 +75,7 @@ def fam_accuracy_plot(out_dir='out', data=None) -> Optional[str]:
     for model, d in data.items():
         ax.loglog(np.asarray(d['time_s']) * 1e3, np.asarray(d['error_frac_l']) * 100, 'o-',
                   label=f'{model} arcs')
-        for n, t, e in zip(d['n_arcs'], d['time_s'], d['error_frac_l']):
+        for n, t, e in zip(d['n_arcs'], d['time_s'], d['error_frac_l'], strict=True):
             ax.annotate(f'N={n}', (t * 1e3, e * 100), fontsize=7, textcoords='offset points',
                         xytext=(4, 2))
     ax.axhline(0.6, color='tab:red', ls='--', lw=0.8, label='thesis N=12 vs Abaqus (0.6 % L)')

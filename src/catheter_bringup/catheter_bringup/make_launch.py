@@ -12,8 +12,9 @@ writing bags/<scenario>.mcap. With ``layout: split`` (in the YAML) it starts the
 layout instead: a master process (haptic device and renderers: the force loop never
 crosses a process), a slave process (robot, vessel, sensor, identifier) and a vision process
 (camera, shape, force estimator), each a ``run_scenario --only ...`` in real time, plus the
-recorder; master and slave talk only through the link topics over DDS. Lockstep (simulated clock) runs need the launchless runner
-(``run_scenario``): separate processes cannot be stepped deterministically.
+recorder; master and slave talk only through the link topics over DDS. Lockstep (simulated
+clock) runs need the launchless runner (``run_scenario``): separate processes cannot be
+stepped deterministically.
 
     python -m catheter_bringup.make_launch SCENARIO     # prints what the launch would start
 """

@@ -71,7 +71,8 @@ class Windows:
 
     def key(self, fig, y: float = 1.0) -> None:
         from matplotlib.patches import Patch
-        handles = [Patch(**SKIP_STYLE, label=f'start-up, not evaluated (< {self.eval_start:.2f} s)')]
+        handles = [Patch(**SKIP_STYLE,
+                         label=f'start-up, not evaluated (< {self.eval_start:.2f} s)')]
         if self.outage:
             handles += [Patch(color='tab:orange', alpha=0.18,
                               label='outage window: feedback missing or stale '
@@ -171,7 +172,7 @@ def _tracking(rec, t0, streams, metrics, win, reference, what, ts, fs, delay, pa
         ax.legend(handles=handles, **dict(LEGEND, bbox_to_anchor=(1.09, 1.0)))
     win.shade(ax)
     ft = metrics.get('force_tracking') or {}
-    for k, (ax, (label, topic)) in enumerate(zip(axes[1:], sorted(streams.items()))):
+    for k, (ax, (label, topic)) in enumerate(zip(axes[1:], sorted(streams.items()), strict=True)):
         tm = rec.t(topic) - t0
         win.shade(ax)
         ax.plot(tm, M.align(tm, ts, fs, shift=delay), color='0.6', lw=0.6,

@@ -148,7 +148,8 @@ class McapRecorder:
     """Writes messages of many topics into one MCAP file; thread safe; close() is idempotent.
 
     >>> rec = McapRecorder('bags/run.mcap')
-    >>> rec.add_topic('/slave/force', 'geometry_msgs/msg/WrenchStamped', [{'reliability': 'best_effort', 'depth': 1}])
+    >>> rec.add_topic('/slave/force', 'geometry_msgs/msg/WrenchStamped',
+    ...               [{'reliability': 'best_effort', 'depth': 1}])
     >>> rec.write('/slave/force', cdr_bytes, log_time_ns)
     >>> rec.close(status='complete')
     """
@@ -182,7 +183,8 @@ class McapRecorder:
         self._lock = threading.Lock()
 
     def add_topic(self, topic: str, type_name: str, qos: Optional[List[Mapping]] = None) -> int:
-        """Register a channel (once per topic); returns its id. ``qos``: offered profiles (dicts)."""
+        """Register a channel (once per topic); returns its id. ``qos``: offered profiles
+        (dicts)."""
         if not isinstance(topic, str) or not topic.startswith('/'):
             raise ValueError(f'topic must be an absolute name like "/a/b", got {topic!r}')
         with self._lock:
@@ -273,7 +275,8 @@ class McapRecorder:
                 'status': status,
                 'reason': str(reason),
                 'messages': str(self.total),
-                'first_log_time_ns': str(self.first_time_ns if self.first_time_ns is not None else -1),
+                'first_log_time_ns': str(self.first_time_ns if self.first_time_ns is not None
+                                         else -1),
                 'last_log_time_ns': str(self.last_time_ns if self.last_time_ns is not None else -1),
                 'counts': json.dumps(self.counts, sort_keys=True),
             }

@@ -1,6 +1,7 @@
 """`replay`: republish a recording on its topics at the recorded rate (or scaled), with /clock.
 
-    python -m catheter_bringup.replay bags/experiment_ii.mcap [--rate 2.0] [--topics /slave/force ...]
+    python -m catheter_bringup.replay bags/experiment_ii.mcap [--rate 2.0] [--topics /slave/force
+    ...]
                                       [--no-clock] [--loop] [--start S] [--ros-args ...]
 
 Each topic gets a publisher with the QoS recorded in the channel metadata; messages go out as the

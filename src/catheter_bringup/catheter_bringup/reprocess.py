@@ -1,6 +1,7 @@
 """`reprocess`: feed a recording's inputs through today's nodes and compare with its outputs.
 
-    python -m catheter_bringup.reprocess bags/reference/smoke.mcap [--nodes impedance_identifier_node ...]
+    python -m catheter_bringup.reprocess bags/reference/smoke.mcap [--nodes
+    impedance_identifier_node ...]
                                          [--tol 1e-9]
 
 For each node instance of the recorded scenario that ran, consumes something and has an output
@@ -36,7 +37,8 @@ DIGEST_OVER = 256
 
 
 def flatten_message(msg) -> Tuple[np.ndarray, tuple]:
-    """Every field of a decoded message (mcap_ros2 or rclpy) in field order: the numbers as one float
+    """Every field of a decoded message (mcap_ros2 or rclpy) in field order: the numbers as one
+    float
     array, the strings and digests of long byte sequences (images) as a tuple."""
     nums: List[float] = []
     other: list = []
@@ -97,7 +99,7 @@ def compare_streams(old_path, new_path, topic: str) -> dict:
     for i, (s, _) in enumerate(new):
         idx_new.setdefault(s, []).append(i)
     matched, max_diff = 0, 0.0
-    for k, (s, (a, sa)) in enumerate(old):
+    for _k, (s, (a, sa)) in enumerate(old):
         js = idx_new.get(s)
         if not js:
             continue

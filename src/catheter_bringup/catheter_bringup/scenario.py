@@ -29,7 +29,8 @@ A scenario file::
     record: {exclude: [/clock]}   # and/or only: [topics] (everything else is not recorded)
     nodes:                    # parameters per node instance (and optional registry fields)
       ima_master_node: {params: {mode: ima}}
-      dfr_shadow: {executable: ima_master_node, remap: {/master/rendered_force: /master/dfr/rendered_force},
+      dfr_shadow: {executable: ima_master_node, remap: {/master/rendered_force:
+      /master/dfr/rendered_force},
                    params: {mode: dfr}, optional: true}
 
 Only nodes whose outputs the scene consumes are started: the wanted ``outputs`` pull in their

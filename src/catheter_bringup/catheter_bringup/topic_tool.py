@@ -147,7 +147,7 @@ def rate_stats(times: List[float]) -> Dict[str, float]:
     """Rate (Hz) and period min / max / std (s) of arrival or stamp times (s)."""
     if len(times) < 2:
         return {'rate_hz': math.nan, 'min': math.nan, 'max': math.nan, 'std': math.nan, 'n': 0}
-    d = [b - a for a, b in zip(times, times[1:])]
+    d = [b - a for a, b in zip(times[:-1], times[1:], strict=True)]
     mean = sum(d) / len(d)
     return {'rate_hz': 1.0 / mean if mean > 0 else math.inf, 'min': min(d), 'max': max(d),
             'std': statistics.pstdev(d), 'n': len(d)}

@@ -173,11 +173,12 @@ def impedance_fields(msg) -> Dict[str, float]:
     # every number of the message is finite, used or not: a relay passes on only messages
     # that hold no NaN anywhere
     scalars = dict(zip(TABLE_SCALARS, _finite_all(lambda i: f'msg.{TABLE_SCALARS[i]}',
-                                                  [getattr(msg, n) for n in TABLE_SCALARS])))
+                                                  [getattr(msg, n) for n in TABLE_SCALARS]),
+                       strict=True))
     anchor = _finite_all(lambda i: f'msg.{ANCHOR_FIELDS[i]}',
                          [getattr(msg, n) for n in ANCHOR_FIELDS])
     if msg.has_anchor:
-        d.update(zip(ANCHOR_FIELDS, anchor))
+        d.update(zip(ANCHOR_FIELDS, anchor, strict=True))
     if kind == KIND_LINEAR:
         for _, attr in TABLES:
             if len(getattr(msg, attr)):
@@ -188,13 +189,14 @@ def impedance_fields(msg) -> Dict[str, float]:
     n = len(tables[0])
     if n < 2:
         raise ValueError(f'msg.s_table must have >= 2 nodes for a table model, got {n}')
-    for (_, attr), t in zip(TABLES, tables):
+    for (_, attr), t in zip(TABLES, tables, strict=True):
         if len(t) != n:
             raise ValueError(f'msg.{attr} must have {n} nodes like s_table, got {len(t)}')
     d.update(scalars)
     d['n'] = float(n)
-    for (prefix, attr), t in zip(TABLES, tables):
-        d.update(zip(_table_keys(prefix, n), _finite_all(lambda i, a=attr: f'msg.{a}[{i}]', t)))
+    for (prefix, attr), t in zip(TABLES, tables, strict=True):
+        d.update(zip(_table_keys(prefix, n), _finite_all(lambda i, a=attr: f'msg.{a}[{i}]', t),
+                     strict=True))
     return d
 
 

@@ -13,7 +13,8 @@ from typing import Optional
 
 import numpy as np
 
-__all__ = ['CORRECTIONS', 'BezierFit', 'bernstein', 'bezier_eval', 'bezier_derivative', 'chord_length_params',
+__all__ = ['CORRECTIONS', 'BezierFit', 'bernstein', 'bezier_eval', 'bezier_derivative',
+           'chord_length_params',
            'fit_bezier', 'fit_bezier_detailed', 'project_points', 'bezier_distance']
 
 
@@ -73,7 +74,8 @@ def _bez2pow(n: int) -> np.ndarray:
 
 
 def bezier_eval(control_points, s) -> np.ndarray:
-    """Curve points c(s), shape (len(s), D), of the Bezier curve with control points (n+1, D) (Eq. 3)."""
+    """Curve points c(s), shape (len(s), D), of the Bezier curve with control points (n+1, D) (Eq.
+    3)."""
     c = _as_ctrl(control_points)
     return bernstein(s, c.shape[0] - 1) @ c
 

@@ -26,6 +26,8 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from catheter_shape.scene import sub_polyline
+
 __all__ = ['SyntheticCamera', 'SyntheticFrame', 'make_psi', 'psi_to_pixels', 'pixels_to_metres',
            'BLAZER_DIAMETER', 'SYSTEM_CAMERA', 'system_psi']
 
@@ -310,7 +312,7 @@ class SyntheticCamera:
                               cv2.LINE_AA, _SHIFT)
             if self.electrodes:
                 for a, b in ((0.0, 0.004), (0.006, 0.007), (0.009, 0.010), (0.012, 0.013)):
-                    sel = self._sub_polyline(px - off, s_m, L - b, L - a)
+                    sel = sub_polyline(px - off, s_m, L - b, L - a)
                     if sel is not None:
                         cv2.polylines(level, [np.rint(sel * _SCALE).astype(np.int32)
                                               .reshape(-1, 1, 2)], False, 245,
@@ -347,26 +349,15 @@ class SyntheticCamera:
                               centerline_m=c, centerline_px=px, visible_centerline_m=visible,
                               in_view=in_view)
 
-    @staticmethod
-    def _sub_polyline(px: np.ndarray, s: np.ndarray, a: float, b: float):
-        """The polyline between arc lengths a < b (m), interpolated at both ends."""
-        a, b = max(a, 0.0), min(b, s[-1])
-        if b - a <= 0:
-            return None
-        inside = (s > a) & (s < b)
-        pa = np.array([np.interp(a, s, px[:, 0]), np.interp(a, s, px[:, 1])])
-        pb = np.array([np.interp(b, s, px[:, 0]), np.interp(b, s, px[:, 1])])
-        return np.vstack([pa, px[inside], pb])
-
     def _tissue(self, c, px, s_m, depth):
         """Background with a tissue blob hiding the last `depth` m; the visible centreline."""
         L = s_m[-1]
         depth = min(depth, 0.9 * L)
-        j = int(np.searchsorted(s_m, L - depth))
         t = px[-1] - px[max(len(px) - 4, 0)]
         t = t / (np.linalg.norm(t) + 1e-12)
         R = 0.012 * self._px_per_m                     # 12 mm radius tissue blob
-        p_surf = np.array([np.interp(L - depth, s_m, px[:, 0]), np.interp(L - depth, s_m, px[:, 1])])
+        p_surf = np.array([np.interp(L - depth, s_m, px[:, 0]),
+                           np.interp(L - depth, s_m, px[:, 1])])
         centre = p_surf + R * t
         m = np.zeros((self.height, self.width), np.uint8)
         cv2.circle(m, tuple(int(x) for x in np.rint(centre * _SCALE)), int(round(R * _SCALE)), 255,

@@ -21,7 +21,8 @@ into fragments wherever the scene or the vignetting is dark.
 
 Level. The catheter's own contrast c (the median darkness of the pixels clearly above the
 noise, d > 6 sigma, sigma from the median absolute deviation of d; where the catheter
-leaves the clamp when the clamp pixel is known, so that clutter elsewhere does not count) sets the threshold c / 2: the half-contrast edge, unbiased for a symmetric blur, from faint (c ~ 0.15) to
+leaves the clamp when the clamp pixel is known, so that clutter elsewhere does not count) sets the
+threshold c / 2: the half-contrast edge, unbiased for a symmetric blur, from faint (c ~ 0.15) to
 saturated (c ~ 1) catheters. The darkness is smoothed first by a Gaussian of about a
 tenth of the catheter's width (faint catheters: the noise drops 5-10x, the centreline and
 the half-contrast tip end do not move; two passes of a box filter, which is nearly Gaussian

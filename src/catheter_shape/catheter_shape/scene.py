@@ -134,7 +134,9 @@ def clamp(kind, base, ex, ey, ppm, H, W):
     return m.astype(np.float32) / 255.0
 
 
-def _sub_polyline(px, s, a, b):
+def sub_polyline(px: np.ndarray, s: np.ndarray, a: float, b: float):
+    """The polyline px (k, 2) between arc lengths a < b (s: arc length of each point),
+    interpolated at both ends; None when the interval is empty."""
     a, b = max(a, 0.0), min(b, s[-1])
     if b - a <= 0:
         return None
@@ -168,7 +170,7 @@ def catheter_layers(px, s_m, r_px, H, W, lumen, bands=6):
         thick -= canvas.astype(np.float32) * np.float32(lumen * 0.4 / 255.0)
     elec = np.zeros((H, W), np.uint8)
     for a, b in ELECTRODES:
-        sel = _sub_polyline(px, s_m, L - b, L - a)
+        sel = sub_polyline(px, s_m, L - b, L - a)
         if sel is not None:
             cv2.polylines(elec, [np.rint(sel * SCALE).astype(np.int32).reshape(-1, 1, 2)], False,
                           255, max(1, int(round(2 * r_px))), cv2.LINE_AA, SHIFT)

@@ -107,7 +107,7 @@ def control_points_to_pose_array(control_points, stamp, frame_id: str = T.FRAME_
     msg = PoseArray()
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
-    for p, t in zip(c, tang):
+    for p, t in zip(c, tang, strict=True):
         pose = Pose()
         pose.position.x, pose.position.y, pose.position.z = (float(v) for v in p)
         yaw = math.atan2(t[1], t[0]) if (t[0] ** 2 + t[1] ** 2) > 0 else 0.0

@@ -12,7 +12,8 @@ style           physics (ranges drawn per frame)
 ``xray``        X-ray attenuation: the catheter MULTIPLIES the local light by its transmission
                 (solid rod profile exp(-mu t(r)), core 0.25-0.5, a lighter lumen, near-opaque
                 electrode rings); vignetting 30-45 % darker corners; the background frame at
-                another exposure (the frame 0.5-1.5x as bright as the background frame); a dark clamp jaw touching the
+                another exposure (the frame 0.5-1.5x as bright as the background frame); a dark
+                clamp jaw touching the
                 base; a tissue patch under the tip; signal-dependent (Poisson-Gaussian) noise
                 3-8 grey levels; the background frame with its own noise
 ``anatomy``     attenuation as ``xray`` over an anatomical background: ribs (curved periodic
@@ -121,7 +122,8 @@ def style_params(style: str, rng: np.random.Generator) -> dict:
     elif style == 'anatomy':
         p.update(transmission=_u(rng, 0.3, 0.6), anatomy=True, vignetting=_u(rng, 0.1, 0.3),
                  misregister=_u(rng, 0.0, 0.7),
-                 bg_exposure_ratio=_u(rng, 0.8, 1.2), clamp='jaw' if rng.random() < 0.5 else 'sheath')
+                 bg_exposure_ratio=_u(rng, 0.8, 1.2),
+                 clamp='jaw' if rng.random() < 0.5 else 'sheath')
     elif style == 'occluded':
         p.update(model='opaque', reflectance=_u(rng, 0.08, 0.25), noise=_u(rng, 2, 6),
                  vignetting=_u(rng, 0.2, 0.4), clamp='sheath' if rng.random() < 0.5 else 'jaw',
@@ -303,7 +305,8 @@ def render_style(style: str, centerline_m, rng: Optional[np.random.Generator] = 
         bg_light = light
         if p['misregister'] > 0:
             a = _u(rng, 0, 2 * np.pi)
-            M = np.float32([[1, 0, p['misregister'] * np.cos(a)], [0, 1, p['misregister'] * np.sin(a)]])
+            M = np.float32([[1, 0, p['misregister'] * np.cos(a)],
+                            [0, 1, p['misregister'] * np.sin(a)]])
             bg_light = cv2.warpAffine(light, M, (W, H), flags=cv2.INTER_LINEAR,
                                       borderMode=cv2.BORDER_REFLECT)
         background = expose(bg_light, p, 1.0, rng, frames=p['bg_frames'])

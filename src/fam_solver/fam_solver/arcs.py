@@ -96,18 +96,21 @@ def _closed(phi):
 
 
 def arc_funcs(phi):
-    """g, q, g', q' (complex arrays, same shape as the real array ``phi``) for arc angles phi [rad]."""
+    """g, q, g', q' (complex arrays, same shape as the real array ``phi``) for arc angles phi
+    [rad]."""
     return _switch(np.asarray(phi, dtype=float), _CCOEF, _closed)
 
 
 def g_only(phi):
-    """g(phi) = (e^{i phi} - 1)/(i phi), the unit-length chord of an arc turning by phi (complex)."""
+    """g(phi) = (e^{i phi} - 1)/(i phi), the unit-length chord of an arc turning by phi
+    (complex)."""
     phi = np.asarray(phi, dtype=float)
     small = np.abs(phi) < 1e-3
     p = np.where(small, 1.0, phi)
     closed = np.sin(p) / p + 1j * (2.0 * np.sin(0.5 * p) ** 2) / p
     p2 = phi * phi
-    ser = (1.0 - p2 / 6.0 + p2 * p2 / 120.0) + 1j * (phi / 2.0 - phi * p2 / 24.0 + phi * p2 * p2 / 720.0)
+    ser = ((1.0 - p2 / 6.0 + p2 * p2 / 120.0)
+           + 1j * (phi / 2.0 - phi * p2 / 24.0 + phi * p2 * p2 / 720.0))
     return np.where(small, ser, closed)
 
 

@@ -57,7 +57,7 @@ class BezierModel:
         edges = [0.0] + taus + [1.0]
         xg, wg = _GAUSS
         ts, ws = [], []
-        for a, b in zip(edges[:-1], edges[1:]):
+        for a, b in zip(edges[:-1], edges[1:], strict=True):
             ts.append(a + (b - a) * (xg + 1) / 2)
             ws.append(wg * (b - a) / 2)
         self.t = np.concatenate(ts)          # (Q,)
@@ -66,7 +66,8 @@ class BezierModel:
         u = 1 - t
         # Bernstein basis and derivatives, (Q, 4)
         self.b0 = np.stack([u ** 3, 3 * t * u ** 2, 3 * t ** 2 * u, t ** 3], axis=1)
-        self.b1 = np.stack([-3 * u ** 2, 3 * u ** 2 - 6 * t * u, 6 * t * u - 3 * t ** 2, 3 * t ** 2], axis=1)
+        self.b1 = np.stack([-3 * u ** 2, 3 * u ** 2 - 6 * t * u, 6 * t * u - 3 * t ** 2,
+                            3 * t ** 2], axis=1)
         self.b2 = np.stack([6 * u, -12 * u + 6 * t, 6 * u - 12 * t, 6 * t], axis=1)
 
     def _basis_at(self, tau):

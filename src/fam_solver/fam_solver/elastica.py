@@ -59,7 +59,7 @@ class _Rod:
         dFf = 1j * Ff
         y0 = np.array([0.0, 0.0, 0.0, M0, 0.0, 1.0, 0.0, 0.0])
         sols = []
-        for a, b in zip(self.breaks[:-1], self.breaks[1:]):
+        for a, b in zip(self.breaks[:-1], self.breaks[1:], strict=True):
             F = self._fixed_force(a, scale) + Ff
             fx, fy = F.real, F.imag
             dfx, dfy = dFf.real, dFf.imag
@@ -165,7 +165,8 @@ def solve_elastica(cat: Catheter, loads: Loads, rtol: float = 1e-12, atol: float
                 if ds > 1e-4:
                     ok = False
                 else:
-                    jsign = -jsign   # crossed with a tiny step: follow (e.g. straight past buckling)
+                    # crossed with a tiny step: follow (e.g. straight past buckling)
+                    jsign = -jsign
             if ok:
                 th_tip = yend[0]
                 prev = (s, M0, Th)

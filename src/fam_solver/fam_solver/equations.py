@@ -201,7 +201,8 @@ def clothoid_terms(sg: np.ndarray, tg: np.ndarray, a: np.ndarray, b: np.ndarray,
     row) terms of -dMbar/dphi (the sign of ``D`` in fast_tip_newton before the w scaling);
     the unused ones are None.
 
-    With X_i = (P_N - P_i) + lever_i, Mbar_i = m - Im(X_i cF), the offsets i rho_j l e^{i theta_j} k_j
+    With X_i = (P_N - P_i) + lever_i, Mbar_i = m - Im(X_i cF), the offsets i rho_j l e^{i theta_j}
+    k_j
     in P and i rho_i l e^{i theta_i} (k_i - km_i) in lever_i: d rho_j / d phi_l is
     sigma_j = w'_j sg_j for l < j (base-fixed forces), tau_j = w'_j tg_j for l = j, 0 for
     l > j (w' = w (1 - tanh^2)); a follower force turns with the tip: 0, tau_j - sigma_j,

@@ -62,7 +62,8 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
     finite iterate. ``shape.status`` (``Status``) tells converged / not converged /
     unstable / snap-through apart.
     initial: optional warm start (a previous Shape, or arc angles (N,) of EQUAL arcs); used
-    (exact or clothoid model, tip loads, N <= 64) when Newton from it converges to an equilibrium whose
+    (exact or clothoid model, tip loads, N <= 64) when Newton from it converges to an equilibrium
+    whose
     Jacobian eigenvalues all have positive real parts, else ignored (cold start).
     """
     check_arguments(cat, n_arcs, arc_model, spacing)

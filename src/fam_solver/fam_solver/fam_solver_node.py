@@ -172,7 +172,7 @@ class FamSolverNode(Node):
         path = Path()
         path.header.stamp = stamp
         path.header.frame_id = T.FRAME_CATHETER_BASE
-        for (x, y), a in zip(pts.tolist(), ang.tolist()):
+        for (x, y), a in zip(pts.tolist(), ang.tolist(), strict=True):
             ps = PoseStamped()
             ps.header = path.header
             ps.pose.position.x, ps.pose.position.y = x, y

@@ -118,7 +118,8 @@ def _linear_start(lin: np.ndarray, th_lin: float, F: complex, m: float, follower
     if not follower and m == 0.0 and beta != 0.0 and (beta > 0) == (th_lin > 0):
         a_ax = max(0.0, -math.cos(beta)) * abs(F) * L * L / EI / 2
         target = abs(beta) * -math.expm1(-(ath + a_ax) / abs(beta))
-    return (lin / ath) * target if ath > 0 else lin   # not target / ath: overflows for denormal loads
+    # not target / ath: overflows for denormal loads
+    return (lin / ath) * target if ath > 0 else lin
 
 
 def _coarse_start(n: int, L: float, EI: float, F: complex, m: float, follower: bool,

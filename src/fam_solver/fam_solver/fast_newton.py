@@ -47,7 +47,8 @@ _EMAP[2:4, 6] = (-0.5j, 0.5j)
 _EMAP[3:5, 7] = (-0.5j, 0.5j)
 _SERIES_LIMIT = 3.0
 _K_FAST = 34
-_EC = np.array([[1j ** j / math.factorial(j) / (k + j + 1) for k in range(5)] for j in range(_K_FAST)])
+_EC = np.array([[1j ** j / math.factorial(j) / (k + j + 1) for k in range(5)]
+                for j in range(_K_FAST)])
 _COEF4 = _EC[:, :3] @ _EMAP[:3, :4]     # g, q, g', q'
 _COEF8 = _EC @ _EMAP                    # ... and k, k - km, k', (k - km)'
 # fewer terms where all arcs are short (many arcs): k terms while max|phi|^k / k! <= 1e-17
@@ -132,7 +133,8 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     w_r = w / RHO_MAX
     iR = 1j * RHO_MAX
     coef = _COEF8 if clothoid else _COEF4
-    V = np.empty((n, _K_FAST))       # powers phi^0..phi^(K-1) by a running product (cheaper than **)
+    # powers phi^0..phi^(K-1) by a running product (cheaper than **)
+    V = np.empty((n, _K_FAST))
     V[:, 0] = 1.0
     hist = [math.inf] * 3          # max|r| of the last iterations (for ``patience``)
     for it in range(max_iter + 1):

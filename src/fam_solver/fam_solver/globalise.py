@@ -71,7 +71,7 @@ def newton(prob: Problem, phi: np.ndarray, scale, max_iter: int, step_limit: flo
             ii = act[improve]
             best[ii] = ph[improve]
             best_res[ii] = res[improve]
-            for fb, f in zip(fac_best, fac):
+            for fb, f in zip(fac_best, fac, strict=True):
                 fb[ii] = f[improve]
         conv = res <= tolerance(ph)
         if np.all(conv) or it == max_iter:
@@ -265,7 +265,8 @@ def continuation(prob: Problem, B: int, arc_model: str, lin: Optional[np.ndarray
         sub = subproblem(prob, np.array([b]))
         bez = BezierResidual(sub) if arc_model == 'bezier' else None
         step = phi[b] - prev[b] if has_prev[b] else lin[b] * 0.1
-        starts = [phi[b]] + [phi[b] + k * step / max(np.abs(step.sum()), 1e-12) for k in (0.5, 1.0, 2.0, 3.0)]
+        unit = step / max(np.abs(step.sum()), 1e-12)
+        starts = [phi[b]] + [phi[b] + k * unit for k in (0.5, 1.0, 2.0, 3.0)]
         # then the last shape and the small-deflection shape turned to tip angles up to 2 pi
         for base in (phi[b], lin[b]):
             tb = base.sum()

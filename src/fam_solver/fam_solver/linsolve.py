@@ -124,7 +124,8 @@ def banded_solve(w: np.ndarray, fac: Factors, rhs: np.ndarray) -> np.ndarray:
     n = A.shape[0]
     w = np.broadcast_to(np.asarray(w, dtype=float), (n,))
     wB = 1.0 - w * Bd
-    ab = np.zeros((7, 2 * n))           # LAPACK band storage, kl = ku = 2: A[r, c] at ab[4 + r - c, c]
+    # LAPACK band storage, kl = ku = 2: A[r, c] at ab[4 + r - c, c]
+    ab = np.zeros((7, 2 * n))
     ab[4, 0::2] = wB if e is None else wB + w * e      # row i: y_i
     ab[6, 0:-2:2] = -wB[1:] - w[1:] * A[1:]             # row i: y_{i-1}
     ab[3, 1::2] = -w                                     # row i: z_i

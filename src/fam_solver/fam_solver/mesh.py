@@ -32,7 +32,8 @@ GRADE_FLOOR = 0.2
 _MAXR = np.maximum.reduce
 
 
-def graded_fractions(phi: np.ndarray, tip_force, follower: bool = False, point_forces=()) -> np.ndarray:
+def graded_fractions(phi: np.ndarray, tip_force, follower: bool = False,
+                     point_forces=()) -> np.ndarray:
     """Arc lengths (B, N), as fractions of L, for a graded FAM mesh of each case.
 
     phi: (B, N) arc angles [rad] of the EQUAL-arc solution; tip_force: complex (B,) N (base
@@ -118,7 +119,7 @@ def regrade(prob: Problem, phi: np.ndarray, arc_model: str) -> tuple:
     graded arcs from the equal-arc solution, Newton from that solution mapped onto them.
     Returns phi (B, N), fractions (B, N), ok (B,) (converged, tip angle within 0.5 rad of the
     equal-arc one), iterations (B,), residual (B,)."""
-    pfl = [(s, F) for s, (_, _, F) in zip(prob.pf_s, prob.point_forces)]
+    pfl = [(s, F) for s, (_, _, F) in zip(prob.pf_s, prob.point_forces, strict=True)]
     frac = graded_fractions(phi, prob.tip_force, prob.follower, pfl)
     gprob = make_problem(prob.n, prob.L, prob.EI, prob.tip_force, prob.follower,
                           prob.tip_moment, pfl, frac, prob.clothoid)

@@ -94,7 +94,8 @@ class Loads:
         try:
             rows = [tuple(r) for r in pf]
         except TypeError:
-            raise ValueError(f'point_forces must be a sequence of (s, fx, fy), got {pf!r}') from None
+            raise ValueError(f'point_forces must be a sequence of (s, fx, fy), '
+                             f'got {pf!r}') from None
         out = []
         for r in rows:
             if len(r) != 3:
@@ -345,7 +346,8 @@ class BatchShape:
 
     def shape(self, b: int) -> Shape:
         """The b-th case as a Shape."""
-        conv, stable, snap = bool(self.converged[b]), bool(self.stable[b]), bool(self.snap_through[b])
+        conv, stable = bool(self.converged[b]), bool(self.stable[b])
+        snap = bool(self.snap_through[b])
         return arc_shape(self.length, self.arc_angles[b], converged=conv,
                          iterations=int(self.iterations[b]), stable=stable, snap_through=snap,
                          warning=warning_text(conv, stable, snap, float(self.residual[b])),

@@ -82,7 +82,8 @@ def make_problem(n: int, L: float, EI: float, tip_force: np.ndarray, follower: b
 
 
 def build_problem(cat: Catheter, n: int, tip_force: np.ndarray, follower: bool,
-                  tip_moment: np.ndarray, point_forces: list, fractions: Optional[np.ndarray] = None,
+                  tip_moment: np.ndarray, point_forces: list,
+                  fractions: Optional[np.ndarray] = None,
                   clothoid: bool = False) -> Problem:
     return make_problem(n, cat.length, cat.ei, tip_force, follower, tip_moment, point_forces,
                          fractions, clothoid)
@@ -106,7 +107,8 @@ def load_size(prob: Problem) -> np.ndarray:
 def repeat_problem(prob: Problem, k: int) -> Problem:
     """Each case repeated k times (finite-difference Jacobians)."""
     rep = lambda x: np.repeat(x, k)  # noqa: E731
-    rl = (lambda x: np.repeat(x, k, axis=0)) if np.ndim(prob.l) == 2 else (lambda x: x)  # noqa: E731
+    rl = (lambda x: np.repeat(x, k,
+                              axis=0)) if np.ndim(prob.l) == 2 else (lambda x: x)  # noqa: E731
     return Problem(prob.n, rl(prob.l), rl(prob.w), rep(prob.tip_force), prob.follower,
                     rep(prob.tip_moment), [(a, t, rep(F)) for a, t, F in prob.point_forces],
                     prob.L, prob.EI, prob.pf_s, prob.clothoid)
@@ -124,7 +126,8 @@ def subproblem(prob: Problem, idx) -> Problem:
 def coarse_problem(prob: Problem) -> Problem:
     """The same loads on COARSE_N equal arcs (start and stability model for N > 64)."""
     return make_problem(COARSE_N, prob.L, prob.EI, prob.tip_force, prob.follower, prob.tip_moment,
-                         [(s, F) for s, (_, _, F) in zip(prob.pf_s, prob.point_forces)],
+                         [(s, F) for s, (_, _, F)
+                          in zip(prob.pf_s, prob.point_forces, strict=True)],
                          clothoid=prob.clothoid)
 
 
@@ -143,7 +146,8 @@ def problem_rates(prob: Problem, phi: np.ndarray, frac: Optional[np.ndarray] = N
     if frac is not None:
         prob = make_problem(prob.n, prob.L, prob.EI, prob.tip_force, prob.follower,
                              prob.tip_moment,
-                             [(s, F) for s, (_, _, F) in zip(prob.pf_s, prob.point_forces)],
+                             [(s, F) for s, (_, _, F)
+                              in zip(prob.pf_s, prob.point_forces, strict=True)],
                              frac, True)
     loads, _ = prob.loads(1.0)
     th_end = np.cumsum(phi, axis=1)

@@ -156,7 +156,8 @@ def fam_centerlines(forces, length: float = BLAZER_LENGTH, ei: float = BLAZER_EI
 
 
 def render_control_points(centerlines, seed: int = 0, progress: bool = False,
-                          camera_kwargs: Optional[dict] = None, sensor_kwargs: Optional[dict] = None,
+                          camera_kwargs: Optional[dict] = None,
+                          sensor_kwargs: Optional[dict] = None,
                           return_timing: bool = False, tissue_depth: float = 0.0):
     """Control points through the full image pipeline: synthetic camera -> ShapeSensor
     (background removal, threshold 132, the clamp pixel known from calibration).
@@ -320,7 +321,8 @@ def load_dataset(path) -> dict:
 def main(argv=None) -> int:
     """Command line: generate a data set file. See --help."""
     import argparse
-    p = argparse.ArgumentParser(prog='python -m force_estimator.dataset', description=__doc__.split('\n')[0])
+    p = argparse.ArgumentParser(prog='python -m force_estimator.dataset',
+                                description=__doc__.split('\n')[0])
     p.add_argument('out', help='output .npz file')
     p.add_argument('--kind', choices=('grid', 'random'), default='grid',
                    help='thesis grid (16 x 25) or random forces')

@@ -42,7 +42,8 @@ arcs of the solved shape fixed, while `solve_fam`'s graded arcs are re-placed fo
 force; the neglected part is small (measured: at most 0.015 % of the force columns with
 24 arcs at 0.1-0.22 N, up to 0.65 % with 12 arcs at 0.22 N) and only slows the
 Gauss-Newton contraction: the residual, and so the minimiser, are those of the graded FAM
-as before (same MAE on the benchmark frames). The previous forward-difference variants stay available (`solver="single"`:
+as before (same MAE on the benchmark frames). The previous forward-difference variants stay
+available (`solver="single"`:
 three warm-started `solve_fam` calls per iteration; `"batch"`: one `solve_fam_batch` call
 of three forces) as the reference in tests and benchmark.
 
@@ -337,7 +338,7 @@ class FamInverseEstimator:
         mu = 1e-4
         converged = False
         it = 0
-        for it in range(1, self.max_iter + 1):
+        for it in range(1, self.max_iter + 1):  # noqa: B007 (the count is returned)
             A = J.T @ J
             step = -np.linalg.solve(A + mu * np.diag(np.diag(A)) + 1e-30 * np.eye(4), J.T @ r)
             xn = x + step

@@ -24,7 +24,8 @@ metrics. Arrays: ``x_mean``, ``x_scale`` (12,), ``y_mean``, ``y_scale`` (2,),
 ``b0``, ``W1``, ``b1``, ...
 
 Format version 2 adds: ``domain_X`` (n, 12) and ``domain_Y`` (n, 2) float32, the reference
-training inputs of the domain check (force_estimator.domain) and their forces, and ``obs_angles``, ``obs_magnitudes``, ``obs_cov``,
+training inputs of the domain check (force_estimator.domain) and their forces, and ``obs_angles``,
+``obs_magnitudes``, ``obs_cov``,
 the observability table (force_estimator.uncertainty); the header adds ``domain``
 (threshold), ``model_cov`` (2x2 N^2, the validation error covariance of the model on
 observable inputs) and ``selftest`` (inputs and the outputs the model gave for them when it

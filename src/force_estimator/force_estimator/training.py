@@ -87,7 +87,7 @@ def svr_arrays(models: Sequence, ) -> Dict[str, np.ndarray]:
     sv, coef, gamma = [], [], []
     for k, m in enumerate(models):
         g = float(m._gamma)
-        for j, (idx, vec) in enumerate(zip(m.support_, m.support_vectors_)):
+        for j, (idx, vec) in enumerate(zip(m.support_, m.support_vectors_, strict=True)):
             key = (g, int(idx))
             if key not in rows:
                 rows[key] = len(sv)
@@ -97,6 +97,17 @@ def svr_arrays(models: Sequence, ) -> Dict[str, np.ndarray]:
             coef[rows[key]][k] += m.dual_coef_[0, j]
     return dict(sv=np.array(sv), coef=np.array(coef), gamma=np.array(gamma),
                 intercept=np.array([float(m.intercept_[0]) for m in models]))
+
+
+def _standardised(X, Y, val_frac: float, seed: int):
+    """Checked (X, Y), their scaling, the standardised Z, T and the (train, validation)
+    index split both trainers use."""
+    X, Y = _check_xy(X, Y)
+    sc = scaling(X, Y)
+    Z = (X - sc['x_mean']) / sc['x_scale']
+    T = (Y - sc['y_mean']) / sc['y_scale']
+    tr, va = _split(len(X), val_frac, seed)
+    return X, Y, sc, Z, T, tr, va
 
 
 def fit_svr(X, Y, C: float = SVR_C, epsilons_n: Iterable[float] = SVR_EPSILONS_N,
@@ -113,12 +124,8 @@ def fit_svr(X, Y, C: float = SVR_C, epsilons_n: Iterable[float] = SVR_EPSILONS_N
     Returns (model, report) with report = chosen hyper-parameters, validation table, fit time.
     """
     from sklearn.svm import SVR
-    X, Y = _check_xy(X, Y)
     t0 = time.perf_counter()
-    sc = scaling(X, Y)
-    Z = (X - sc['x_mean']) / sc['x_scale']
-    T = (Y - sc['y_mean']) / sc['y_scale']
-    tr, va = _split(len(X), val_frac, seed)
+    X, Y, sc, Z, T, tr, va = _standardised(X, Y, val_frac, seed)
     tr = tr[:max_search]
     chosen, table = [], []
     for k in range(N_TARGETS):
@@ -154,7 +161,7 @@ def mlp_arrays(mlp) -> Dict[str, np.ndarray]:
     if mlp.activation != 'relu' or mlp.out_activation_ != 'identity':
         raise ValueError('mlp must use ReLU hidden layers and an identity output')
     out = {}
-    for i, (W, b) in enumerate(zip(mlp.coefs_, mlp.intercepts_)):
+    for i, (W, b) in enumerate(zip(mlp.coefs_, mlp.intercepts_, strict=True)):
         out[f'W{i}'] = np.array(W)
         out[f'b{i}'] = np.array(b)
     return out
@@ -171,12 +178,8 @@ def fit_mlp(X, Y, hidden_layer_sizes: Tuple[int, ...] = (10,), alpha: float = 1e
 
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.neural_network import MLPRegressor
-    X, Y = _check_xy(X, Y)
     t0 = time.perf_counter()
-    sc = scaling(X, Y)
-    Z = (X - sc['x_mean']) / sc['x_scale']
-    T = (Y - sc['y_mean']) / sc['y_scale']
-    tr, va = _split(len(X), val_frac, seed)
+    X, Y, sc, Z, T, tr, va = _standardised(X, Y, val_frac, seed)
 
     def make(rs):
         return MLPRegressor(hidden_layer_sizes=tuple(hidden_layer_sizes), activation='relu',

@@ -24,5 +24,6 @@ from impedance_master.rendering import DfrRenderer, ImaRenderer
 
 __all__ = ['SlidingWindowIdentifier', 'HistoryIdentifier', 'HistoryParams', 'make_identifier',
            'Impedance', 'FrictionState', 'ImaRenderer', 'DfrRenderer', 'HapticDevice',
-           'DeviceParams', 'DeviceSample', 'OperatorTrajectory', 'experiment_trajectory', 'make_operator',
+           'DeviceParams', 'DeviceSample', 'OperatorTrajectory', 'experiment_trajectory',
+           'make_operator',
            'OPERATORS', 'ModelEnvelope', 'DEFAULT_ENVELOPE', 'StateFile']

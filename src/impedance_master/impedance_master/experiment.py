@@ -14,7 +14,8 @@ Per control period k (t = k dt):
    next period from what has arrived and (IMA) the local trajectory.
 
 Error metric (documented choice; implemented once in `impedance_master.metrics`, which
-`catheter_bringup.analyze` uses for the ROS graph's recordings too): the reference at master time t is the TRUE (noise-free)
+`catheter_bringup.analyze` uses for the ROS graph's recordings too): the reference at master time t
+is the TRUE (noise-free)
 vessel force that the master's motion produces at the slave, time-aligned by the command
 delay: a twin VesselModel with the slave's parameters and seed is driven by the master's
 trajectory at time t + delay. In normal intervals this equals the slave's own force at

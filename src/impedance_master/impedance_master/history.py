@@ -9,7 +9,8 @@ stiff catheters reverse their friction within a fraction of a millimetre, compli
 and vessel beds over millimetres), the mass term. Smoothness priors make unvisited grid
 nodes extrapolate from visited ones (friction linearly, static force flat); parameters are
 physically bounded (friction, breakaway and drag >= 0, a static force that never pulls the
-catheter in, a mass of grams) by an active-set solve (`history_prior`). Samples at rest are not learned from
+catheter in, a mass of grams) by an active-set solve (`history_prior`). Samples at rest are not
+learned from
 (the model is held). Forgetting, priors and bounds make the solve well posed whatever the
 data: the matrix is the data's information plus a positive definite prior, never singular.
 

@@ -180,7 +180,7 @@ class Impedance:
             if n < 2 or n > MAX_NODES:
                 raise ValueError(f'S must have 2..{MAX_NODES} nodes, got {n}')
             out = []
-            for name, t in zip('SFBC', tables):
+            for name, t in zip('SFBC', tables, strict=True):
                 if len(t) != n:
                     raise ValueError(f'{name} must have {n} nodes like S, got {len(t)}')
                 out.append([finite(f'{name}[{i}]', v) for i, v in enumerate(t)])
@@ -192,7 +192,7 @@ class Impedance:
                 raise ValueError(f'anchor must have {len(Anchor._fields)} values '
                                  f'{Anchor._fields}, got {len(anchor)}')
             self.anchor = Anchor(*(finite(f'anchor.{n}', v)
-                                   for n, v in zip(Anchor._fields, anchor)))
+                                   for n, v in zip(Anchor._fields, anchor, strict=True)))
 
     @classmethod
     def from_arrays(cls, m: float, c: float, k: float, offset: float, *, x0: float,
@@ -282,7 +282,7 @@ class Impedance:
                 for i, v in enumerate(t):
                     d[f'{name}{i}'] = float(v)
         if self.anchor is not None:
-            d.update(zip(ANCHOR_FIELDS, self.anchor))
+            d.update(zip(ANCHOR_FIELDS, self.anchor, strict=True))
         return d
 
     @classmethod

@@ -116,7 +116,7 @@ def twin_reference(t, x, xd, delay: float, vessel_params=None, seed: Optional[in
             else VesselModel(vessel_params, seed=seed))
     force = twin.force
     out = np.empty(t.size)
-    for k, (tk, xk, vk) in enumerate(zip(t.tolist(), x.tolist(), xd.tolist())):
+    for k, (tk, xk, vk) in enumerate(zip(t.tolist(), x.tolist(), xd.tolist(), strict=True)):
         out[k] = force(tk + d, xk, vk)
     return out
 

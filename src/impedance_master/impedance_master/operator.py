@@ -173,7 +173,7 @@ class SinesTrajectory:
 
     def _sines(self, t: float) -> Tuple[float, float, float]:
         s = v = a = 0.0
-        for w, f, ph in zip(self._w, self._f, self._phi):
+        for w, f, ph in zip(self._w, self._f, self._phi, strict=True):
             arg = f * t + ph
             s += w * math.sin(arg)
             v += w * f * math.cos(arg)

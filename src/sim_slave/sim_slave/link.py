@@ -66,7 +66,7 @@ class LinkConfig:
         flat = list(outages_flat)
         if len(flat) % 2:
             raise ValueError(f'outages must hold start,length pairs (even length), got {flat!r}')
-        return LinkConfig(delay, jitter, loss, tuple(zip(flat[0::2], flat[1::2])))
+        return LinkConfig(delay, jitter, loss, tuple(zip(flat[0::2], flat[1::2], strict=True)))
 
     def describe(self) -> str:
         """One line for logs: 'delay 0.2 s, jitter 0 s, loss 0, outages [(4.0, 1.0), ...]'."""
