@@ -52,8 +52,13 @@ def dds_run():
 @pytest.mark.ros
 @pytest.mark.slow
 def test_list_echo_hz_bw_see_a_lockstep_run_published_with_dds(dds_run, capsys):
-    assert topic_tool.main(['list', '-t', '--wait', '3']) == 0
-    listed = capsys.readouterr().out.splitlines()
+    # a new DDS participant discovers the run within the --wait time; on a loaded machine it
+    # can take longer (seen once in a full suite beside a fuzz benchmark): ask again
+    for _ in range(4):
+        assert topic_tool.main(['list', '-t', '--wait', '3']) == 0
+        listed = capsys.readouterr().out.splitlines()
+        if '/slave/force [geometry_msgs/msg/WrenchStamped]' in listed:
+            break
     assert '/slave/force [geometry_msgs/msg/WrenchStamped]' in listed
     assert '/master/rendered_force [geometry_msgs/msg/WrenchStamped]' in listed
 
