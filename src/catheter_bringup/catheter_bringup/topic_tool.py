@@ -108,6 +108,16 @@ def _scalar(v):
     return v
 
 
+def _topic_type(s: '_Session', a) -> Optional[str]:
+    """The type of ``a.topic`` once it is in the graph, or None (said on stderr) after
+    ``a.timeout`` s."""
+    type_name = s.topic_type(a.topic, a.timeout)
+    if type_name is None:
+        print(f'catheter_topic: {a.topic}: no such topic in the graph after {a.timeout:g} s',
+              file=sys.stderr)
+    return type_name
+
+
 def cmd_list(a) -> int:
     s = _Session()
     try:
@@ -122,10 +132,8 @@ def cmd_list(a) -> int:
 def cmd_echo(a) -> int:
     s = _Session()
     try:
-        type_name = s.topic_type(a.topic, a.timeout)
+        type_name = _topic_type(s, a)
         if type_name is None:
-            print(f'catheter_topic: {a.topic}: no such topic in the graph after {a.timeout:g} s',
-                  file=sys.stderr)
             return 1
         got = []
 
@@ -156,10 +164,8 @@ def rate_stats(times: List[float]) -> Dict[str, float]:
 def cmd_hz(a) -> int:
     s = _Session()
     try:
-        type_name = s.topic_type(a.topic, a.timeout)
+        type_name = _topic_type(s, a)
         if type_name is None:
-            print(f'catheter_topic: {a.topic}: no such topic in the graph after {a.timeout:g} s',
-                  file=sys.stderr)
             return 1
         times: List[float] = []
         if a.stamps:
@@ -200,10 +206,8 @@ def cmd_hz(a) -> int:
 def cmd_bw(a) -> int:
     s = _Session()
     try:
-        type_name = s.topic_type(a.topic, a.timeout)
+        type_name = _topic_type(s, a)
         if type_name is None:
-            print(f'catheter_topic: {a.topic}: no such topic in the graph after {a.timeout:g} s',
-                  file=sys.stderr)
             return 1
         sizes: List[tuple] = []
         s.subscribe(a.topic, type_name, lambda d: sizes.append((time.monotonic(), len(d))),
