@@ -56,10 +56,16 @@ class _Session:
         return types[0] if types else None
 
     def subscribe(self, topic: str, type_name: str, callback, raw: bool):
+        """Best effort, volatile, keep last 1000: compatible with every publisher, also one
+        discovered after this subscription (choosing from the publishers seen so far picked
+        reliable when the topic was known only through a subscriber, and a best-effort
+        publisher found a moment later was refused as incompatible)."""
+        from rclpy.qos import (QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile,
+                               QoSReliabilityPolicy)
         from catheter_bringup.cdr import message_class
-        from catheter_bringup.ros_recording import recording_qos
-        infos = self.node.get_publishers_info_by_topic(topic)
-        qos = recording_qos([i.qos_profile for i in infos])
+        qos = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1000,
+                         reliability=QoSReliabilityPolicy.BEST_EFFORT,
+                         durability=QoSDurabilityPolicy.VOLATILE)
         return self.node.create_subscription(message_class(type_name), topic, callback, qos,
                                              raw=raw)
 
