@@ -220,21 +220,29 @@ class Stepping:
             if self.stop_requested:
                 raise KeyboardInterrupt
             self.executor.spin_once(timeout_sec=min(0.05, (end - now) * 1e-9))
-            el = (clock.now().nanoseconds - start) * 1e-9
-            self._sim_reached = min(el, sc['duration'])
-            if now >= next_scan:
-                self._rescan()
-                if self.sink is not None and self.child_nodes and self.sink.discover():
-                    self._track()
-                next_scan = now + 200_000_000
-            if bar is not None and el - last >= 0.1:
-                bar.update(round(min(el, sc['duration']) - last, 3))
-                last = min(el, sc['duration'])
+            next_scan, last = self._upkeep(clock, now, start, next_scan, bar, last)
         # let the recorder take what is still in flight
         t_end = time.perf_counter() + 0.5
         while not self._caught_up() and time.perf_counter() < t_end:
             self.executor.spin_once(timeout_sec=0.01)
         return 0, self._sim_reached
+
+    def _upkeep(self, clock, now: int, start: int, next_scan: int, bar, last: float):
+        """Per-iteration upkeep of the real-time loops: the time reached, a rescan for new
+        nodes' entities (and topics to record from worker processes) every 200 ms, the
+        progress bar. Returns the next scan time and the progress shown."""
+        dur = self.scenario['duration']
+        el = (clock.now().nanoseconds - start) * 1e-9
+        self._sim_reached = min(el, dur)
+        if now >= next_scan:
+            self._rescan()
+            if self.sink is not None and self.child_nodes and self.sink.discover():
+                self._track()
+            next_scan = now + 200_000_000
+        if bar is not None and el - last >= 0.1:
+            bar.update(round(min(el, dur) - last, 3))
+            last = min(el, dur)
+        return next_scan, last
 
     def _run_realtime_local(self, bar):
         """Real time on the system clock with the in-process bus: ready timers are called
@@ -263,17 +271,7 @@ class Stepping:
                 if slack >= SPIN_SLACK_NS or now >= next_spin + 5 * EXTERNAL_SPIN_NS:
                     self._spin_external()
                     next_spin = now + EXTERNAL_SPIN_NS
-            el = (clock.now().nanoseconds - start) * 1e-9
-            self._sim_reached = min(el, sc['duration'])
-            if now >= next_scan:
-                self._rescan()
-                if self.sink is not None and self.child_nodes:
-                    if self.sink.discover():
-                        self._track()
-                next_scan = now + 200_000_000
-            if bar is not None and el - last >= 0.1:
-                bar.update(round(min(el, sc['duration']) - last, 3))
-                last = min(el, sc['duration'])
+            next_scan, last = self._upkeep(clock, now, start, next_scan, bar, last)
             wait = min((t.time_until_next_call() or 0 for t in self._timers
                         if not t.is_canceled()), default=1_000_000)
             if self.bus.external:
