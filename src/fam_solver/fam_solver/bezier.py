@@ -36,6 +36,8 @@ from .problem import Problem, repeat_problem
 
 N_GAUSS = 8
 _GAUSS = np.polynomial.legendre.leggauss(N_GAUSS)
+#: quadrature nodes, weights and Bernstein bases per set of point-load fractions inside arcs
+_BASIS = {}
 
 
 def _lambda_and_derivative(phi):
@@ -53,8 +55,12 @@ class BezierModel:
 
     def __init__(self, prob: Problem):
         self.prob = prob
-        taus = sorted({t for a, t, _ in prob.point_forces if t < 1.0})
-        edges = [0.0] + taus + [1.0]
+        taus = tuple(sorted({t for a, t, _ in prob.point_forces if t < 1.0}))
+        cached = _BASIS.get(taus)
+        if cached is not None:
+            self.t, self.wq, self.b0, self.b1, self.b2, self.bcat = cached
+            return
+        edges = [0.0, *taus, 1.0]
         xg, wg = _GAUSS
         ts, ws = [], []
         for a, b in zip(edges[:-1], edges[1:], strict=True):
@@ -69,10 +75,37 @@ class BezierModel:
         self.b1 = np.stack([-3 * u ** 2, 3 * u ** 2 - 6 * t * u, 6 * t * u - 3 * t ** 2,
                             3 * t ** 2], axis=1)
         self.b2 = np.stack([6 * u, -12 * u + 6 * t, 6 * u - 12 * t, 6 * t], axis=1)
+        if len(_BASIS) > 64:
+            _BASIS.clear()
+        self.bcat = np.concatenate([self.b0.T, self.b1.T, self.b2.T], axis=1) + 0j   # (4, 3Q)
+        _BASIS[taus] = (self.t, self.wq, self.b0, self.b1, self.b2, self.bcat)
 
     def _basis_at(self, tau):
         u = 1 - tau
         return np.array([u ** 3, 3 * tau * u ** 2, 3 * tau ** 2 * u, tau ** 3])
+
+    def _curves(self, phi, l):
+        """Control points (local frame) and their phi-derivatives (B, N, 4), the curve, its
+        phi-derivative at the quadrature nodes (B, N, Q), curvature and its phi-derivative."""
+        G, _, GP, _ = arc_funcs(phi)
+        lam, dlam = _lambda_and_derivative(phi)
+        eph = np.exp(1j * phi)
+        zero = np.zeros_like(G)
+        cp = np.stack([zero, l * lam + 0j, l * G - l * lam * eph, l * G], axis=-1)
+        dcp = np.stack([zero, l * dlam + 0j, l * GP - l * dlam * eph - 1j * l * lam * eph,
+                        l * GP], axis=-1)
+        Q = self.t.size
+        X = np.stack([cp, dcp], axis=-2) @ self.bcat      # (B, N, 2, 3Q): one product
+        c, c1, c2 = X[..., 0, :Q], X[..., 0, Q:2 * Q], X[..., 0, 2 * Q:]
+        dc, dc1, dc2 = X[..., 1, :Q], X[..., 1, Q:2 * Q], X[..., 1, 2 * Q:]
+        cr = np.imag(np.conj(c1) * c2)
+        sp2 = (c1 * np.conj(c1)).real
+        sp3 = sp2 * np.sqrt(sp2)
+        kap = cr / sp3
+        dcr = np.imag(np.conj(dc1) * c2 + np.conj(c1) * dc2)
+        dsp2 = 2.0 * np.real(np.conj(c1) * dc1)
+        dkap = dcr / sp3 - 1.5 * kap * dsp2 / sp2
+        return G, GP, cp, dcp, c, dc, kap, dkap
 
     def residual(self, phi, loads, m):
         prob = self.prob
@@ -81,29 +114,9 @@ class BezierModel:
         th_end = np.cumsum(phi, axis=1)
         th_start = th_end - phi
         E = np.exp(1j * th_start)
-        G, _, GP, _ = arc_funcs(phi)
+        G, _, cp, dcp, c, dc, kap, dkap = self._curves(phi, l)
         d = l * E * G
         P_end = np.cumsum(d, axis=1)
-        lam, dlam = _lambda_and_derivative(phi)
-        eph = np.exp(1j * phi)
-        # control points (local frame) and their phi-derivatives, (B, N, 4)
-        zero = np.zeros_like(G)
-        cp = np.stack([zero, l * lam + 0j, l * G - l * lam * eph, l * G], axis=-1)
-        dcp = np.stack([zero, l * dlam + 0j, l * GP - l * dlam * eph - 1j * l * lam * eph,
-                        l * GP], axis=-1)
-        c = cp @ self.b0.T            # (B, N, Q)
-        c1 = cp @ self.b1.T
-        c2 = cp @ self.b2.T
-        dc = dcp @ self.b0.T
-        dc1 = dcp @ self.b1.T
-        dc2 = dcp @ self.b2.T
-        cr = np.imag(np.conj(c1) * c2)
-        sp2 = (c1 * np.conj(c1)).real
-        sp = np.sqrt(sp2)
-        kap = cr / (sp2 * sp)
-        dcr = np.imag(np.conj(dc1) * c2 + np.conj(c1) * dc2)
-        dsp2 = 2.0 * np.real(np.conj(c1) * dc1)
-        dkap = dcr / (sp2 * sp) - 1.5 * cr * dsp2 / (sp2 * sp2 * sp)
         # end wrench of each arc (global), full loads only; partial loads handled per node
         M_end = np.repeat(m[:, None], N, axis=1).astype(float)
         F_end = np.zeros((B, N), dtype=complex)
@@ -147,6 +160,84 @@ class BezierModel:
         return Gi * (l / EI) ** 2
 
 
+    def _local(self, phi, l, M, Floc, curves=None):
+        """Eq. 23 per arc for end wrenches (M, Floc) held fixed in the arc frame (B, N): the
+        residual G (scaled by (l/EI)^2), dG/dM and K with dG = Im(conj(K) dFloc)."""
+        EI = self.prob.EI
+        _, _, cp, dcp, c, dc, kap, dkap = self._curves(phi, l) if curves is None else curves
+        lever = cp[..., 3:4] - c                 # (B, N, Q)
+        dlever = dcp[..., 3:4] - dc
+        Fq = Floc[..., None]
+        R = M[..., None] + (np.conj(lever) * Fq).imag - EI * kap
+        dR = (np.conj(dlever) * Fq).imag - EI * dkap
+        s = (l / EI) ** 2
+        wq = self.wq
+        return ((R * dR) @ wq) * s, (dR @ wq) * s, ((lever * dR + dlever * R) @ wq) * s
+
+    def residual_state(self, phi, loads, m):
+        """Residual (B, N) for loads at arc ends only (tip loads; None when a point force
+        lies inside an arc), and what ``factors`` needs for the exact Jacobian."""
+        if any(ld.tau < 1.0 for ld in loads):
+            return None
+        l = self.prob.l
+        B, N = phi.shape
+        th_end = np.cumsum(phi, axis=1)
+        E = np.exp(1j * (th_end - phi))
+        curves = self._curves(phi, l)
+        G, GP = curves[0], curves[1]
+        lE = l * E
+        P_end = np.cumsum(lE * G, axis=1)
+        M = np.repeat(np.asarray(m, dtype=float)[:, None], N, axis=1)
+        Fdead = np.zeros((B, N), dtype=complex)
+        Ffol = np.zeros((B, N), dtype=complex)
+        Mlow = np.zeros((B, N))
+        Mall = np.zeros((B, N))
+        Mcol = np.zeros((B, N))
+        for ld in loads:
+            F = ld.F
+            if ld.follower:
+                F = F * np.exp(1j * th_end[:, -1])
+            k = ld.a + 1
+            Fc = np.conj(F)[:, None]
+            RF = (P_end[:, ld.a:k] - P_end[:, :k]) * Fc         # rel_i conj(F), i <= a
+            M[:, :k] -= RF.imag                                 # Im(conj(rel) F)
+            Mlow[:, :k] -= RF.real
+            if ld.follower:
+                Mall[:, :k] += RF.real
+                Ffol[:, :k] += F[:, None]
+            else:
+                Fdead[:, :k] += F[:, None]
+            Mcol[:, :k] -= RF.real + (lE[:, :k] * GP[:, :k] * Fc).imag
+        Einv = np.conj(E)
+        Fdl, Ffl = Fdead * Einv, Ffol * Einv
+        r, gM, K = self._local(phi, l, M, Fdl + Ffl, curves)
+        return r, (phi, r, M, Fdl, Ffl, gM, K, Mlow, Mall, Mcol)
+
+    def factors(self, state):
+        """The exact Jacobian of the residual of ``residual_state`` in the factor form of
+        ``equations.evaluate``: w, (A, Bd, C, e) with J = I - diag(w) D, D_ij = A_i (j < i),
+        Bd_i (j = i), C_j + e_i (j > i), as ``linsolve`` solves it; None if degenerate.
+
+        G_i depends on phi_i and on arc i's end wrench in its own frame, M_i and
+        Floc_i = F_i e^{-i theta_start,i}; the chain rule through them gives, with w = -dG/dM
+        (= l/EI to leading order): dM_i/dphi_j = Mlow_i (j <= i: the distal arcs turn about
+        the end of arc i) + Mall_i (follower: the force turns with the tip) + Mcol_j (j > i:
+        arc j bends); dFloc_i/dphi_j = -i Floc_dead,i (j < i), +i Floc_fol,i (j >= i). The
+        partial dG_i/dphi_i at fixed end wrench is a forward difference of the local
+        residual (all arcs at once; relative error ~1e-7: Newton stays quadratic down to its
+        tolerance)."""
+        phi, r, M, Fdl, Ffl, gM, K, Mlow, Mall, Mcol = state
+        if not np.all(np.abs(gM) > 0):
+            return None
+        h = 1e-7 * np.maximum(1.0, np.abs(phi))
+        gP = (self._local(phi + h, self.prob.l, M, Fdl + Ffl)[0] - r) / h
+        kd = -(np.conj(K) * Fdl).real
+        kf = (np.conj(K) * Ffl).real
+        A = Mlow + Mall + kd / gM
+        Bd = (gP - 1.0) / gM + Mlow + Mall + kf / gM
+        e = Mall + kf / gM
+        return -gM, (A, Bd, Mcol, e)
+
 class BezierResidual:
     """Bezier residual and (for N <= FD_MAX_N) its finite-difference Jacobian; beyond, Newton
     uses the circular-arc model's analytic Jacobian (quasi-Newton: a few more iterations,
@@ -163,6 +254,15 @@ class BezierResidual:
 
     def residual(self, phi: np.ndarray, loads, m: np.ndarray) -> np.ndarray:
         return self.model.residual(phi, loads, m)
+
+    def residual_state(self, phi: np.ndarray, loads, m: np.ndarray):
+        """``BezierModel.residual_state``: residual and state, or None (point force inside an
+        arc)."""
+        return self.model.residual_state(phi, loads, m)
+
+    def factors(self, state):
+        """``BezierModel.factors``: the exact Jacobian's factors, or None."""
+        return self.model.factors(state)
 
     def jacobian(self, phi: np.ndarray, scale) -> Optional[np.ndarray]:
         B, N = phi.shape
