@@ -50,6 +50,18 @@ def _lambda_and_derivative(phi):
     return lam, np.where(small, ser, closed)
 
 
+def _lambda_second(phi):
+    """d^2 lambda / d phi^2 (closed form; series below |phi| < 1e-2)."""
+    small = np.abs(phi) < 1e-2
+    p = np.where(small, 1.0, phi)
+    x = p / 4.0
+    sec2 = 1.0 / np.cos(x) ** 2
+    tn = np.tan(x)
+    closed = (4.0 / 3.0) * (0.125 * sec2 * tn / p - 0.5 * sec2 / (p * p) + 2.0 * tn / p ** 3)
+    ser = 1.0 / 72.0 + phi * phi / 480.0
+    return np.where(small, ser, closed)
+
+
 class BezierModel:
     """Residuals of the Bezier arc model for a given Problem (loads fixed per case)."""
 
@@ -87,7 +99,7 @@ class BezierModel:
     def _curves(self, phi, l):
         """Control points (local frame) and their phi-derivatives (B, N, 4), the curve, its
         phi-derivative at the quadrature nodes (B, N, Q), curvature and its phi-derivative."""
-        G, _, GP, _ = arc_funcs(phi)
+        G, _, GP, QP = arc_funcs(phi)
         lam, dlam = _lambda_and_derivative(phi)
         eph = np.exp(1j * phi)
         zero = np.zeros_like(G)
@@ -105,7 +117,28 @@ class BezierModel:
         dcr = np.imag(np.conj(dc1) * c2 + np.conj(c1) * dc2)
         dsp2 = 2.0 * np.real(np.conj(c1) * dc1)
         dkap = dcr / sp3 - 1.5 * kap * dsp2 / sp2
-        return G, GP, cp, dcp, c, dc, kap, dkap
+        extra = (QP, lam, dlam, eph, c1, c2, dc1, dc2, sp2, sp3, dcr, dsp2)
+        return G, GP, cp, dcp, c, dc, kap, dkap, extra
+
+    def _second(self, phi, l, curves):
+        """Second phi-derivatives of the curve at the quadrature nodes (B, N, Q), of its end
+        point (B, N, 1) and of the curvature (B, N, Q), from ``_curves``' pieces."""
+        kap, dkap = curves[6], curves[7]
+        QP, lam, dlam, eph, c1, c2, dc1, dc2, sp2, sp3, dcr, dsp2 = curves[8]
+        GPP = 1j * QP                      # g'' = -E_2 = i q'
+        d2lam = _lambda_second(phi)
+        zero = np.zeros_like(GPP)
+        d2cp = np.stack([zero, l * d2lam + 0j,
+                         l * (GPP - (d2lam + 2j * dlam - lam) * eph), l * GPP], axis=-1)
+        Q = self.t.size
+        X = d2cp @ self.bcat
+        d2c, d2c1, d2c2 = X[..., :Q], X[..., Q:2 * Q], X[..., 2 * Q:]
+        d2cr = np.imag(np.conj(d2c1) * c2 + 2.0 * np.conj(dc1) * dc2 + np.conj(c1) * d2c2)
+        d2sp2 = 2.0 * ((dc1 * np.conj(dc1)).real + np.real(np.conj(c1) * d2c1))
+        r2 = dsp2 / sp2
+        d2kap = (d2cr - 1.5 * dcr * r2) / sp3 - 1.5 * (dkap * r2 + kap * d2sp2 / sp2
+                                                        - kap * r2 * r2)
+        return d2c, d2cp[..., 3:4], d2kap
 
     def residual(self, phi, loads, m):
         prob = self.prob
@@ -114,7 +147,7 @@ class BezierModel:
         th_end = np.cumsum(phi, axis=1)
         th_start = th_end - phi
         E = np.exp(1j * th_start)
-        G, _, cp, dcp, c, dc, kap, dkap = self._curves(phi, l)
+        G, _, cp, dcp, c, dc, kap, dkap, _ = self._curves(phi, l)
         d = l * E * G
         P_end = np.cumsum(d, axis=1)
         # end wrench of each arc (global), full loads only; partial loads handled per node
@@ -164,7 +197,7 @@ class BezierModel:
         """Eq. 23 per arc for end wrenches (M, Floc) held fixed in the arc frame (B, N): the
         residual G (scaled by (l/EI)^2), dG/dM and K with dG = Im(conj(K) dFloc)."""
         EI = self.prob.EI
-        _, _, cp, dcp, c, dc, kap, dkap = self._curves(phi, l) if curves is None else curves
+        _, _, cp, dcp, c, dc, kap, dkap, _ = self._curves(phi, l) if curves is None else curves
         lever = cp[..., 3:4] - c                 # (B, N, Q)
         dlever = dcp[..., 3:4] - dc
         Fq = Floc[..., None]
@@ -172,7 +205,8 @@ class BezierModel:
         dR = (np.conj(dlever) * Fq).imag - EI * dkap
         s = (l / EI) ** 2
         wq = self.wq
-        return ((R * dR) @ wq) * s, (dR @ wq) * s, ((lever * dR + dlever * R) @ wq) * s
+        return (((R * dR) @ wq) * s, (dR @ wq) * s, ((lever * dR + dlever * R) @ wq) * s,
+                R, dR)
 
     def residual_state(self, phi, loads, m):
         """Residual (B, N) for loads at arc ends only (tip loads; None when a point force
@@ -210,8 +244,8 @@ class BezierModel:
             Mcol[:, :k] -= RF.real + (lE[:, :k] * GP[:, :k] * Fc).imag
         Einv = np.conj(E)
         Fdl, Ffl = Fdead * Einv, Ffol * Einv
-        r, gM, K = self._local(phi, l, M, Fdl + Ffl, curves)
-        return r, (phi, r, M, Fdl, Ffl, gM, K, Mlow, Mall, Mcol)
+        r, gM, K, R, dR = self._local(phi, l, M, Fdl + Ffl, curves)
+        return r, (phi, curves, R, dR, Fdl + Ffl, Fdl, Ffl, gM, K, Mlow, Mall, Mcol)
 
     def factors(self, state):
         """The exact Jacobian of the residual of ``residual_state`` in the factor form of
@@ -223,14 +257,15 @@ class BezierModel:
         (= l/EI to leading order): dM_i/dphi_j = Mlow_i (j <= i: the distal arcs turn about
         the end of arc i) + Mall_i (follower: the force turns with the tip) + Mcol_j (j > i:
         arc j bends); dFloc_i/dphi_j = -i Floc_dead,i (j < i), +i Floc_fol,i (j >= i). The
-        partial dG_i/dphi_i at fixed end wrench is a forward difference of the local
-        residual (all arcs at once; relative error ~1e-7: Newton stays quadratic down to its
-        tolerance)."""
-        phi, r, M, Fdl, Ffl, gM, K, Mlow, Mall, Mcol = state
+        partial dG_i/dphi_i at fixed end wrench is integral (dR^2 + R d2R/dphi^2) dt, with
+        the second phi-derivatives of the control points and curvature (``_second``)."""
+        phi, curves, R, dR, Floc, Fdl, Ffl, gM, K, Mlow, Mall, Mcol = state
         if not np.all(np.abs(gM) > 0):
             return None
-        h = 1e-7 * np.maximum(1.0, np.abs(phi))
-        gP = (self._local(phi + h, self.prob.l, M, Fdl + Ffl)[0] - r) / h
+        l, EI = self.prob.l, self.prob.EI
+        d2c, d2end, d2kap = self._second(phi, l, curves)
+        d2R = (np.conj(d2end - d2c) * Floc[..., None]).imag - EI * d2kap
+        gP = ((dR * dR + R * d2R) @ self.wq) * (l / EI) ** 2
         kd = -(np.conj(K) * Fdl).real
         kf = (np.conj(K) * Ffl).real
         A = Mlow + Mall + kd / gM
