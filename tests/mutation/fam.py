@@ -187,4 +187,9 @@ MUTANTS = [
                     '(an unstable or straight one takes equal arcs); on 900 random compressive '
                     'loads (F L^2/EI 5-40 at 90-180 deg, moments, N = 6, 12, 80) both readings '
                     'gave the same verdict'),
+    Mutant('M40', P + 'fam.py',
+           '    follower = bool(loads.follower) and tip != 0',
+           '    follower = bool(loads.follower)',
+           'follower flag without a tip force: a point force at the tip left on the general '
+           'path'),
 ]
