@@ -227,3 +227,13 @@ def test_tip_point_force_with_follower_flag_and_no_tip_force_takes_the_fast_path
     sh = solve_fam(BLAZER, ld, n_arcs=n)
     ref = solve_elastica(BLAZER, ld)
     assert sh.converged and np.max(np.abs(sh.tip - ref.tip)) < 0.1 / n ** 4 * BLAZER.length
+
+
+def test_snap_through_is_reported_beyond_64_arcs_too():
+    """Regression: beyond 64 arcs the general path starts from the 32-arc solution; a fold on
+    that model's loading path was not passed on (SNAP_THROUGH at N = 24, CONVERGED at 100)."""
+    b = np.radians(94.0)
+    ld = Loads(tip_force=(7.6 * np.cos(b), 7.6 * np.sin(b)), tip_moment=-4.74)
+    st = [solve_fam(UNIT, ld, n_arcs=n) for n in (24, 100)]
+    assert [s.status.name for s in st] == ['SNAP_THROUGH', 'SNAP_THROUGH']
+    assert abs(st[0].tip_angle - st[1].tip_angle) < 1e-3

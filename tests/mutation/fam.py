@@ -192,4 +192,8 @@ MUTANTS = [
            '    follower = bool(loads.follower)',
            'follower flag without a tip force: a point force at the tip left on the general '
            'path'),
+    Mutant('M41', P + 'globalise.py',
+           '        snapped |= snapped_c & cc',
+           '        pass',
+           'general path beyond 64 arcs: the coarse model\'s snap-through not passed on'),
 ]

@@ -192,8 +192,9 @@ def solve_cases(prob: Problem, B: int, arc_model: str = 'exact',
         phi0 = guess
     else:
         coarse = coarse_problem(prob)
-        pc, cc, ic, _, _ = solve_cases(coarse, B, 'exact')
+        pc, cc, ic, _, snapped_c = solve_cases(coarse, B, 'exact')
         iters += ic
+        snapped |= snapped_c & cc      # the fine solution continues the coarse one's branch
         # curvature at the coarse midpoints -> fine arcs (piecewise linear), phi = kappa l
         sc, sf = midpoints(coarse), midpoints(prob)
         phi0 = np.stack([np.interp(sf, sc, pc[b] / coarse.l) for b in range(B)]) * prob.l
