@@ -31,7 +31,7 @@ from typing import Optional
 
 import numpy as np
 
-from .arcs import arc_funcs, bezier_lambda
+from .arcs import arc_funcs
 from .problem import Problem, repeat_problem
 
 N_GAUSS = 8
@@ -40,26 +40,24 @@ _GAUSS = np.polynomial.legendre.leggauss(N_GAUSS)
 _BASIS = {}
 
 
-def _lambda_and_derivative(phi):
-    lam = bezier_lambda(phi)
+def _lambdas(phi):
+    """lambda(phi) (``arcs.bezier_lambda``) and its first and second phi-derivatives, from one
+    tangent (closed forms; Taylor series below |phi| < 1e-2)."""
     small = np.abs(phi) < 1e-2
-    p = np.where(small, 1.0, phi)
-    x = p / 4.0
-    closed = (4.0 / 3.0) * (0.25 / (np.cos(x) ** 2 * p) - np.tan(x) / (p * p))
-    ser = phi / 72.0 + phi ** 3 / 1440.0
-    return lam, np.where(small, ser, closed)
-
-
-def _lambda_second(phi):
-    """d^2 lambda / d phi^2 (closed form; series below |phi| < 1e-2)."""
-    small = np.abs(phi) < 1e-2
-    p = np.where(small, 1.0, phi)
-    x = p / 4.0
-    sec2 = 1.0 / np.cos(x) ** 2
-    tn = np.tan(x)
-    closed = (4.0 / 3.0) * (0.125 * sec2 * tn / p - 0.5 * sec2 / (p * p) + 2.0 * tn / p ** 3)
-    ser = 1.0 / 72.0 + phi * phi / 480.0
-    return np.where(small, ser, closed)
+    p = np.where(small, 1.0, phi) if small.any() else phi
+    tn = np.tan(0.25 * p)
+    sec2 = 1.0 + tn * tn
+    ip = 1.0 / p
+    q = tn * ip
+    lam = (4.0 / 3.0) * q
+    dlam = (1.0 / 3.0) * sec2 * ip - lam * ip
+    d2lam = ((1.0 / 6.0) * sec2 * tn - (2.0 / 3.0) * sec2 * ip + (8.0 / 3.0) * q * ip) * ip
+    if p is not phi:
+        p2 = phi * phi
+        lam = np.where(small, 1.0 / 3.0 + p2 / 144.0 + p2 * p2 / 5760.0, lam)
+        dlam = np.where(small, phi / 72.0 + phi * p2 / 1440.0, dlam)
+        d2lam = np.where(small, 1.0 / 72.0 + p2 / 480.0, d2lam)
+    return lam, dlam, d2lam
 
 
 class BezierModel:
@@ -97,48 +95,54 @@ class BezierModel:
         return np.array([u ** 3, 3 * tau * u ** 2, 3 * tau ** 2 * u, tau ** 3])
 
     def _curves(self, phi, l):
-        """Control points (local frame) and their phi-derivatives (B, N, 4), the curve, its
-        phi-derivative at the quadrature nodes (B, N, Q), curvature and its phi-derivative."""
+        """Control points (local frame) and their first and second phi-derivatives
+        (B, N, 3, 4), the curve and its phi-derivative at the quadrature nodes (B, N, Q), the
+        curvature and its phi-derivative, and the pieces ``_second`` needs."""
         G, _, GP, QP = arc_funcs(phi)
-        lam, dlam = _lambda_and_derivative(phi)
+        lam, dlam, d2lam = _lambdas(phi)
         eph = np.exp(1j * phi)
-        zero = np.zeros_like(G)
-        cp = np.stack([zero, l * lam + 0j, l * G - l * lam * eph, l * G], axis=-1)
-        dcp = np.stack([zero, l * dlam + 0j, l * GP - l * dlam * eph - 1j * l * lam * eph,
-                        l * GP], axis=-1)
+        GPP = 1j * QP                      # g'' = -E_2 = i q'
+        P = np.empty(phi.shape + (3, 4), dtype=complex)
+        P[..., 0] = 0.0
+        P[..., 0, 1] = lam
+        P[..., 1, 1] = dlam
+        P[..., 2, 1] = d2lam
+        P[..., 0, 3] = G
+        P[..., 1, 3] = GP
+        P[..., 2, 3] = GPP
+        P[..., 0, 2] = G - lam * eph
+        P[..., 1, 2] = GP - (dlam + 1j * lam) * eph
+        P[..., 2, 2] = GPP - (d2lam + 2j * dlam - lam) * eph
+        P *= np.asarray(l)[..., None, None]
         Q = self.t.size
-        X = np.stack([cp, dcp], axis=-2) @ self.bcat      # (B, N, 2, 3Q): one product
+        X = P @ self.bcat                  # (B, N, 3, 3Q): one product
         c, c1, c2 = X[..., 0, :Q], X[..., 0, Q:2 * Q], X[..., 0, 2 * Q:]
         dc, dc1, dc2 = X[..., 1, :Q], X[..., 1, Q:2 * Q], X[..., 1, 2 * Q:]
-        cr = np.imag(np.conj(c1) * c2)
-        sp2 = (c1 * np.conj(c1)).real
+        cc1 = np.conj(c1)
+        cr = (cc1 * c2).imag
+        sp2 = (cc1 * c1).real
         sp3 = sp2 * np.sqrt(sp2)
         kap = cr / sp3
-        dcr = np.imag(np.conj(dc1) * c2 + np.conj(c1) * dc2)
-        dsp2 = 2.0 * np.real(np.conj(c1) * dc1)
+        dcr = (np.conj(dc1) * c2 + cc1 * dc2).imag
+        dsp2 = 2.0 * (cc1 * dc1).real
         dkap = dcr / sp3 - 1.5 * kap * dsp2 / sp2
-        extra = (QP, lam, dlam, eph, c1, c2, dc1, dc2, sp2, sp3, dcr, dsp2)
+        cp, dcp = P[..., 0, :], P[..., 1, :]
+        extra = (X, P, cc1, c2, dc1, dc2, sp2, sp3, dcr, dsp2)
         return G, GP, cp, dcp, c, dc, kap, dkap, extra
 
-    def _second(self, phi, l, curves):
+    def _second(self, curves):
         """Second phi-derivatives of the curve at the quadrature nodes (B, N, Q), of its end
         point (B, N, 1) and of the curvature (B, N, Q), from ``_curves``' pieces."""
         kap, dkap = curves[6], curves[7]
-        QP, lam, dlam, eph, c1, c2, dc1, dc2, sp2, sp3, dcr, dsp2 = curves[8]
-        GPP = 1j * QP                      # g'' = -E_2 = i q'
-        d2lam = _lambda_second(phi)
-        zero = np.zeros_like(GPP)
-        d2cp = np.stack([zero, l * d2lam + 0j,
-                         l * (GPP - (d2lam + 2j * dlam - lam) * eph), l * GPP], axis=-1)
+        X, P, cc1, c2, dc1, dc2, sp2, sp3, dcr, dsp2 = curves[8]
         Q = self.t.size
-        X = d2cp @ self.bcat
-        d2c, d2c1, d2c2 = X[..., :Q], X[..., Q:2 * Q], X[..., 2 * Q:]
-        d2cr = np.imag(np.conj(d2c1) * c2 + 2.0 * np.conj(dc1) * dc2 + np.conj(c1) * d2c2)
-        d2sp2 = 2.0 * ((dc1 * np.conj(dc1)).real + np.real(np.conj(c1) * d2c1))
+        d2c, d2c1, d2c2 = X[..., 2, :Q], X[..., 2, Q:2 * Q], X[..., 2, 2 * Q:]
+        d2cr = (np.conj(d2c1) * c2 + 2.0 * np.conj(dc1) * dc2 + cc1 * d2c2).imag
+        d2sp2 = 2.0 * ((dc1 * np.conj(dc1)).real + (cc1 * d2c1).real)
         r2 = dsp2 / sp2
         d2kap = (d2cr - 1.5 * dcr * r2) / sp3 - 1.5 * (dkap * r2 + kap * d2sp2 / sp2
                                                         - kap * r2 * r2)
-        return d2c, d2cp[..., 3:4], d2kap
+        return d2c, P[..., 2, 3:4], d2kap
 
     def residual(self, phi, loads, m):
         prob = self.prob
@@ -263,7 +267,7 @@ class BezierModel:
         if not np.all(np.abs(gM) > 0):
             return None
         l, EI = self.prob.l, self.prob.EI
-        d2c, d2end, d2kap = self._second(phi, l, curves)
+        d2c, d2end, d2kap = self._second(curves)
         d2R = (np.conj(d2end - d2c) * Floc[..., None]).imag - EI * d2kap
         gP = ((dR * dR + R * d2R) @ self.wq) * (l / EI) ** 2
         kd = -(np.conj(K) * Fdl).real
