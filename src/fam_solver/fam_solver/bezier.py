@@ -31,7 +31,7 @@ from typing import Optional
 
 import numpy as np
 
-from .arcs import arc_funcs
+from .arcs import arc_funcs, row_product
 from .problem import Problem, repeat_problem
 
 N_GAUSS = 8
@@ -94,6 +94,10 @@ class BezierModel:
         u = 1 - tau
         return np.array([u ** 3, 3 * tau * u ** 2, 3 * tau ** 2 * u, tau ** 3])
 
+    def _quad(self, X):
+        """Gauss quadrature over t of X (..., Q): (...,), in one thread (``row_product``)."""
+        return row_product(X.reshape(-1, X.shape[-1]), self.wq[:, None]).reshape(X.shape[:-1])
+
     def _curves(self, phi, l):
         """Control points (local frame) and their first and second phi-derivatives
         (B, N, 3, 4), the curve and its phi-derivative at the quadrature nodes (B, N, Q), the
@@ -115,7 +119,7 @@ class BezierModel:
         P[..., 2, 2] = GPP - (d2lam + 2j * dlam - lam) * eph
         P *= np.asarray(l)[..., None, None]
         Q = self.t.size
-        X = P @ self.bcat                  # (B, N, 3, 3Q): one product
+        X = row_product(P.reshape(-1, 4), self.bcat).reshape(P.shape[:-1] + (3 * Q,))
         c, c1, c2 = X[..., 0, :Q], X[..., 0, Q:2 * Q], X[..., 0, 2 * Q:]
         dc, dc1, dc2 = X[..., 1, :Q], X[..., 1, Q:2 * Q], X[..., 1, 2 * Q:]
         cc1 = np.conj(c1)
@@ -193,7 +197,7 @@ class BezierModel:
         dMq += (np.conj(dcp[..., 3:4] - dc) * Floc[..., None]).imag
         R = Mq - EI * kap
         dR = dMq - EI * dkap
-        Gi = (R * dR) @ self.wq
+        Gi = self._quad(R * dR)
         return Gi * (l / EI) ** 2
 
 
@@ -208,8 +212,8 @@ class BezierModel:
         R = M[..., None] + (np.conj(lever) * Fq).imag - EI * kap
         dR = (np.conj(dlever) * Fq).imag - EI * dkap
         s = (l / EI) ** 2
-        wq = self.wq
-        return (((R * dR) @ wq) * s, (dR @ wq) * s, ((lever * dR + dlever * R) @ wq) * s,
+        q = self._quad
+        return (q(R * dR) * s, q(dR) * s, q(lever * dR + dlever * R) * s,
                 R, dR)
 
     def residual_state(self, phi, loads, m):
@@ -269,7 +273,7 @@ class BezierModel:
         l, EI = self.prob.l, self.prob.EI
         d2c, d2end, d2kap = self._second(curves)
         d2R = (np.conj(d2end - d2c) * Floc[..., None]).imag - EI * d2kap
-        gP = ((dR * dR + R * d2R) @ self.wq) * (l / EI) ** 2
+        gP = self._quad(dR * dR + R * d2R) * (l / EI) ** 2
         kd = -(np.conj(K) * Fdl).real
         kf = (np.conj(K) * Ffl).real
         A = Mlow + Mall + kd / gM
