@@ -18,8 +18,11 @@ analytic phi-derivatives of the control points. Quadrature: 8-point Gauss-Legend
 piece of [0, 1] between interior point-load positions.
 
 The residual handed to Newton is r_i = G_i (l/EI)^2, which equals the exact model's
-phi_i - (l/EI) Mbar_i to leading order, so the exact model's analytic Jacobian is a good
-approximate Jacobian (quasi-Newton, linear but fast convergence).
+phi_i - (l/EI) Mbar_i to leading order. With loads at arc ends only its exact Jacobian has
+the circular arcs' structure (``BezierModel.factors``: the chain rule through each arc's end
+wrench in its own frame), so ``linsolve`` solves with it in O(N); with a point force inside
+an arc the circular arcs' Jacobian is a good approximate one (quasi-Newton, linear but fast
+convergence) or, for few arcs, finite differences.
 
 The assembled global shape (arc end points and headings) is the same as for circular arcs:
 Bezier and circle share their ends and end tangents (they differ inside the arc by at most
@@ -282,12 +285,11 @@ class BezierModel:
         return -gM, (A, Bd, Mcol, e)
 
 class BezierResidual:
-    """Bezier residual and (for N <= FD_MAX_N) its finite-difference Jacobian; beyond, Newton
-    uses the circular-arc model's analytic Jacobian (quasi-Newton: a few more iterations,
-    each far cheaper than the O(N^2) finite differences; the switch sits where the two cost
-    about the same). Tip loads start from the circular-arc solution (``fam.solve_fam``), so
-    both need few iterations; a Broyden correction of the quasi-Newton Jacobian was measured
-    and saved at most one of them (not used)."""
+    """Bezier residual and its Jacobian. Loads at arc ends (tip loads, point forces on arc
+    boundaries): the exact Jacobian (``residual_state`` / ``factors``, any N, quadratic
+    convergence). A point force inside an arc: for N <= FD_MAX_N the finite-difference
+    Jacobian; beyond, Newton uses the circular-arc model's analytic Jacobian (quasi-Newton: a
+    few more iterations, each far cheaper than the O(N^2) finite differences)."""
     FD_MAX_N = 12
 
     def __init__(self, prob: Problem):
