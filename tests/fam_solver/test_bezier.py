@@ -117,3 +117,27 @@ def test_graded_bezier_on_arcs_from_the_circular_solution(n):
         loads, m = prob.loads(1.0)
         r = BezierResidual(prob).residual(gb.arc_angles[None], loads, m)
         assert np.max(np.abs(r)) <= 1e-13 + 1e-12 * np.max(np.abs(gb.arc_angles))
+
+
+def test_graded_bezier_falls_back_to_equal_arcs_regraded(monkeypatch):
+    """Wiring: when the Bezier solve on the circular graded arcs does not converge, the equal
+    arcs are solved and regraded (the previous strategy), and the result says so."""
+    import fam_solver.fam as fam_mod
+    orig = fam_mod.solve_cases
+    calls = []
+
+    def failing_first(prob, B, arc_model='exact', start=None):
+        phi, conv, it, res, sn = orig(prob, B, arc_model, start)
+        calls.append(np.ndim(prob.l))
+        if len(calls) == 1:
+            conv = np.zeros_like(conv)
+        return phi, conv, it, res, sn
+
+    monkeypatch.setattr(fam_mod, 'solve_cases', failing_first)
+    ld = LOADS[1]
+    sh = solve_fam(THESIS, ld, n_arcs=12, arc_model='bezier', spacing='graded')
+    assert calls[:2] == [2, 1]          # graded arcs (per case), then equal arcs
+    assert sh.converged and np.ptp(sh.arc_lengths) > 0
+    monkeypatch.setattr(fam_mod, 'solve_cases', orig)
+    ref = solve_fam(THESIS, ld, n_arcs=12, arc_model='bezier', spacing='graded')
+    assert np.max(np.abs(sh.tip - ref.tip)) < 1e-4 * THESIS.length   # both graded, 2nd order
