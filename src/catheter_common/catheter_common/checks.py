@@ -32,6 +32,35 @@ def positive(name: str, value) -> float:
     return v
 
 
+def number(name: str, value) -> float:
+    """A real number that may be infinite but not NaN (a bound: -inf / inf for none)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be a number, got {value!r}') from None
+    if math.isnan(v):
+        raise ValueError(f'{name} must not be NaN')
+    return v
+
+
+def positive_or_inf(name: str, value) -> float:
+    """A number > 0 that may be inf (a limit: inf for none)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be a number > 0 (inf: none), got {value!r}') from None
+    if math.isnan(v) or v <= 0.0:
+        raise ValueError(f'{name} must be > 0 (inf: none), got {value!r}')
+    return v
+
+
+def integer(name: str, value, lo: int, hi: int) -> int:
+    """An int in lo..hi (bools refused)."""
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise ValueError(f'{name} must be an int in {lo}..{hi}, got {value!r}')
+    return value
+
+
 def probability(name: str, value) -> float:
     """A finite number in [0, 1]."""
     v = finite(name, value)
@@ -63,3 +92,25 @@ def all_finite(name: str, values) -> None:
     """ValueError naming the first entry of `values` that is not a finite number."""
     for i, v in enumerate(values):
         finite(f'{name}[{i}]', v)
+
+
+#: the checks `check_fields` may name
+_FIELD_CHECKS = {'finite': finite, 'nonneg': nonneg, 'positive': positive,
+                 'positive_or_inf': positive_or_inf, 'probability': probability}
+
+
+def check_fields(obj, **groups) -> None:
+    """Table-driven validation of an object's attributes (a dataclass's __post_init__): each
+    keyword names a check of this module (finite, nonneg, positive, positive_or_inf,
+    probability) and lists the attribute names it applies to. Groups are checked in the
+    order given; ValueError names the first attribute that fails. The attributes are not
+    converted."""
+    for check, names in groups.items():
+        fn = _FIELD_CHECKS.get(check)
+        if fn is None:
+            raise TypeError(f'check_fields: unknown check {check!r}, '
+                            f'expected one of {tuple(_FIELD_CHECKS)}')
+        if isinstance(names, str):
+            raise TypeError(f'check_fields: {check}= takes a sequence of names, not a str')
+        for name in names:
+            fn(name, getattr(obj, name))

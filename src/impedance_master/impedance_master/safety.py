@@ -22,7 +22,7 @@ import numbers
 from dataclasses import dataclass, field
 from typing import Dict
 
-from catheter_common.checks import nonneg, positive
+from catheter_common.checks import nonneg, positive, positive_or_inf
 
 #: N, a candidate force beyond this is absurd (no accepted model gives it inside the
 #: renderer's state box): a fault, whatever the limit
@@ -47,16 +47,6 @@ class RendererStatus:
     counters: Dict[str, int] = field(default_factory=dict)
     model_age: float = math.inf
     limit: float = 0.0
-
-
-def _max_rate(value) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f'max_rate must be a number > 0 (inf: none), got {value!r}') from None
-    if math.isnan(v) or v <= 0.0:
-        raise ValueError(f'max_rate must be > 0 (inf: none), got {value!r}')
-    return v
 
 
 class SafeOutput:
@@ -97,7 +87,7 @@ class SafeOutput:
 
     @max_rate.setter
     def max_rate(self, value) -> None:
-        self._max_rate = _max_rate(value)
+        self._max_rate = positive_or_inf('max_rate', value)
 
     @property
     def fallback_time(self) -> float:
