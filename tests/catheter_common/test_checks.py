@@ -101,3 +101,32 @@ def test_check_fields_refuses_an_unknown_check_or_a_bare_string():
         checks.check_fields(_Fields(), postive=('a',))
     with pytest.raises(TypeError, match='sequence of names'):
         checks.check_fields(_Fields(), positive='a')
+
+
+@dataclass(frozen=True)
+class _Declared:
+    rate: float = checks.checked(1.0, 'positive')
+    gain: float = checks.checked(0.0, 'nonneg')
+    offset: float = checks.checked(0.0)
+    free: object = None
+
+    def __post_init__(self):
+        checks.check_declared(self)
+
+
+def test_check_declared_applies_each_fields_own_check_in_declaration_order():
+    _Declared(rate=2.0, gain=0.0, offset=-3.0, free=math.nan)       # free: not checked
+    with pytest.raises(ValueError, match='rate must be > 0'):
+        _Declared(rate=0.0)
+    with pytest.raises(ValueError, match='gain must be >= 0'):
+        _Declared(gain=-1e-300)
+    with pytest.raises(ValueError, match='offset must be finite'):
+        _Declared(offset=math.inf)
+    with pytest.raises(ValueError, match='rate'):
+        _Declared(rate=math.nan, gain=-1.0)                          # the first declared
+    assert _Declared().rate == 1.0
+
+
+def test_checked_refuses_an_unknown_check():
+    with pytest.raises(TypeError, match='unknown check'):
+        checks.checked(1.0, 'postive')

@@ -1,4 +1,5 @@
 """The vessel interaction force: range, friction growth, stick-slip, sign flip, wall, cardiac."""
+import dataclasses
 import math
 
 import numpy as np
@@ -6,6 +7,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from sim_slave import SlaveRobot, VesselModel, VesselParams
+from sim_slave.vessel_extras import VesselExtras
 
 DT = 1e-3
 QUIET = VesselParams(cardiac_amplitude=0.0)
@@ -200,6 +202,24 @@ def test_deterministic_for_a_seed_and_reset(exp1):
 def test_bad_params(field, bad):
     with pytest.raises(ValueError, match=field):
         VesselParams(**{field: bad})
+
+
+@pytest.mark.parametrize('cls', [VesselParams, VesselExtras])
+def test_every_parameter_declares_its_constraint_and_zero_is_kept_to_it(cls):
+    """A field added without a constraint would take NaN silently; the declared one decides
+    whether 0 passes (>= 0) or is refused (> 0, a length or rate that divides)."""
+    for f in dataclasses.fields(cls):
+        check = f.metadata.get('check')
+        assert check in ('finite', 'nonneg', 'positive'), f.name
+        with pytest.raises(ValueError, match=f.name):
+            cls(**{f.name: math.nan})
+        if check == 'positive':
+            with pytest.raises(ValueError, match=f.name):
+                cls(**{f.name: 0.0})
+        elif check == 'nonneg':
+            cls(**{f.name: 0.0})
+            with pytest.raises(ValueError, match=f.name):
+                cls(**{f.name: -1e-300})
 
 
 def test_bad_model_arguments():

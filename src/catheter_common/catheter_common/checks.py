@@ -2,6 +2,7 @@
 the argument, never a NaN. Pure Python: no rclpy, so core modules may import it."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 
@@ -114,3 +115,35 @@ def check_fields(obj, **groups) -> None:
             raise TypeError(f'check_fields: {check}= takes a sequence of names, not a str')
         for name in names:
             fn(name, getattr(obj, name))
+
+
+def checked(default, check: str = 'finite'):
+    """A dataclass field with its default and the check of this module (`check_fields`'s
+    names) its value must pass: the field's constraint stands where it is declared, and
+    `check_declared` (in __post_init__) applies it."""
+    if check not in _FIELD_CHECKS:
+        raise TypeError(f'checked: unknown check {check!r}, expected one of '
+                        f'{tuple(_FIELD_CHECKS)}')
+    return dataclasses.field(default=default, metadata={'check': check})
+
+
+def check_declared(obj) -> None:
+    """Apply to each field of the dataclass instance `obj` the check it was declared with
+    (`checked`), in declaration order; ValueError names the first field that fails. Fields
+    declared without one are left to the caller."""
+    for f in dataclasses.fields(obj):
+        check = f.metadata.get('check')
+        if check is not None:
+            _FIELD_CHECKS[check](f.name, getattr(obj, f.name))
+
+
+class CheckedFields:
+    """Base of a parameters dataclass whose fields are declared with `checked`: validates
+    them on construction (a subclass with more checks calls super().__post_init__() first)
+    and gives `as_dict` (field name -> value, for parameters, logs and YAML)."""
+
+    def __post_init__(self) -> None:
+        check_declared(self)
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
