@@ -130,3 +130,24 @@ def test_check_declared_applies_each_fields_own_check_in_declaration_order():
 def test_checked_refuses_an_unknown_check():
     with pytest.raises(TypeError, match='unknown check'):
         checks.checked(1.0, 'postive')
+
+
+class _Settable:
+    limit = checks.Checked(checks.positive)
+    rate = checks.Checked(checks.positive_or_inf)
+
+    def __init__(self):
+        self.limit, self.rate = 2.0, math.inf
+
+
+def test_checked_attribute_stores_the_checked_value_and_refuses_a_bad_one():
+    s = _Settable()
+    s.limit = '3'
+    assert s.limit == 3.0 == s._limit and s.rate == math.inf
+    for bad in (0.0, math.nan, 'x'):
+        with pytest.raises(ValueError, match='limit'):
+            s.limit = bad
+    assert s.limit == 3.0                          # a refused value leaves the last one
+    with pytest.raises(ValueError, match='rate'):
+        s.rate = -math.inf
+    assert isinstance(_Settable.limit, checks.Checked)

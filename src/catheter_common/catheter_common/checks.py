@@ -6,12 +6,17 @@ import dataclasses
 import math
 
 
+def _float(name: str, value, wanted: str) -> float:
+    """`value` as a float; ValueError naming `name` (it must be `wanted`) if it is none."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be {wanted}, got {value!r}') from None
+
+
 def finite(name: str, value) -> float:
     """Return `value` as a float; ValueError naming `name` if it is not a finite real number."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f'{name} must be a finite number, got {value!r}') from None
+    v = _float(name, value, 'a finite number')
     if not math.isfinite(v):
         raise ValueError(f'{name} must be finite, got {value!r}')
     return v
@@ -35,10 +40,7 @@ def positive(name: str, value) -> float:
 
 def number(name: str, value) -> float:
     """A real number that may be infinite but not NaN (a bound: -inf / inf for none)."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f'{name} must be a number, got {value!r}') from None
+    v = _float(name, value, 'a number')
     if math.isnan(v):
         raise ValueError(f'{name} must not be NaN')
     return v
@@ -46,11 +48,8 @@ def number(name: str, value) -> float:
 
 def positive_or_inf(name: str, value) -> float:
     """A number > 0 that may be inf (a limit: inf for none)."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f'{name} must be a number > 0 (inf: none), got {value!r}') from None
-    if math.isnan(v) or v <= 0.0:
+    v = _float(name, value, 'a number > 0 (inf: none)')
+    if not v > 0.0:                                  # also NaN
         raise ValueError(f'{name} must be > 0 (inf: none), got {value!r}')
     return v
 
@@ -147,3 +146,21 @@ class CheckedFields:
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
+
+
+class Checked:
+    """A validated attribute (a descriptor): in a class body, ``limit = Checked(positive)``
+    makes every assignment ``obj.limit = v`` store ``positive('limit', v)`` (ValueError naming
+    `limit`) in ``obj._limit``, where hot code may read it directly; ``obj.limit`` reads it."""
+
+    def __init__(self, check) -> None:
+        self.check = check
+
+    def __set_name__(self, owner, name: str) -> None:
+        self.name, self.slot = name, '_' + name
+
+    def __get__(self, obj, owner=None):
+        return self if obj is None else getattr(obj, self.slot)
+
+    def __set__(self, obj, value) -> None:
+        setattr(obj, self.slot, self.check(self.name, value))
