@@ -39,7 +39,7 @@ from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.messages import impedance_fields, master_command_msg
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
-from catheter_common.ros_node import run_node
+from catheter_common.ros_node import node_main
 from impedance_master.haptic import HapticDevice
 from impedance_master.operator import OPERATORS, experiment_trajectory
 from sim_slave.link import Link
@@ -209,10 +209,7 @@ class SimHapticNode(Node):
 
 
 NODE_CLASS = SimHapticNode
-
-
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':

@@ -41,7 +41,7 @@ from catheter_common.checks import finite
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
-from catheter_common.ros_node import run_node
+from catheter_common.ros_node import node_main
 from sim_slave.link import Link
 from sim_slave.link_side import (RunClock, apply_link_changes, link_config, link_params,
                                  link_to_diag)
@@ -246,10 +246,7 @@ class SimSlaveNode(Node):
 
 
 NODE_CLASS = SimSlaveNode
-
-
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':
