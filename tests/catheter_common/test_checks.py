@@ -14,24 +14,18 @@ ANY = st.one_of(st.none(), st.booleans(), st.integers(), st.floats(allow_nan=Tru
                 st.text(max_size=4), st.lists(st.floats(), max_size=2))
 
 
+@pytest.mark.parametrize('check, usable', [
+    (checks.number, lambda v: not math.isnan(v)),
+    (checks.positive_or_inf, lambda v: v > 0.0),
+], ids=['number', 'positive_or_inf'])
 @given(value=ANY)
-def test_number_is_not_nan_or_names_the_argument(value):
+def test_a_check_returns_a_usable_float_or_names_the_argument(check, usable, value):
     try:
-        v = checks.number('bound', value)
-    except ValueError as exc:
-        assert 'bound' in str(exc)
-        return
-    assert not math.isnan(v) and v == float(value)
-
-
-@given(value=ANY)
-def test_positive_or_inf_is_above_zero_or_names_the_argument(value):
-    try:
-        v = checks.positive_or_inf('max_rate', value)
+        v = check('max_rate', value)
     except ValueError as exc:
         assert 'max_rate' in str(exc)
         return
-    assert v > 0.0 and v == float(value)
+    assert usable(v) and v == float(value)
 
 
 @given(value=ANY)
