@@ -282,3 +282,15 @@ def test_status_takes_the_first_failed_check_in_order_else_the_covariance_decide
         ('out_of_envelope', 'b')
     assert status_of(tight, (True, 'not_converged', 'a'), (True, 'no_fit', 'b')) == \
         ('not_converged', 'a')
+
+
+def test_status_formats_only_the_message_it_reports():
+    calls = []
+
+    def msg(text):
+        return lambda: calls.append(text) or text
+    tight = np.eye(2) * 1e-6
+    assert status_of(tight, (False, 'no_fit', msg('a')), (True, 'out_of_envelope', msg('b'))) \
+        == ('out_of_envelope', 'b')
+    assert status_of(tight, (False, 'no_fit', msg('c'))) == ('ok', '')
+    assert calls == ['b']

@@ -149,8 +149,9 @@ def classify(cov: np.ndarray, status: str = 'ok') -> str:
 def status_of(cov: np.ndarray, *faults) -> Tuple[str, str]:
     """(status, message) of an estimate: those of the first of `faults` -- (failed, status,
     message) triples, in order of precedence -- that failed; else the `classify` status of
-    the covariance and no message."""
+    the covariance and no message. A message may be a callable returning it, formatted only
+    when its fault is the one reported."""
     for failed, status, message in faults:
         if failed:
-            return status, message
+            return status, message() if callable(message) else message
     return classify(cov), ''

@@ -441,10 +441,10 @@ class FamInverseEstimator:
             cov = np.eye(2) * FORCE_PRIOR ** 2
         status, msg = status_of(
             cov, (not conv, 'not_converged', 'the FAM inversion did not converge'),
-            (not res <= self.max_residual, 'no_fit', f'no tip force explains the shape: '
+            (not res <= self.max_residual, 'no_fit', lambda: f'no tip force explains the shape: '
              f'residual {1e3 * res:.3f} mm > {1e3 * self.max_residual:.3f} mm'),
             (clipped, 'out_of_envelope',
-             f'|f| = {np.hypot(*f):.3g} N > f_max {self.f_max:g} N (scaled back)'))
+             lambda: f'|f| = {np.hypot(*f):.3g} N > f_max {self.f_max:g} N (scaled back)'))
         dist = domain_distance(res / self.max_residual if np.isfinite(res) else np.inf)
         return FamInverseResult(force=force, covariance=cov, status=status, method='fam',
                                 primary='fam', domain_distance=dist, message=msg,

@@ -368,10 +368,10 @@ class ForceModel:
         force, clipped = bounded(raw, self.f_bound)
         cov = self.covariance(force, nb)
         status, msg = status_of(
-            cov, (not ratio <= 1.0, 'out_of_domain', f'the control points are {ratio:.3g} x '
-                  'the domain threshold from the training inputs'),
-            (clipped, 'out_of_envelope', f'the model gave |f| = {np.hypot(*raw):.3g} N > '
-             f'{self.f_bound:.3g} N (scaled back)'))
+            cov, (not ratio <= 1.0, 'out_of_domain', lambda: f'the control points are '
+                  f'{ratio:.3g} x the domain threshold from the training inputs'),
+            (clipped, 'out_of_envelope', lambda: f'the model gave |f| = {np.hypot(*raw):.3g} N '
+             f'> {self.f_bound:.3g} N (scaled back)'))
         return ForceEstimate(force=force, covariance=cov, status=status, method=self.kind,
                              primary=self.kind, domain_distance=domain_distance(ratio),
                              message=msg)
