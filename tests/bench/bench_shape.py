@@ -15,11 +15,14 @@ used for tuning are marked. Then statuses, stage timings beside same-run referen
 
     python tests/bench/bench_shape.py [--frames 200] [--seed 0]
     python tests/bench/bench_shape.py --fresh      # the fresh held-out draws (see below)
+    python tests/bench/bench_shape.py --fresh2     # the round-three held-out draws
 
 `--fresh` runs every style on FRESH draws: new shapes (seed 9100) and new randomised style
 parameters and geometry (seeds 100-104, frames/5 per seed, one rng per style and seed), a
 set that was fixed before the second round of development (issue 11) and not run until its
-design was final: its tables are the held-out figures that count.
+design was final: its tables are the held-out figures of round two. They have been seen
+once since, so `--fresh2` is a second set (new shapes, seed 9200; style seeds 200-204),
+fixed before the third round (speed and ok rate) and not run until its design was final.
 """
 from __future__ import annotations
 
@@ -74,6 +77,8 @@ def med(x):
 
 FRESH_SEEDS = (100, 101, 102, 103, 104)
 FRESH_SHAPES_SEED = 9100
+FRESH2_SEEDS = (200, 201, 202, 203, 204)
+FRESH2_SHAPES_SEED = 9200
 
 
 def run_style(style, cls, frames, seed):
@@ -203,13 +208,18 @@ def main():
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--fresh', action='store_true',
                     help='the fresh held-out draws (style seeds 100-104, new shapes) only')
+    ap.add_argument('--fresh2', action='store_true',
+                    help='the round-three held-out draws (style seeds 200-204, new shapes)')
     a = ap.parse_args()
     t_all = time.perf_counter()
-    cls = blazer_centerlines(max(a.frames, 200) + 50,
-                             FRESH_SHAPES_SEED if a.fresh else a.seed + 11)
+    fresh_seeds = FRESH2_SEEDS if a.fresh2 else FRESH_SEEDS if a.fresh else None
+    shapes_seed = FRESH2_SHAPES_SEED if a.fresh2 else FRESH_SHAPES_SEED if a.fresh \
+        else a.seed + 11
+    a.fresh = fresh_seeds is not None
+    cls = blazer_centerlines(max(a.frames, 200) + 50, shapes_seed)
     if a.fresh:
         print('# FRESH HELD-OUT DRAWS: every style with new randomised parameters (seeds '
-              f'{FRESH_SEEDS}) and new shapes (seed {FRESH_SHAPES_SEED}); not used in '
+              f'{fresh_seeds}) and new shapes (seed {shapes_seed}); not used in '
               'development')
     print(f'# catheter_shape benchmark: {len(STYLES)} camera styles x {a.frames} frames '
           f'(640x480), Blazer shapes 0-0.3 N at every angle; sensor given psi, base_px, '
@@ -221,7 +231,7 @@ def main():
         rng_seed = 1000 * (a.seed + 1) + k
         order = np.random.default_rng(rng_seed).permutation(len(cls))
         results[style] = run_style(style, cls[order], a.frames,
-                                   FRESH_SEEDS if a.fresh else rng_seed)
+                                   fresh_seeds if a.fresh else rng_seed)
     total_frames = sum(results[s][0][True]['status'].total() for s in STYLES)
     for bg in (True, False):
         rows = []
