@@ -248,9 +248,17 @@ def catheter_component(mask: np.ndarray, min_area: float, max_gap_px: float,
                 return Segmentation('multiple_objects', n_objects=2,
                                     message=f'a second dark object of {a} px beside one of '
                                             f'{stats[main, cv2.CC_STAT_AREA]} px')
-    out = np.isin(labels, keep).astype(np.uint8) if len(keep) > 1 else \
-        (labels == main).astype(np.uint8)
+    # crop to the kept components (and a pixel of margin): the skeleton's cost grows with
+    # the area it scans, and the dark pixels' bounding box can be much larger (clutter)
+    st = stats[keep]
+    x0 = max(int(st[:, cv2.CC_STAT_LEFT].min()) - 1, 0)
+    y0 = max(int(st[:, cv2.CC_STAT_TOP].min()) - 1, 0)
+    x1 = min(int((st[:, cv2.CC_STAT_LEFT] + st[:, cv2.CC_STAT_WIDTH]).max()) + 1, w)
+    y1 = min(int((st[:, cv2.CC_STAT_TOP] + st[:, cv2.CC_STAT_HEIGHT]).max()) + 1, h)
+    lab = labels[y0:y1, x0:x1]
+    out = np.isin(lab, keep).astype(np.uint8) if len(keep) > 1 else \
+        (lab == main).astype(np.uint8)
     for hull in bars:
-        cv2.fillConvexPoly(out, hull, 1)
-    return Segmentation('ok', mask=out, offset=(u0, v0), area=int(out.sum()),
+        cv2.fillConvexPoly(out, hull - np.int32([x0, y0]), 1)
+    return Segmentation('ok', mask=out, offset=(u0 + x0, v0 + y0), area=int(out.sum()),
                         n_objects=1 + apart, bridged=len(bars), apart=apart)
