@@ -66,7 +66,7 @@ MUTANTS = [
            '        if width > 25 * w_px:',
            "a dark object of the wrong width is taken for the catheter (no 'bad_segmentation')"),
     Mutant('C13', P + 'plausibility.py',
-           "    if _crosses(q):\n        return 'the centreline crosses itself'",
+           "    if total >= np.pi and _crosses(q):\n        return 'the centreline crosses itself'",
            "    if False:\n        return 'the centreline crosses itself'",
            'a self-crossing centreline passes the fold check'),
 ]

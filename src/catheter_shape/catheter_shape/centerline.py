@@ -17,6 +17,8 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 from skimage.morphology import skeletonize
 
+from catheter_shape.flatfield import _median
+
 __all__ = ['Centerline', 'skeleton_path', 'extend_end', 'smooth_path']
 
 #: skeleton pixels where the mask's half-width is below this fraction of the catheter's are
@@ -43,7 +45,9 @@ _NB_W = np.hypot(_NB[:, 0], _NB[:, 1])
 def _neighbours(skel: np.ndarray):
     """Neighbour table of the skeleton pixels: (n, 8) node indices (-1: none) and the
     pixels (n, 2) (u, v) float."""
-    ys, xs = np.nonzero(skel)
+    pts = cv2.findNonZero(skel.view(np.uint8) if skel.dtype == bool else skel)
+    pts = np.empty((0, 2), np.int32) if pts is None else np.asarray(pts).reshape(-1, 2)
+    xs, ys = pts[:, 0], pts[:, 1]                        # row-major, as np.nonzero
     n = ys.size
     h, w = skel.shape
     idx = np.full((h + 2, w + 2), -1, np.int32)          # padded: no bounds checks
@@ -239,7 +243,7 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     vals = _bilinear(score, pts)
     lvl = level
     if half_contrast:
-        core = float(np.median(_bilinear(score, tail)))
+        core = _median(_bilinear(score, tail))
         tg = np.polyval(np.polyder(coef), a_e)
         n_e = nrm - tg * d
         n_e /= np.linalg.norm(n_e)

@@ -413,8 +413,8 @@ class ShapeSensor:
         # frame, search those points globally (points within half a pixel cannot change
         # it). (On the style benchmark's frames the global search never lowered a distance:
         # elsewhere the residual is the local one.)
-        far = d > max(3.0 * float(np.median(d)), 0.5 * self._m_per_px)
-        if d.max() > self.max_fit_error and far.any():
+        if d.max() > self.max_fit_error:
+            far = d > max(3.0 * float(np.median(d)), 0.5 * self._m_per_px)
             s_g = _project_global(ctrl2, p2[far], 8 * (self.degree + 1), 4)
             d[far] = np.minimum(d[far], _dist(ctrl2, p2[far], s_g))
         if d.max() > self.max_fit_error:
