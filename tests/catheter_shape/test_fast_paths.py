@@ -24,7 +24,7 @@ def _frames(n_per_style=3):
     out = []
     for k, style in enumerate(STYLES):
         rng = np.random.default_rng(500 + k)
-        for i in range(n_per_style):
+        for _ in range(n_per_style):
             th = rng.uniform(-2.0, 2.0)
             s = np.linspace(0.0, 1.0, 300)
             c = 0.065 * np.stack([np.sin(th * s), 1 - np.cos(th * s)], axis=1) / th
@@ -95,9 +95,9 @@ def _reference_graph(skel):
     """Edge by edge: every pair of 8-neighbouring skeleton pixels, weight 1 or sqrt 2."""
     ys, xs = np.nonzero(skel)
     n = ys.size
-    where = {(int(y), int(x)): i for i, (y, x) in enumerate(zip(ys, xs))}
+    where = {(int(y), int(x)): i for i, (y, x) in enumerate(zip(ys, xs, strict=True))}
     G = np.zeros((n, n))
-    for i, (y, x) in enumerate(zip(ys, xs)):
+    for i, (y, x) in enumerate(zip(ys, xs, strict=True)):
         for dy in (-1, 0, 1):
             for dx in (-1, 0, 1):
                 j = where.get((int(y) + dy, int(x) + dx))

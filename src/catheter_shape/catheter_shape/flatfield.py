@@ -45,8 +45,8 @@ from typing import Optional
 import cv2
 import numpy as np
 
-__all__ = ['Darkness', 'FlatField', 'flat_field', 'local_half_peak', 'prepare_background', 'estimate_background',
-           'MIN_CONTRAST', 'SEED_SIGMAS']
+__all__ = ['Darkness', 'FlatField', 'flat_field', 'local_half_peak', 'prepare_background',
+           'estimate_background', 'MIN_CONTRAST', 'SEED_SIGMAS']
 
 #: smallest relative darkness accepted as a catheter (the catheter must dim the light by 6 %)
 MIN_CONTRAST = 0.06
