@@ -266,3 +266,27 @@ def test_local_half_peak_shrinks_a_darker_line_to_its_own_width():
     assert np.count_nonzero(out[60:100, col]) == 5
     np.testing.assert_array_equal(out[:60], mask[:60])
     assert local_half_peak(out, d, 14.0) is None            # nothing left to change
+
+
+@pytest.mark.parametrize('end', [(200, 150), (630, 470)])
+def test_component_labels_of_either_width(end):
+    """16-bit labels in a small box, 32-bit where a box could hold more components than 16
+    bits count: the same component either way (a thick line among 2 px noise pixels, which
+    the opening removes)."""
+    mask = np.zeros((480, 640), np.uint8)
+    rng = np.random.default_rng(0)
+    for y, x in rng.integers(0, 470, (300, 2)):
+        mask[y:y + 2, x:x + 2] = 255
+    cv2.line(mask, (10, 10), end, 255, 10)
+    seg = catheter_component(mask, min_area=50, max_gap_px=0, width_px=12.0,
+                             base_px=(10.0, 10.0))
+    assert seg.status == 'ok'
+    u0, v0 = seg.offset
+    full = np.zeros(mask.shape, bool)
+    full[v0:v0 + seg.mask.shape[0], u0:u0 + seg.mask.shape[1]] = seg.mask > 0
+    line = np.zeros_like(mask)
+    cv2.line(line, (10, 10), end, 1, 10)
+    line = line > 0
+    # the line's pixels, but for the few the opening rounds off at its ends
+    assert np.count_nonzero(line & ~full) <= 40
+    assert np.count_nonzero(full & ~line) <= 40                 # noise pixels on its edge

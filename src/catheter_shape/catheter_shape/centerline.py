@@ -177,9 +177,11 @@ def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:
     y0 = y.astype(np.int64)
     fx = x - x0
     fy = y - y0
-    i = img
-    return ((i[y0, x0] * (1 - fx) + i[y0, x0 + 1] * fx) * (1 - fy)
-            + (i[y0 + 1, x0] * (1 - fx) + i[y0 + 1, x0 + 1] * fx) * fy)
+    # the four neighbours in one gather (a lazily evaluated darkness computes per call)
+    n = x0.size
+    v = img[np.concatenate([y0, y0, y0 + 1, y0 + 1]), np.concatenate([x0, x0 + 1, x0, x0 + 1])]
+    return ((v[:n] * (1 - fx) + v[n:2 * n] * fx) * (1 - fy)
+            + (v[2 * n:3 * n] * (1 - fx) + v[3 * n:] * fx) * fy)
 
 
 def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
