@@ -66,7 +66,31 @@ MUTANTS = [
            '        if width > 25 * w_px:',
            "a dark object of the wrong width is taken for the catheter (no 'bad_segmentation')"),
     Mutant('C13', P + 'plausibility.py',
-           "    if _crosses(q):\n        return 'the centreline crosses itself'",
+           "    if total >= np.pi and _crosses(q):\n        return 'the centreline crosses itself'",
            "    if False:\n        return 'the centreline crosses itself'",
            'a self-crossing centreline passes the fold check'),
+    # -- issue 11 round three: the fast paths and the second pass
+    Mutant('C14', P + 'flatfield.py',
+           '            t = cv2.convertScaleAbs(self.background, alpha=k * self.gain, beta=0.4999)',
+           '            t = cv2.convertScaleAbs(self.background, alpha=k * self.gain, beta=0.0)',
+           'the integer mask rounds the threshold instead of taking its ceiling (pixels at '
+           'the edge compared against the wrong level)',
+           tests=('tests/catheter_shape/test_fast_paths.py',)),
+    Mutant('C15', P + 'segmentation.py',
+           '    x1 = min(int((st[:, cv2.CC_STAT_LEFT] + st[:, cv2.CC_STAT_WIDTH]).max()) + 1, w)',
+           '    x1 = min(int((st[:, cv2.CC_STAT_LEFT] + st[:, cv2.CC_STAT_WIDTH]).max()) - 3, w)',
+           'the component cropped short of its box (the catheter\'s end cut off)',
+           tests=('tests/catheter_shape/test_fast_paths.py',)),
+    Mutant('C16', P + 'sensor.py',
+           "        if obs.status in RETRY_STATUSES and self.method == 'flatfield':",
+           "        if False:",
+           'no second pass at each pixel\'s own half maximum: a dark wire across the catheter '
+           'fails the frame',
+           tests=('tests/catheter_shape/test_fast_paths.py',)),
+    Mutant('C17', P + 'flatfield.py',
+           '    keep = cv2.compare(d, peak * np.float32(0.5), cv2.CMP_GT)',
+           '    keep = cv2.compare(d, peak * np.float32(0.25), cv2.CMP_GT)',
+           'the second pass holds each pixel to a quarter of its neighbourhood\'s darkness, '
+           'not half (a dark wire keeps its blurred width)',
+           tests=('tests/catheter_shape/test_fast_paths.py',)),
 ]

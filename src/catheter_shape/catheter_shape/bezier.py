@@ -223,7 +223,7 @@ def _newton_params(ctrl: np.ndarray, p: np.ndarray, s: np.ndarray, steps: int,
     A1 = A[1:] * k[1:, None]                           # c'(s)  = sum_j A1[j] s^j
     A2 = A1[1:] * k[1:n, None]                         # c''(s) = sum_j A2[j] s^j
     for _ in range(steps):
-        S = np.vander(s, n + 1, increasing=True)
+        S = _powers(s, n)
         r = S @ A - p
         c1 = S[:, :n] @ A1
         g = np.einsum('ij,ij->i', c1, c1)
@@ -247,8 +247,16 @@ def _project_global(c: np.ndarray, p: np.ndarray, samples: int, steps: int) -> n
     return _newton_params(c, p, ss[np.argmin(d2, axis=1)], steps)
 
 
+def _powers(s: np.ndarray, n: int) -> np.ndarray:
+    """(N, n + 1) powers s^0 .. s^n (np.vander, increasing, in one ufunc call)."""
+    return s[:, None] ** _EXPONENTS[:n + 1]
+
+
+_EXPONENTS = np.arange(11, dtype=float)
+
+
 def _dist(c: np.ndarray, p: np.ndarray, s: np.ndarray) -> np.ndarray:
-    r = np.vander(s, c.shape[0], increasing=True) @ (_bez2pow(c.shape[0] - 1) @ c) - p
+    r = _powers(s, c.shape[0] - 1) @ (_bez2pow(c.shape[0] - 1) @ c) - p
     return np.sqrt(np.einsum('ij,ij->i', r, r))
 
 
@@ -319,7 +327,7 @@ CORRECTIONS = ('regularized', 'orthogonal', 'none')
 def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 3,
                         start=None, start_tangent=None, tol: float = 1e-3,
                         correction: str = 'regularized', param_weight: float = 0.05,
-                        global_residual: bool = True) -> BezierFit:
+                        global_residual: bool = True, project: bool = True) -> BezierFit:
     """Least-squares Bezier fit of ordered points (N, D) (thesis Eqs. 2-5) with parameter
     correction.
 
@@ -340,6 +348,10 @@ def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 3
     param_weight: the penalty of 'regularized' (dimensionless, >= 0; 0 = no penalty).
     global_residual: also search the whole curve for each point's closest point when
         computing the residual (robust; False uses the local foot points only).
+    project: compute the points' foot points, residual and max_distance (default). False
+        (with 'regularized'): return the fit's own (regularized) parameters and NaN for the
+        distances, for a caller that projects its points itself (the sensor projects every
+        centreline point, not only those fitted).
     tol: 'orthogonal' stops once a round lowers the mean squared distance by less than this
         fraction; 'regularized' once no control point moves by more than tol * 1e-2 of the
         points' extent (0 runs all `refine` rounds).
@@ -386,6 +398,9 @@ def fit_bezier_detailed(points, degree: int = 3, *, params=None, refine: int = 3
     chord_res = float(np.mean(_dist(ctrl, p, s)))
     if correction == 'regularized' and refine > 0:
         ctrl, s = _fit_regularized(ctrl, p, s, degree, c0, M, param_weight, int(refine), tol)
+        if not project:
+            return BezierFit(control_points=ctrl, params=s, residual=float('nan'),
+                             max_distance=float('nan'), chord_residual=chord_res)
         refine = 0                                   # skip the orthogonal loop below
     # Parameter correction: foot points by Newton (orthogonal projection), then a
     # Gauss-Newton step on the perpendicular distances (tangent distance minimisation).

@@ -17,9 +17,10 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 from skimage.morphology import skeletonize
 
+from catheter_shape.flatfield import _median
+
 __all__ = ['Centerline', 'skeleton_path', 'extend_end', 'smooth_path']
 
-_OFFS = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
 #: skeleton pixels where the mask's half-width is below this fraction of the catheter's are
 #: not the catheter
 THIN = 0.7
@@ -36,32 +37,49 @@ class Centerline:
     message: str = ''
 
 
-def _graph(skel: np.ndarray):
-    ys, xs = np.nonzero(skel)
+#: the 8 neighbour offsets (dy, dx) and their edge lengths
+_NB = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)])
+_NB_W = np.hypot(_NB[:, 0], _NB[:, 1])
+
+
+def _neighbours(skel: np.ndarray):
+    """Neighbour table of the skeleton pixels: (n, 8) node indices (-1: none) and the
+    pixels (n, 2) (u, v) float."""
+    pts = cv2.findNonZero(skel.view(np.uint8) if skel.dtype == bool else skel)
+    pts = np.empty((0, 2), np.int32) if pts is None else np.asarray(pts).reshape(-1, 2)
+    xs, ys = pts[:, 0], pts[:, 1]                        # row-major, as np.nonzero
     n = ys.size
     h, w = skel.shape
     idx = np.full((h + 2, w + 2), -1, np.int32)          # padded: no bounds checks
     idx[ys + 1, xs + 1] = np.arange(n, dtype=np.int32)
-    rows, cols, wts = [], [], []
-    for dy, dx, wt in _OFFS:
-        nb = idx[ys + 1 + dy, xs + 1 + dx]
+    nb = idx[(ys + 1)[:, None] + _NB[:, 0], (xs + 1)[:, None] + _NB[:, 1]]
+    return nb, np.stack([xs, ys], axis=1).astype(float)
+
+
+def _csr(nb: np.ndarray, keep: Optional[np.ndarray] = None) -> csr_matrix:
+    """The symmetric 8-connected pixel graph of a neighbour table (edge weights 1 and
+    sqrt(2)), built directly in CSR form; keep (bool (n,)): the subgraph of those nodes,
+    renumbered in order."""
+    if keep is not None:
+        new = np.cumsum(keep, dtype=np.int32) - 1
+        nb = nb[keep]
         ok = nb >= 0
-        rows.append(np.nonzero(ok)[0])
-        cols.append(nb[ok])
-        wts.append(np.full(int(ok.sum()), wt))
-    r = np.concatenate(rows)
-    c = np.concatenate(cols)
-    wv = np.concatenate(wts)
-    g = csr_matrix((np.concatenate([wv, wv]), (np.concatenate([r, c]), np.concatenate([c, r]))),
-                   shape=(n, n))
-    return g, np.stack([xs, ys], axis=1).astype(float)
+        ok[ok] = keep[nb[ok]]
+        nb = np.where(ok, new[nb], -1)
+    else:
+        ok = nb >= 0
+    n = nb.shape[0]
+    indptr = np.zeros(n + 1, np.int32)
+    np.cumsum(ok.sum(axis=1), out=indptr[1:])
+    return csr_matrix((np.broadcast_to(_NB_W, nb.shape)[ok], nb[ok], indptr), shape=(n, n))
 
 
 def _path(pred: np.ndarray, start: int, end: int) -> np.ndarray:
+    pl = pred.tolist()
     out = [end]
     k = end
     while k != start and k >= 0:
-        k = pred[k]
+        k = pl[k]
         out.append(k)
     return np.array(out[::-1], dtype=np.int64)
 
@@ -87,7 +105,8 @@ def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
     n = int(np.count_nonzero(skel))
     if n < 2:
         return Centerline('bad_skeleton', skeleton_px=n, message=f'skeleton has {n} pixel(s)')
-    g, xy = _graph(skel)
+    nbt, xy = _neighbours(skel)
+    keep = None
     if width_px is not None:
         # only runs of thin skeleton at least a width long: a short dip of a noisy mask
         # stays, a wire goes (runs: connected components of the thin nodes' subgraph)
@@ -96,16 +115,16 @@ def skeleton_path(mask: np.ndarray, offset: Tuple[int, int], base_px=None,
         ij = xy.astype(int) + 1
         thin = dt[ij[:, 1], ij[:, 0]] < THIN * 0.45 * width_px
         if np.count_nonzero(thin) >= width_px:          # else no run can be a width long
-            ti = np.flatnonzero(thin)
-            _, lab = connected_components(g[ti][:, ti], directed=False)
+            _, lab = connected_components(_csr(nbt, thin), directed=False)
             drop = np.zeros(n, bool)
-            drop[ti] = np.bincount(lab)[lab] >= width_px
+            drop[thin] = np.bincount(lab)[lab] >= width_px
             if drop.any():
-                keep = np.flatnonzero(~drop)
-                if keep.size < 2:
-                    return Centerline('bad_skeleton', skeleton_px=int(keep.size),
+                keep = ~drop
+                if np.count_nonzero(keep) < 2:
+                    return Centerline('bad_skeleton', skeleton_px=int(np.count_nonzero(keep)),
                                       message='no part of the object is as wide as a catheter')
-                g, xy = g[keep][:, keep], xy[keep]
+                xy = xy[keep]
+    g = _csr(nbt, keep)
     off = np.asarray(offset, dtype=float)
     xy += off
     if base_px is not None:
@@ -158,9 +177,11 @@ def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:
     y0 = y.astype(np.int64)
     fx = x - x0
     fy = y - y0
-    i = img
-    return ((i[y0, x0] * (1 - fx) + i[y0, x0 + 1] * fx) * (1 - fy)
-            + (i[y0 + 1, x0] * (1 - fx) + i[y0 + 1, x0 + 1] * fx) * fy)
+    # the four neighbours in one gather (a lazily evaluated darkness computes per call)
+    n = x0.size
+    v = img[np.concatenate([y0, y0, y0 + 1, y0 + 1]), np.concatenate([x0, x0 + 1, x0, x0 + 1])]
+    return ((v[:n] * (1 - fx) + v[n:2 * n] * fx) * (1 - fy)
+            + (v[2 * n:3 * n] * (1 - fx) + v[3 * n:] * fx) * fy)
 
 
 def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
@@ -224,7 +245,7 @@ def extend_end(px: np.ndarray, score: np.ndarray, level: float, width_px: float,
     vals = _bilinear(score, pts)
     lvl = level
     if half_contrast:
-        core = float(np.median(_bilinear(score, tail)))
+        core = _median(_bilinear(score, tail))
         tg = np.polyval(np.polyder(coef), a_e)
         n_e = nrm - tg * d
         n_e /= np.linalg.norm(n_e)

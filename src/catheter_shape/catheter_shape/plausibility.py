@@ -110,6 +110,8 @@ def check_fold(px: np.ndarray, width_px: float, max_turning: float = MAX_TURNING
     if kink > max_kink:
         return (f'the centreline turns {np.degrees(kink):.0f} deg within one catheter width '
                 f'(> {np.degrees(max_kink):.0f}): a kink')
-    if _crosses(q):
+    # a polyline whose segment directions span less than 180 deg advances monotonically
+    # along their bisector: it cannot cross itself (the O(n^2) test only beyond)
+    if total >= np.pi and _crosses(q):
         return 'the centreline crosses itself'
     return None
