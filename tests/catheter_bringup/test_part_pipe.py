@@ -1,0 +1,103 @@
+"""The split layout's recording written by a process of its own (catheter_bringup.part_pipe):
+what the worker hands over is what the part holds, in order, with the worker's log times;
+a worker that dies mid-frame leaves a part closed as interrupted with every whole frame;
+the merge waits for a writer that still holds its part."""
+import io
+import json
+import subprocess
+import sys
+import time
+
+import pytest
+
+from catheter_bringup import part_pipe as P
+from catheter_bringup.local_recording import read_part
+
+pytestmark = pytest.mark.ros
+
+
+def _cdr():
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+    out = []
+    for k in range(50):
+        w = WrenchStamped()
+        w.wrench.force.x = float(k)
+        out.append(('/w', serialize_message(w)))
+        out.append(('/js', serialize_message(JointState(position=[k * 1e-3]))))
+    return out
+
+
+def test_what_the_worker_hands_over_is_what_the_part_holds(tmp_path):
+    path = tmp_path / 'run.master.part.mcap'
+    pipe = P.PartPipe(path, 'master')
+    pipe.add_topic('/w', 'geometry_msgs/msg/WrenchStamped', None)
+    pipe.add_topic('/js', 'sensor_msgs/msg/JointState', None)
+    msgs = _cdr()
+    for topic, data in msgs:
+        pipe.record(topic, data)
+    pipe.record('/not_added', b'\x00\x01\x00\x00')         # ignored, as PartRecorder does
+    pipe.close('complete', 'end of the test')
+    assert pipe.counts == {'/w': 50, '/js': 50} and pipe.errors == 0
+    channels, got, info = read_part(path)
+    assert set(channels) == {'/w', '/js'}
+    assert info['complete'] and info['status'] == 'complete' and info['messages'] == 100
+    assert info['reason'] == 'end of the test'
+    # the same payloads in the same order (the recorder cuts rclpy's padding: a prefix)
+    assert [t for _, _, t, _ in got] == [t for t, _ in msgs]
+    for (_, _, _, data), (_, sent) in zip(got, msgs):
+        assert sent.startswith(bytes(data))
+    times = [t for t, _, _, _ in got]
+    assert times == sorted(times) and abs(times[0] - time.time_ns()) < 60e9
+    pipe.record('/w', msgs[0][1])                           # after close: nothing, no error
+    pipe.close('complete')
+    assert pipe.counts['/w'] == 50
+
+
+def test_a_stream_cut_inside_a_frame_closes_the_part_as_interrupted(tmp_path):
+    buf = io.BytesIO()
+    body = json.dumps({'topic': '/w', 'type': 'geometry_msgs/msg/WrenchStamped',
+                       'qos': None}).encode()
+    buf.write(P.FRAME.pack(P.TOPIC, 0, 0, len(body)) + body)
+    data = _cdr()[0][1]
+    for k in range(5):
+        buf.write(P.FRAME.pack(P.MESSAGE, 0, 1000 + k, len(data)) + data)
+    whole = buf.getvalue()
+    # the worker died inside the sixth message frame
+    cut = whole + P.FRAME.pack(P.MESSAGE, 0, 2000, len(data)) + data[:3]
+    path = tmp_path / 'cut.part.mcap'
+    res = P.write_part(io.BytesIO(cut), str(path), 'master')
+    assert res['status'] == 'interrupted' and res['counts'] == {'/w': 5}
+    _, got, info = read_part(path)
+    assert info['complete'] and info['status'] == 'interrupted'
+    assert 'without closing' in info['reason']
+    assert [t for t, _, _, _ in got] == [1000, 1001, 1002, 1003, 1004]
+    # a message of a topic never announced, then a frame of an unknown kind: counted errors
+    bad = whole + P.FRAME.pack(P.MESSAGE, 7, 3000, len(data)) + data + \
+        P.FRAME.pack(99, 0, 0, 0)
+    res = P.write_part(io.BytesIO(bad), str(tmp_path / 'bad.part.mcap'), 'master')
+    assert res['errors'] == 2 and res['counts'] == {'/w': 5}
+
+
+def test_the_merge_waits_for_a_writer_that_holds_its_part(tmp_path):
+    path = tmp_path / 'held.part.mcap'
+    path.write_bytes(b'')
+    assert P.wait_written(tmp_path / 'missing.part.mcap', timeout=0.1)
+    holder = subprocess.Popen([sys.executable, '-c', (
+        'import fcntl, sys, time\n'
+        f'f = open({str(path)!r}, "rb"); fcntl.flock(f, fcntl.LOCK_EX)\n'
+        'print("held", flush=True); time.sleep(1.0)\n')], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == 'held'
+        assert not P.wait_written(path, timeout=0.2)          # still held: not read yet
+        t0 = time.monotonic()
+        assert P.wait_written(path, timeout=10.0)             # free once the writer exits
+        assert time.monotonic() - t0 < 5.0
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_the_writer_command_refuses_wrong_arguments():
+    assert P.main(['only-one']) == 2
