@@ -46,7 +46,7 @@ def test_what_the_worker_hands_over_is_what_the_part_holds(tmp_path):
     assert info['reason'] == 'end of the test'
     # the same payloads in the same order (the recorder cuts rclpy's padding: a prefix)
     assert [t for _, _, t, _ in got] == [t for t, _ in msgs]
-    for (_, _, _, data), (_, sent) in zip(got, msgs):
+    for (_, _, _, data), (_, sent) in zip(got, msgs, strict=True):
         assert sent.startswith(bytes(data))
     times = [t for t, _, _, _ in got]
     assert times == sorted(times) and abs(times[0] - time.time_ns()) < 60e9
