@@ -100,4 +100,5 @@ def test_the_merge_waits_for_a_writer_that_holds_its_part(tmp_path):
 
 
 def test_the_writer_command_refuses_wrong_arguments():
-    assert P.main(['only-one']) == 2
+    assert P.main([]) == 2
+    assert P.main(['x.mcap', '--chunk-size', 'big']) == 2

@@ -1,22 +1,25 @@
-"""A worker's recording written by a process of its own (no rclpy).
+"""Recordings written by a process of their own (no rclpy).
 
-In layout split every worker records what its nodes publish (`local_recording`). Writing the
-part file inside the worker (the exact-length walk, mcap's record packing, zstd on every
-64 kB chunk) cost the 1 kHz processes a sixth of a core in the master and a tenth in the
-slave (measured: master 96 % of a core recording, 79 % not; slave 67 % / 58 %), at real-time
-priority, ahead of the vision process. `PartPipe` keeps only the cheap part in the worker:
-each publish's CDR bytes are appended to a buffer with a 15-byte frame header, and the
-buffer goes to a writer process through a pipe (non-blocking: a writer that falls behind
-never stalls the loop; what the pipe does not take waits in the buffer). The writer
-(``python -m catheter_bringup.part_pipe PATH PROCESS``, normal scheduling, started before
-the worker's loop takes real-time priority) unpacks the frames into a `PartRecorder`.
+A run's recording used to be written in the process that runs the nodes: the exact-length
+walk, mcap's record packing and zstd on every chunk, inside the loop. In the split layout's
+workers that cost the 1 kHz processes part of a core at real-time priority, ahead of the
+vision process; in lockstep it was a sixth of the single-threaded run (cProfile: the
+recorder's write 16 % of a 2 s Experiment II). `RecorderPipe` keeps only the cheap part in
+the producer: each message's CDR bytes are appended to a buffer behind a 15-byte frame
+header, and the buffer goes through a pipe to a writer process (``python -m
+catheter_bringup.part_pipe PATH``, normal scheduling, started before a worker's loop takes
+real-time priority; on the other core in lockstep), which writes them into an
+`McapRecorder`. The pipe is non-blocking: a writer that falls behind never stalls the
+producer, what the pipe does not take waits in the buffer. `PartPipe` is the same for a
+worker's part file (`local_recording`).
 
 Frames: ``<BHqI`` (kind, topic id, log time ns, payload length) + payload; kinds: TOPIC
-(payload: JSON {topic, type, qos}), MESSAGE (payload: CDR bytes), CLOSE (payload: JSON
-{status, reason}). At the end the writer closes the part and prints its counts as one JSON
-line. A worker killed with SIGKILL closes the pipe by dying: the writer takes every frame
-that reached the pipe and closes the part as ``interrupted`` (lost: at most the frames
-still in the worker's buffer, `FLUSH_BYTES`).
+(JSON {topic, type, qos}), MESSAGE (CDR bytes), START (JSON: the catheter_run_start
+record), CLOSE (JSON {status, reason, extra}). At the end the writer closes the file and
+prints its counts as one JSON line. A producer killed with SIGKILL closes the pipe by dying:
+the writer takes every frame that reached the pipe and closes the file as ``interrupted``
+("the process ended without closing its recording"; lost: at most the frames still in the
+producer's buffer, `FLUSH_BYTES`); readers wait for the writer's lock (`wait_written`).
 """
 from __future__ import annotations
 
@@ -29,8 +32,8 @@ import time
 from typing import Dict, List, Mapping, Optional
 
 FRAME = struct.Struct('<BHqI')
-TOPIC, MESSAGE, CLOSE = 1, 2, 3
-#: bytes: the worker hands its buffer to the pipe once it holds this much (and at `flush`)
+TOPIC, MESSAGE, CLOSE, START = 1, 2, 3, 4
+#: bytes: the producer hands its buffer to the pipe once it holds this much (and at `flush`)
 FLUSH_BYTES = 8 * 1024
 #: bytes asked for the pipe (Linux F_SETPIPE_SZ; the default is 64 kB): about 0.15 s of a
 #: master process's messages while the writer is not scheduled
@@ -38,23 +41,34 @@ PIPE_BYTES = 1 << 20
 _F_SETPIPE_SZ = 1031
 
 
-class PartPipe:
-    """The worker's side: `add_topic`, `record(topic, cdr_bytes)` from the bus (topics not
-    added are ignored), `flush` now and then, `close` at the end (waits for the writer and
-    takes its counts). The interface of `local_recording.PartRecorder`."""
+class RecorderPipe:
+    """An `McapRecorder` written by a process of its own: `add_topic`, `write(topic, cdr,
+    log_time_ns)`, `start(info)`, `close(status, reason, extra)`, `counts`, `closed` as
+    McapRecorder (a bad topic name or an unknown type is refused here, at once; a payload the
+    writer refuses is counted in `errors`), plus `record(topic, cdr)` (log time: now on the
+    system clock; topics not added are ignored) and `flush` (hand the buffer to the pipe now;
+    never waits)."""
 
-    def __init__(self, path, process: str, python: str = sys.executable):
+    def __init__(self, path, library: str = 'catheter_bringup recorder',
+                 chunk_size: int = 1 << 20, python: str = sys.executable):
+        import pathlib
+        p = pathlib.Path(path)
+        if p.suffix != '.mcap':
+            raise ValueError(f'path must end with .mcap, got {str(path)!r}')
+        p.parent.mkdir(parents=True, exist_ok=True)
         self.path = str(path)
         self.topics: Dict[str, int] = {}
+        self._types: Dict[str, str] = {}
         self.errors = 0
         self.closed = False
         self.sent: Dict[str, int] = {}
         self._counts: Optional[Dict[str, int]] = None
         self._buf = bytearray()
         self._clock = time.time_ns     # the system clock: what the nodes' clocks use
-        self.proc = subprocess.Popen([python, '-m', 'catheter_bringup.part_pipe', self.path,
-                                      process], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE)
+        self.proc = subprocess.Popen(
+            [python, '-m', 'catheter_bringup.part_pipe', self.path, '--library', library,
+             '--chunk-size', str(int(chunk_size))],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         self._fd = self.proc.stdin.fileno()
         try:
             import fcntl
@@ -68,14 +82,46 @@ class PartPipe:
         """What the writer recorded per topic (after `close`; before: what was handed over)."""
         return dict(self._counts if self._counts is not None else self.sent)
 
-    def add_topic(self, topic: str, type_name: str, qos: Optional[List[Mapping]]) -> None:
+    def has_topic(self, topic: str) -> bool:
+        return topic in self.topics
+
+    def _frame(self, kind: int, tid: int, t_ns: int, body: bytes) -> None:
+        self._buf += FRAME.pack(kind, tid, t_ns, len(body))
+        self._buf += body
+
+    def add_topic(self, topic: str, type_name: str, qos: Optional[List[Mapping]] = None) -> int:
+        if not isinstance(topic, str) or not topic.startswith('/'):
+            raise ValueError(f'topic must be an absolute name like "/a/b", got {topic!r}')
         if topic in self.topics:
-            return
+            if self._types[topic] != type_name:
+                raise ValueError(f'type_name: {topic} already recorded as {self._types[topic]}')
+            return self.topics[topic]
+        if self.closed:
+            raise ValueError('recorder is closed')
+        from catheter_bringup.cdr import message_class
+        message_class(type_name)       # an unknown type is refused here (ImportError/ValueError)
         tid = self.topics[topic] = len(self.topics)
+        self._types[topic] = type_name
         self.sent[topic] = 0
-        body = json.dumps({'topic': topic, 'type': type_name, 'qos': qos}).encode()
-        self._buf += FRAME.pack(TOPIC, tid, 0, len(body)) + body
+        self._frame(TOPIC, tid, 0, json.dumps({'topic': topic, 'type': type_name,
+                                                'qos': list(qos) if qos else None}).encode())
         self.flush()
+        return tid
+
+    def write(self, topic: str, data: bytes, log_time_ns: int,
+              publish_time_ns: Optional[int] = None) -> None:
+        tid = self.topics.get(topic)
+        if tid is None:
+            raise ValueError(f'topic {topic!r} was not registered with add_topic')
+        log_time_ns = int(log_time_ns)
+        if log_time_ns < 0:
+            raise ValueError(f'log_time_ns must be >= 0, got {log_time_ns}')
+        if self.closed:
+            return
+        self._frame(MESSAGE, tid, log_time_ns, data)
+        self.sent[topic] += 1
+        if len(self._buf) >= FLUSH_BYTES:
+            self.flush()
 
     def record(self, topic: str, data: bytes) -> None:
         tid = self.topics.get(topic)
@@ -87,6 +133,25 @@ class PartPipe:
         self.sent[topic] += 1
         if len(buf) >= FLUSH_BYTES:
             self.flush()
+
+    def start(self, info: Mapping[str, object]) -> None:
+        """The ``catheter_run_start`` record (`McapRecorder.start`), written and flushed to
+        the file by the writer before anything that follows."""
+        if self.closed:
+            raise ValueError('recorder is closed')
+        self._frame(START, 0, 0, json.dumps(dict(info)).encode())
+        # sent whole and acknowledged: the record is in the file when this returns (a run
+        # killed before its first step still says what it was)
+        os.set_blocking(self._fd, True)
+        try:
+            os.write(self._fd, bytes(self._buf))
+            self._buf.clear()
+        finally:
+            os.set_blocking(self._fd, False)
+        line = self.proc.stdout.readline()
+        if line.strip() != b'started':
+            raise RuntimeError(f'the recording writer for {self.path} did not start: '
+                               f'{line[:200]!r}')
 
     def flush(self) -> None:
         """Hand what the buffer holds to the pipe, as much as it takes now (never waits)."""
@@ -102,13 +167,15 @@ class PartPipe:
             return
         del self._buf[:n]
 
-    def close(self, status: str, reason: str = '', timeout: float = 60.0) -> None:
+    def close(self, status: str = 'complete', reason: str = '',
+              extra: Optional[Mapping[str, object]] = None, timeout: float = 120.0) -> None:
         """Send the rest and the close frame, wait for the writer, take its counts."""
+        if status not in ('complete', 'interrupted', 'failed'):
+            raise ValueError(f'status must be complete, interrupted or failed, got {status!r}')
         if self.closed:
             return
-        body = json.dumps({'status': status, 'reason': reason,
-                           'part_errors': self.errors}).encode()
-        self._buf += FRAME.pack(CLOSE, 0, 0, len(body)) + body
+        self._frame(CLOSE, 0, 0, json.dumps({'status': status, 'reason': reason,
+                                              'extra': dict(extra or {})}).encode())
         os.set_blocking(self._fd, True)
         rest = bytes(self._buf)
         self._buf.clear()
@@ -125,8 +192,21 @@ class PartPipe:
         except (ValueError, IndexError, KeyError):
             self.errors += 1
             self._counts = {}
-            sys.stderr.write(f'[run] part writer for {self.path} failed: '
+            sys.stderr.write(f'[run] recording writer for {self.path} failed: '
                              f'{err.decode(errors="replace")[-500:]}\n')
+
+
+class PartPipe(RecorderPipe):
+    """The part file of one worker of the split layout (`local_recording.PartRecorder`'s
+    interface), written by a process of its own: the loop only hands over bytes."""
+
+    def __init__(self, path, process: str, python: str = sys.executable):
+        from catheter_bringup.local_recording import PART_CHUNK
+        super().__init__(path, library=f'catheter_bringup part ({process})',
+                         chunk_size=PART_CHUNK, python=python)
+
+    def close(self, status: str, reason: str = '', extra=None, timeout: float = 120.0) -> None:
+        super().close(status, reason, dict(extra or {}, part_errors=self.errors), timeout)
 
 
 def _read_exact(f, n: int) -> bytes:
@@ -134,19 +214,16 @@ def _read_exact(f, n: int) -> bytes:
     return data if data is not None else b''
 
 
-def write_part(stream, path: str, process: str) -> Dict[str, object]:
-    """The writer process's work: frames from `stream` (binary, blocking) into a part file at
-    `path`, until the close frame or the end of the stream (the worker ended without one:
-    status interrupted). Returns {'counts', 'errors', 'status'}."""
-    from catheter_bringup.local_recording import PartRecorder
-    rec = PartRecorder(path, process)
-    # held until this process ends: the runner's merge waits for it (`wait_written`), so a
-    # part whose worker was killed is read only once its writer has closed it
-    import fcntl
-    lock = open(path, 'rb')
-    fcntl.flock(lock, fcntl.LOCK_EX)
+def write_stream(stream, recorder, ack=None) -> Dict[str, object]:
+    """The writer process's work: frames from `stream` (binary, blocking) into `recorder`
+    (an McapRecorder), until the close frame or the end of the stream (the producer ended
+    without one: status interrupted); ``ack()`` after the start record is written.
+    Returns {'counts', 'errors', 'status'}."""
     names: Dict[int, str] = {}
-    status, reason, errors = 'interrupted', 'the worker ended without closing its part', 0
+    status, reason, errors = 'interrupted', 'the process ended without closing its recording', 0
+    extra: Dict[str, object] = {}
+    start_info: Dict[str, object] = {}
+    closed_by_producer = False
     while True:
         head = _read_exact(stream, FRAME.size)
         if len(head) < FRAME.size:
@@ -154,29 +231,48 @@ def write_part(stream, path: str, process: str) -> Dict[str, object]:
         kind, tid, t_ns, n = FRAME.unpack(head)
         body = _read_exact(stream, n)
         if len(body) < n:
-            break                      # cut off: the worker died inside a frame
+            break                      # cut off: the producer died inside a frame
         if kind == MESSAGE:
             topic = names.get(tid)
             if topic is None:
                 errors += 1
                 continue
-            rec.record(topic, body, t_ns)
+            try:
+                recorder.write(topic, body, t_ns)
+            except ValueError:
+                errors += 1            # a payload the recorder refuses: counted, not fatal
         elif kind == TOPIC:
             d = json.loads(body)
             names[tid] = d['topic']
-            rec.add_topic(d['topic'], d['type'], d['qos'])
+            recorder.add_topic(d['topic'], d['type'], d['qos'])
+        elif kind == START:
+            start_info = json.loads(body)
+            recorder.start(start_info)
+            if ack is not None:
+                ack()
         elif kind == CLOSE:
             d = json.loads(body)
             status, reason = d.get('status', 'complete'), d.get('reason', '')
-            errors += int(d.get('part_errors', 0))
+            extra = d.get('extra') or {}
+            closed_by_producer = True
             break
         else:
             errors += 1
             break
-    errors += rec.errors
-    rec.close(status, reason)
-    lock.close()
-    return {'counts': rec.counts, 'errors': errors, 'status': status}
+    if not closed_by_producer:
+        extra = dict(start_info)       # what the run was (as recover_bag carries it over)
+    if 'part_errors' in extra:
+        extra['part_errors'] = int(extra['part_errors']) + errors
+    recorder.close(status, reason, extra=extra)
+    return {'counts': dict(recorder.counts), 'errors': errors, 'status': status}
+
+
+def write_part(stream, path: str, process: str) -> Dict[str, object]:
+    """`write_stream` into a part file (as `PartPipe`'s writer writes it)."""
+    from catheter_bringup.local_recording import PART_CHUNK
+    from catheter_bringup.recorder import McapRecorder
+    return write_stream(stream, McapRecorder(path, library=f'catheter_bringup part ({process})',
+                                             chunk_size=PART_CHUNK))
 
 
 def wait_written(path, timeout: float = 20.0) -> bool:
@@ -200,13 +296,27 @@ def wait_written(path, timeout: float = 20.0) -> bool:
 
 
 def main(argv=None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if len(argv) != 2:
-        print('usage: python -m catheter_bringup.part_pipe PART_PATH PROCESS', file=sys.stderr)
-        return 2
+    import argparse
+    import fcntl
     import signal
-    signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C: the worker closes the pipe
-    res = write_part(sys.stdin.buffer, argv[0], argv[1])
+    ap = argparse.ArgumentParser(prog='python -m catheter_bringup.part_pipe',
+                                 description='writes the MCAP frames read from stdin')
+    ap.add_argument('path')
+    ap.add_argument('--library', default='catheter_bringup recorder')
+    ap.add_argument('--chunk-size', type=int, default=1 << 20)
+    try:
+        a = ap.parse_args(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C: the producer closes the pipe
+    from catheter_bringup.recorder import McapRecorder
+    rec = McapRecorder(a.path, library=a.library, chunk_size=a.chunk_size)
+    # held until this process ends: a reader waits for it (`wait_written`), so a recording
+    # whose producer was killed is read only once this writer has closed it
+    lock = open(a.path, 'rb')
+    fcntl.flock(lock, fcntl.LOCK_EX)
+    res = write_stream(sys.stdin.buffer, rec, ack=lambda: print('started', flush=True))
+    lock.close()
     print(json.dumps(res), flush=True)
     return 0
 

@@ -39,7 +39,7 @@ from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
 from catheter_bringup.local_recording import merge_parts, part_path, wanted
-from catheter_bringup.part_pipe import PartPipe
+from catheter_bringup.part_pipe import PartPipe, RecorderPipe
 from catheter_bringup.node_start import available_instances, start_node
 from catheter_bringup.rclpy_adapter import count_extra_subscriber, detach_clock
 from catheter_bringup.recorder import McapRecorder
@@ -288,11 +288,15 @@ class ScenarioRunner(Stepping):
         if self.part_bag and self.bus is not None:
             self._record_part()
         if self.bag:
-            # real time: small chunks, so compressing one (inside a write, in the loop's thread)
-            # takes a fraction of a 1 ms period; 1 MB chunks took up to 6 ms (measured)
-            self.recorder = McapRecorder(self.bag, chunk_size=REALTIME_CHUNK if not lockstep
-                                         else 1 << 20)
-            if not self.parts:
+            # real time: small chunks (a killed run loses less); lockstep: 1 MB
+            chunk = REALTIME_CHUNK if not lockstep else 1 << 20
+            if self.parts:
+                # layout split: the workers record; this process merges their parts at the end
+                self.recorder = McapRecorder(self.bag, chunk_size=chunk)
+            else:
+                # written by a writer process (`part_pipe`): the run's loop hands over bytes,
+                # the exact-length walk, mcap and zstd run on the other core
+                self.recorder = RecorderPipe(self.bag, chunk_size=chunk)
                 self.sink = RecordingSink(self.runner_node, self.recorder,
                                           exclude=sc['record']['exclude'],
                                           only=sc['record'].get('only') or None)
