@@ -1,6 +1,7 @@
 """The split layout, A/B against another checkout's code in the same session.
 
     python tests/bench/bench_system_ab.py [--against /path/to/other/checkout] [--rounds 2]
+    python tests/bench/bench_system_ab.py --lockstep [--against ...]   # recorded 12 s lockstep
     scripts/bench system_ab
 
 Runs 6 s of real-time Experiment II in the split layout (master, slave, vision processes),
@@ -92,9 +93,31 @@ print(json.dumps({'cpu': cpu, 'streams': streams, 'latency': lat,
 '''
 
 
-def run_in(root: pathlib.Path, duration: float) -> dict:
+#: lockstep: the recorded 12 s Experiment II, real-time factor and the process's CPU
+CHILD_LOCKSTEP = r'''
+import json, resource, sys, tempfile, time
+from catheter_common.ros_testing import isolate_ros_env
+isolate_ros_env()
+from catheter_bringup.runner import ScenarioRunner
+from catheter_bringup.scenario import load_scenario
+sc = load_scenario('experiment_ii')
+sc['duration'] = float(sys.argv[1])
+with tempfile.TemporaryDirectory() as tmp:
+    r = ScenarioRunner(sc, bag=f'{tmp}/ab.mcap', progress=False, log=lambda *a: None)
+    r.setup()
+    c0 = time.process_time()
+    res = r.run()
+    cpu = time.process_time() - c0
+ch = resource.getrusage(resource.RUSAGE_CHILDREN)
+print(json.dumps({'rtf': res.realtime_factor, 'wall': res.wall_time, 'cpu': cpu,
+                  'children_cpu': ch.ru_utime + ch.ru_stime,
+                  'recorded': sum(res.recorded.values())}))
+'''
+
+
+def run_in(root: pathlib.Path, duration: float, child: str = CHILD) -> dict:
     with tempfile.NamedTemporaryFile('w', suffix='.py', delete=False) as f:
-        f.write(CHILD)
+        f.write(child)
         script = f.name
     try:
         cmd = (f'cd {str(root)!r} && . scripts/env.sh >/dev/null && '
@@ -113,8 +136,23 @@ def main(argv=None) -> int:
     ap.add_argument('--against', default='', help='another checkout (set up) to compare with')
     ap.add_argument('--rounds', type=int, default=1)
     ap.add_argument('--duration', type=float, default=6.0)
+    ap.add_argument('--lockstep', action='store_true',
+                    help='the recorded lockstep Experiment II instead (12 s unless --duration)')
     a = ap.parse_args(argv)
     roots = [('this', ROOT)] + ([('other', pathlib.Path(a.against))] if a.against else [])
+    if a.lockstep:
+        dur = a.duration if a.duration != 6.0 else 12.0
+        print(f'lockstep {dur:g} s Exp. II, recorded; load average at start '
+              f'{os.getloadavg()[0]:.1f} (compare rows of this session only)')
+        print(f"{'code':6s} {'load':>5s} {'rtf':>6s} {'wall s':>7s} {'run CPU s':>9s} "
+              f"{'writer CPU s':>12s} {'recorded':>9s}")
+        for _ in range(a.rounds):
+            for name, root in roots:
+                load = os.getloadavg()[0]
+                r = run_in(root, dur, CHILD_LOCKSTEP)
+                print(f"{name:6s} {load:5.1f} {r['rtf']:5.2f}x {r['wall']:7.1f} {r['cpu']:9.1f} "
+                      f"{r['children_cpu']:12.1f} {r['recorded']:9d}", flush=True)
+        return 0
     print(f'split layout, 6 s Exp. II, 5 % injected link loss; load average at start '
           f'{os.getloadavg()[0]:.1f} (compare rows of this session only)')
     if a.against:

@@ -21,7 +21,7 @@ def _cdr():
     from rclpy.serialization import serialize_message
     from sensor_msgs.msg import JointState
     out = []
-    for k in range(50):
+    for k in range(400):                    # ~60 kB: several hand-overs of the buffer
         w = WrenchStamped()
         w.wrench.force.x = float(k)
         out.append(('/w', serialize_message(w)))
@@ -39,10 +39,10 @@ def test_what_the_worker_hands_over_is_what_the_part_holds(tmp_path):
         pipe.record(topic, data)
     pipe.record('/not_added', b'\x00\x01\x00\x00')         # ignored, as PartRecorder does
     pipe.close('complete', 'end of the test')
-    assert pipe.counts == {'/w': 50, '/js': 50} and pipe.errors == 0
+    assert pipe.counts == {'/w': 400, '/js': 400} and pipe.errors == 0
     channels, got, info = read_part(path)
     assert set(channels) == {'/w', '/js'}
-    assert info['complete'] and info['status'] == 'complete' and info['messages'] == 100
+    assert info['complete'] and info['status'] == 'complete' and info['messages'] == 800
     assert info['reason'] == 'end of the test'
     # the same payloads in the same order (the recorder cuts rclpy's padding: a prefix)
     assert [t for _, _, t, _ in got] == [t for t, _ in msgs]
@@ -52,7 +52,7 @@ def test_what_the_worker_hands_over_is_what_the_part_holds(tmp_path):
     assert times == sorted(times) and abs(times[0] - time.time_ns()) < 60e9
     pipe.record('/w', msgs[0][1])                           # after close: nothing, no error
     pipe.close('complete')
-    assert pipe.counts['/w'] == 50
+    assert pipe.counts['/w'] == 400
 
 
 def test_a_stream_cut_inside_a_frame_closes_the_part_as_interrupted(tmp_path):
@@ -102,3 +102,27 @@ def test_the_merge_waits_for_a_writer_that_holds_its_part(tmp_path):
 def test_the_writer_command_refuses_wrong_arguments():
     assert P.main([]) == 2
     assert P.main(['x.mcap', '--chunk-size', 'big']) == 2
+
+
+def test_a_writer_that_dies_is_not_hidden(tmp_path, monkeypatch):
+    """The writer process killed mid-run: the producer goes on (counted errors, no
+    exception in the loop) and its counts say what reached the file, not what was sent."""
+    pipe = P.RecorderPipe(tmp_path / 'w.mcap', chunk_size=4096)
+    pipe.add_topic('/w', 'geometry_msgs/msg/WrenchStamped', None)
+    data = _cdr()[0][1]
+    for k in range(10):
+        pipe.write('/w', data, k)
+    pipe.flush()
+    pipe.proc.kill()
+    pipe.proc.wait()
+    for k in range(10, 3000):
+        pipe.write('/w', data, k)                # BrokenPipe inside: counted, not raised
+    pipe.close('complete')
+    assert pipe.errors > 0
+    assert pipe.counts.get('/w', 0) < 3000
+    with pytest.raises(ValueError, match='not registered'):
+        pipe.write('/nope', data, 1)
+    with pytest.raises(ValueError, match='topic must be'):
+        pipe.add_topic('relative', 'geometry_msgs/msg/WrenchStamped')
+    with pytest.raises(ValueError, match='status'):
+        pipe.close('fine')

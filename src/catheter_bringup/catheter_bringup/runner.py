@@ -490,6 +490,12 @@ class ScenarioRunner(Stepping):
                 **({'parts': self.part_info} if self.parts else {}),
                 'scenario_yaml': scenario_text(self.scenario),
             })
+        if isinstance(self.recorder, RecorderPipe) and self.sink is not None:
+            # what the writer process wrote (a writer that died is not hidden: `lost` shows it)
+            written = self.recorder.counts
+            recorded = {t: written.get(t, 0) for t in recorded}
+            if self.recorder.errors:
+                self.log(f'[run] the recording writer reported {self.recorder.errors} errors')
         # shares of the time the loop ran (a worker's wall time includes its wait for go)
         loop_s = getattr(self, 'realtime_info', {}).get('loop_s', wall)
         cost = self.bus.cost.summary(loop_s) if self.bus is not None else {}
