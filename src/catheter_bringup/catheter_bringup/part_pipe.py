@@ -2,9 +2,9 @@
 
 A run's recording used to be written in the process that runs the nodes: the exact-length
 walk, mcap's record packing and zstd on every chunk, inside the loop. In the split layout's
-workers that cost the 1 kHz processes part of a core at real-time priority, ahead of the
-vision process; in lockstep it was a sixth of the single-threaded run (cProfile: the
-recorder's write 16 % of a 2 s Experiment II). `RecorderPipe` keeps only the cheap part in
+workers that cost the 1 kHz processes CPU at real-time priority, ahead of the vision process;
+in lockstep it was a large part of the single-threaded run (figures: the package README,
+"Benchmark"). `RecorderPipe` keeps only the cheap part in
 the producer: each message's CDR bytes are appended to a buffer behind a 15-byte frame
 header, and the buffer goes through a pipe to a writer process (``python -m
 catheter_bringup.part_pipe PATH``, normal scheduling, started before a worker's loop takes
@@ -35,8 +35,9 @@ FRAME = struct.Struct('<BHqI')
 TOPIC, MESSAGE, CLOSE, START = 1, 2, 3, 4
 #: bytes: the producer hands its buffer to the pipe once it holds this much (and at `flush`)
 FLUSH_BYTES = 8 * 1024
-#: bytes asked for the pipe (Linux F_SETPIPE_SZ; the default is 64 kB): about 0.15 s of a
-#: master process's messages while the writer is not scheduled
+#: bytes asked for the pipe (Linux F_SETPIPE_SZ; the default is 64 kB): over a second of a
+#: master process's recording (about 7 000 messages a second, under 100 bytes each with
+#: their frame headers) while the writer is not scheduled
 PIPE_BYTES = 1 << 20
 _F_SETPIPE_SZ = 1031
 

@@ -12,7 +12,7 @@ the collector's pauses.
   of the 1 kHz loops, measured).
 - `own_autogroup`: the vision process in a scheduling group (autogroup) of its own with a
   negative nice: with autogroups enabled the process nice alone does not count against
-  other sessions' work (the vision process was starved by other users' jobs, measured).
+  other sessions' work.
 - `quiet_gc`: everything alive at start-up frozen out of the collector's sight (a full
   collection of a big heap inside the loop stalled it 55 ms), the young-generation
   threshold raised (fewer, slightly longer young collections), undone afterwards.
@@ -103,9 +103,8 @@ def own_autogroup(nice: int, log: Callable[[str], None] = print,
     With ``kernel.sched_autogroup_enabled = 1`` (the default of desktop and many server
     kernels, and on the benchmark machine) the CFS scheduler first shares the CPU equally
     between sessions (autogroups) and only then by nice value inside each: a process's nice
-    -10 does nothing against other users' jobs in their own sessions. Measured on the shared
-    machine: the vision process at nice -10 was runnable 7.0 s of a 9 s run and ran 1.9 s
-    (/proc/<pid>/task/<tid>/schedstat), its frames 100x slower than alone. So: a new session
+    -10 does nothing against other users' jobs in their own sessions (the vision process
+    was starved so on the shared machine: the package README, "Benchmark"). So: a new session
     (``setsid``: its own autogroup) and the group's nice set through `path`. Returns a
     description ('autogroup nice -10') or None when there is no autogroup file (scheduling
     unchanged, no log line: the process nice then is all there is) or it is not permitted

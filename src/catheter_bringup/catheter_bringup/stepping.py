@@ -304,9 +304,8 @@ class Stepping:
 
         The executor's own loop (C++) runs for up to `EVENTS_SLICE_S` at a time
         (``spin_until_future_complete`` on a future nobody completes): one ``spin_once`` per
-        event returned to this Python loop 5-7 thousand times a second in the master
-        process, with a clock read each time (measured: about 10 % of its CPU under
-        cProfile). A stop request is seen within one slice."""
+        event returned to this Python loop thousands of times a second in the master
+        process, with a clock read each time. A stop request is seen within one slice."""
         from rclpy.task import Future
         sc = self.scenario
         start = time.time_ns()             # the nodes' clock in real time: the system clock
