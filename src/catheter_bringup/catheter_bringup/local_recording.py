@@ -4,17 +4,19 @@ In layout split every node runs in a worker process (master, slave, vision). Rec
 from the runner's process through DDS cost a DDS hop and a Python callback per message in a
 process that competed with vision for a core, and lost most of the messages. Instead each
 worker records what ITS nodes publish, locally: the bus (`catheter_bringup.bus.LocalBus`)
-already serialises every publish once, and hands the bytes to ``LocalBus.record`` — here
-`PartRecorder.record`, which writes them with the wall-clock log time into a per-worker MCAP
-part file (``<bag stem>.<process>.part.mcap`` next to the run's bag). At the end of the run
-the runner merges the parts into the run's bag (`merge_parts`): every message, in log-time
-order, with the parts' schemas and QoS, and deletes them.
+already serialises every publish once, and hands the bytes to ``LocalBus.record`` — the
+worker's `catheter_bringup.part_pipe.PartPipe`, whose writer process writes them with the
+wall-clock log time, as `PartRecorder` does, into a per-worker MCAP part file (``<bag
+stem>.<process>.part.mcap`` next to the run's bag). At the end of the run the runner merges
+the parts into the run's bag (`merge_parts`, after each part's writer has let go of it):
+every message, in log-time order, with the parts' schemas and QoS, and deletes them.
 
-A worker killed with SIGKILL leaves its part without a summary (and maybe a cut-off chunk
-at its end): `read_part` reads such a file as a stream up to the cut, so the merge keeps
-every message of its complete chunks and reports the part as ``complete: False``. If the
-runner itself is killed the parts stay next to the bag; each is a recording on its own
-(``recover_bag`` turns a cut-off one into a readable file).
+A worker killed with SIGKILL: its writer closes the part (status interrupted). A part whose
+writer was killed too has no summary (and maybe a cut-off chunk at its end): `read_part`
+reads such a file as a stream up to the cut, so the merge keeps every message of its
+complete chunks and reports the part as ``complete: False``. If the runner itself is killed
+the parts stay next to the bag; each is a recording on its own (``recover_bag`` turns a
+cut-off one into a readable file).
 """
 from __future__ import annotations
 
