@@ -126,3 +126,23 @@ def test_a_writer_that_dies_is_not_hidden(tmp_path, monkeypatch):
         pipe.add_topic('relative', 'geometry_msgs/msg/WrenchStamped')
     with pytest.raises(ValueError, match='status'):
         pipe.close('fine')
+
+
+def test_the_writer_outlives_signals_sent_to_the_process_group(tmp_path):
+    """SIGINT, SIGTERM and SIGHUP (a terminal's Ctrl-C, a launcher's stop) reach the writer
+    too: it ignores them and closes the file once its producer closes the pipe."""
+    import signal
+    pipe = P.RecorderPipe(tmp_path / 's.mcap', chunk_size=4096)
+    pipe.add_topic('/w', 'geometry_msgs/msg/WrenchStamped', None)
+    pipe.start({'scenario': 'signals'})             # acknowledged: the writer is running
+    data = _cdr()[0][1]
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        pipe.write('/w', data, 1)
+        pipe.proc.send_signal(sig)
+    time.sleep(0.2)
+    assert pipe.proc.poll() is None
+    pipe.close('interrupted', 'SIGTERM')
+    assert pipe.counts == {'/w': 3} and pipe.errors == 0
+    from catheter_bringup.recorder import read_run_metadata
+    meta = read_run_metadata(tmp_path / 's.mcap')
+    assert meta['status'] == 'interrupted' and meta['reason'] == 'SIGTERM'

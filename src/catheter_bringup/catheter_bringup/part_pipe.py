@@ -309,7 +309,11 @@ def main(argv=None) -> int:
         a = ap.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C: the producer closes the pipe
+    # its life is its producer's pipe: Ctrl-C, SIGTERM or SIGHUP sent to the whole process
+    # group (a terminal, a launcher) stop the producer, which closes the pipe, and the file
+    # is closed here after the last frame (only SIGKILL cuts it off)
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_IGN)
     from catheter_bringup.recorder import McapRecorder
     rec = McapRecorder(a.path, library=a.library, chunk_size=a.chunk_size)
     # held until this process ends: a reader waits for it (`wait_written`), so a recording
