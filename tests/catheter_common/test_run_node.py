@@ -10,7 +10,7 @@ from std_msgs.msg import String
 
 from catheter_common.params import Param
 from catheter_common.qos import QOS_DEFAULT
-from catheter_common.ros_node import node_help, run_node
+from catheter_common.ros_node import node_help, node_main, run_node
 
 pytestmark = pytest.mark.ros
 
@@ -77,4 +77,8 @@ def test_help_builds_nothing(capsys):
     assert run_node(Factory, args=['demo_node', '--help', '--ros-args', '-p', 'x:=1']) == 0
     out = capsys.readouterr().out
     assert not built and 'demo (float [0, 2]' in out and 'a demo parameter' in out
+    main = node_main(Factory)                    # a node module's entry point: the same
+    assert main(['demo_node', '-h']) == 0 and not built
+    again = capsys.readouterr().out
+    assert 'demo (float [0, 2]' in again and 'a demo parameter' in again
     assert 'demo_node' in node_help(Factory, 'demo_node')

@@ -9,7 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from force_estimator import NORMAL, STATUSES, ForceModel, load_estimator
-from force_estimator.estimate import DOMAIN_UNKNOWN, UNOBSERVABLE_STD, failed_estimate
+from force_estimator.estimate import (DOMAIN_UNKNOWN, UNOBSERVABLE_STD, failed_estimate,
+                                      status_of)
 from force_estimator.hybrid import HybridEstimator, make_estimator
 
 L = 0.065
@@ -269,3 +270,27 @@ def test_the_fallback_stays_in_the_learned_envelope():
     e = h.estimate(fit_bezier(np.c_[c, np.zeros(len(c))]))
     _check(e, h.model.f_bound)
     assert not e.normal or np.hypot(*e.force) <= h.model.f_bound
+
+
+def test_status_takes_the_first_failed_check_in_order_else_the_covariance_decides():
+    tight, loose = np.eye(2) * 1e-6, np.eye(2) * (2.0 * UNOBSERVABLE_STD) ** 2
+    assert status_of(tight) == ('ok', '')
+    assert status_of(loose) == ('axial_unobservable', '')
+    assert status_of(tight, (False, 'no_fit', 'a'), (False, 'out_of_envelope', 'b')) == \
+        ('ok', '')
+    assert status_of(loose, (False, 'no_fit', 'a'), (True, 'out_of_envelope', 'b')) == \
+        ('out_of_envelope', 'b')
+    assert status_of(tight, (True, 'not_converged', 'a'), (True, 'no_fit', 'b')) == \
+        ('not_converged', 'a')
+
+
+def test_status_formats_only_the_message_it_reports():
+    calls = []
+
+    def msg(text):
+        return lambda: calls.append(text) or text
+    tight = np.eye(2) * 1e-6
+    assert status_of(tight, (False, 'no_fit', msg('a')), (True, 'out_of_envelope', msg('b'))) \
+        == ('out_of_envelope', 'b')
+    assert status_of(tight, (False, 'no_fit', msg('c'))) == ('ok', '')
+    assert calls == ['b']

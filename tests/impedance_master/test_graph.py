@@ -39,7 +39,7 @@ def test_closed_loop_renders_the_slave_force_at_the_hand(ros, mode):
     probe.create_subscription(WrenchStamped, SLAVE_FORCE,
                               lambda m: slave_f.append(m.wrench.force.x), QOS_FAST)
     # the script inserts to 56 mm in the first 2.3 s (about 0.35 N at the slave)
-    assert ros.spin_until(lambda: haptic.t_last is not None and haptic.t_last > 2.3, 60.0)
+    assert ros.spin_until(lambda: haptic.run.t_last is not None and haptic.run.t_last > 2.3, 60.0)
     assert max(slave_f) > 0.2
     assert max(hand[-100:]) > 0.15, f'hand force never rose: last {hand[-5:]}'
     if mode == 'ima':

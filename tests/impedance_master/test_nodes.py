@@ -166,7 +166,7 @@ def test_sim_haptic_node_commands_and_delays_the_slave_streams(ros):
     from catheter_bringup.rclpy_adapter import intercept_publish
     sent = []
     orig = intercept_publish(node.pub_cmd, lambda m: (sent.append((m, node.last)), orig(m)))
-    node.t0 -= 1.0
+    node.run.t0 -= 1.0
     assert ros.spin_until(lambda: len(sent) > 5, 10.0)
     assert all((m.position, m.velocity, m.acceleration) == (s.x, s.xd, s.xdd) for m, s in sent)
     assert all(m.acceleration != 0.0 for m, _ in sent)
@@ -247,7 +247,7 @@ def test_sim_haptic_node_runs_in_lockstep_with_a_clock(ros):
     last = cmds[-1].header.stamp
     stamp_ns = last.sec * 10 ** 9 + last.nanosec
     assert t_ns - 5_000_000 <= stamp_ns <= t_ns            # simulated, not wall time
-    assert 0.30 - 0.03 <= node.t_last <= 0.32 + 0.001
+    assert 0.30 - 0.03 <= node.run.t_last <= 0.32 + 0.001
 
 
 def test_identifier_node_never_overwrites_a_state_file_it_could_not_load(ros, tmp_path):

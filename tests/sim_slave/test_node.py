@@ -69,7 +69,7 @@ def test_outputs_follow_commands_with_the_configured_delay(ros):
     assert len(js) >= 600                        # nearly every tick seen (best effort)
     assert all(m.header.frame_id == FRAME_CATHETER_BASE and m.name == ['insertion', 'rotation']
                for m in js)
-    t0 = rig.node.t0
+    t0 = rig.node.run.t0
     moved = [stamp(m) - t0 for m in js if m.position[0] > 1e-9]
     # the step was sent at ~0.2 s after the first tick; it is followed 0.1 s later
     first = moved[0]
@@ -102,7 +102,7 @@ def test_outage_holds_the_last_command_and_bad_messages_are_counted(ros):
         rig.step((0.02, 0.0))
     st = rig.node.link.stats
     assert st.lost_outage >= 190                       # 0.2 s of 1 kHz commands
-    t0 = rig.node.t0
+    t0 = rig.node.run.t0
     # the stage stops within its acceleration limit (0.6 mm from 50 mm/s at 2 m/s^2), then holds
     held = [m.position[0] for m in rig.js if 0.2 < stamp(m) - t0 < 0.3]
     assert held and max(held) - min(held) < 1e-5

@@ -1,4 +1,5 @@
 """The vessel interaction force: range, friction growth, stick-slip, sign flip, wall, cardiac."""
+import dataclasses
 import math
 
 import numpy as np
@@ -6,6 +7,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from sim_slave import SlaveRobot, VesselModel, VesselParams
+from sim_slave.vessel_extras import VesselExtras
 
 DT = 1e-3
 QUIET = VesselParams(cardiac_amplitude=0.0)
@@ -200,6 +202,29 @@ def test_deterministic_for_a_seed_and_reset(exp1):
 def test_bad_params(field, bad):
     with pytest.raises(ValueError, match=field):
         VesselParams(**{field: bad})
+
+
+#: the parameters that divide (lengths, velocities, rates, a mass) or are an exponent: > 0;
+#: every other one may be 0 (a term switched off) but not negative (stribeck_ratio: >= 1)
+POSITIVE = {'capstan_length', 'stribeck_velocity', 'presliding_displacement', 'wall_exponent',
+            'cardiac_depth', 'catheter_mass', 'friction_step_spacing', 'friction_step_width',
+            'stenosis_length', 'breathing_frequency'}
+
+
+@pytest.mark.parametrize('cls', [VesselParams, VesselExtras])
+def test_every_parameter_refuses_nan_and_keeps_its_sign_constraint(cls):
+    for f in dataclasses.fields(cls):
+        with pytest.raises(ValueError, match=f.name):
+            cls(**{f.name: math.nan})
+        if f.name == 'stribeck_ratio':
+            continue
+        if f.name in POSITIVE:
+            with pytest.raises(ValueError, match=f.name):
+                cls(**{f.name: 0.0})
+        else:
+            cls(**{f.name: 0.0})
+            with pytest.raises(ValueError, match=f.name):
+                cls(**{f.name: -1e-300})
 
 
 def test_bad_model_arguments():

@@ -24,9 +24,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import pathlib
 import sys
-from typing import Dict, Optional
+from typing import Callable, Dict, Iterable, List, Optional, Sequence, TYPE_CHECKING, Tuple
 
 import numpy as np
 
@@ -35,6 +36,9 @@ from catheter_bringup.bagfile import check_bag, cli_errors
 from catheter_bringup.recording import Recording, load  # noqa: F401 (Recording re-exported)
 from catheter_common import topics as T
 
+if TYPE_CHECKING:
+    from sim_slave.vessels import VesselSpec
+
 RENDERED = T.MASTER_RENDERED_FORCE
 HAND_FORCE = T.MASTER_HAND_FORCE
 SLAVE_FORCE = T.SLAVE_FORCE
@@ -42,7 +46,7 @@ TIP_WRENCH = T.TIP_WRENCH
 MASTER_COMMAND = T.MASTER_COMMAND
 
 
-def renderer_streams(scenario: dict, topics) -> Dict[str, str]:
+def renderer_streams(scenario: dict, topics: Iterable[str]) -> Dict[str, str]:
     """label -> topic of every rendered force stream in a recording: the renderer the device
     plays (label = its mode), shadow renderers (remapped /master/rendered_force, label = their
     mode) and the force at the hand ('hand_<mode>')."""
@@ -62,7 +66,7 @@ def renderer_streams(scenario: dict, topics) -> Dict[str, str]:
     return out
 
 
-def topic_owners(scenario: dict, ran) -> Dict[str, str]:
+def topic_owners(scenario: dict, ran: Iterable[str]) -> Dict[str, str]:
     """topic -> the node instance of the run that publishes it (from the scenario registry)."""
     if not scenario:
         return {}
@@ -90,7 +94,7 @@ def _t0(rec: Recording) -> float:
     return min(allt) if allt else 0.0
 
 
-def twin_vessel(scenario: dict):
+def twin_vessel(scenario: dict) -> Tuple[VesselSpec, int]:
     """(VesselSpec, seed) of the run's sim_slave_node (its vessel, parameters over the
     defaults; `sim_slave.node_params.vessel_from_params`, as the node builds it): what the
     twin reference of `impedance_master.metrics` is built with."""
@@ -134,7 +138,9 @@ def _compute_master_reference(rec: Recording, sc: dict, t0: float, delay: float)
     return tc, twin_reference(tc, x, xd, delay, params, seed)
 
 
-def run_link(scenario: dict, delay: Optional[float] = None, outages=None):
+def run_link(scenario: dict, delay: Optional[float] = None,
+             outages: Optional[Iterable[Sequence[float]]] = None
+             ) -> Tuple[float, List[Tuple[float, ...]], List[str]]:
     """(delay s, outages [(start, length)], warnings) of a run: given values first, else the
     recorded scenario's ``link``, else assumed (0 s, none) with a warning saying so."""
     warnings = []
@@ -156,8 +162,10 @@ def run_link(scenario: dict, delay: Optional[float] = None, outages=None):
     return float(delay), [tuple(float(v) for v in o) for o in outages], warnings
 
 
-def analyze(path, skip: Optional[float] = None, delay: Optional[float] = None,
-            outages=None, progress=None, rec: Optional[Recording] = None) -> dict:
+def analyze(path: str | os.PathLike, skip: Optional[float] = None,
+            delay: Optional[float] = None, outages: Optional[Iterable[Sequence[float]]] = None,
+            progress: Optional[Callable[[str], None]] = None,
+            rec: Optional[Recording] = None) -> dict:
     """All metrics of one recording as a JSON-able dict (see the module docstring).
 
     ``skip``: start-up seconds left out of the force metrics (default: the scenario's
@@ -345,7 +353,7 @@ def _outages_arg(text: str):
     return [(vals[i], vals[i + 1]) for i in range(0, len(vals), 2)]
 
 
-def main(argv=None):
+def main(argv: Optional[Sequence[str]] = None) -> int:
     p = argparse.ArgumentParser(prog='analyze', description=__doc__.split('\n\n')[0])
     p.add_argument('bag', help='an .mcap recording')
     p.add_argument('--json', default=None, help='write the metrics to this JSON file')

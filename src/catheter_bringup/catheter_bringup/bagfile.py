@@ -28,9 +28,10 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import os
 import pathlib
 import sys
-from typing import Dict, Optional
+from typing import Callable, Dict, Iterator, Optional
 
 from catheter_bringup.recorder import RUN_METADATA, RUN_START_METADATA
 
@@ -41,7 +42,7 @@ class BagError(ValueError):
     """A recording that cannot be read as it is; the message is one line for the user."""
 
 
-def check_bag(path) -> None:
+def check_bag(path: str | os.PathLike) -> None:
     """Raise BagError (one line) unless ``path`` is a complete MCAP file of ROS 2 messages."""
     from mcap.reader import make_reader
     p = pathlib.Path(path)
@@ -72,7 +73,7 @@ def check_bag(path) -> None:
 
 
 @contextlib.contextmanager
-def reading(path):
+def reading(path: str | os.PathLike) -> Iterator[None]:
     """Check ``path`` first; turn an error of the MCAP reader while reading it into a
     one-line BagError (a damaged chunk in the middle of an indexed file)."""
     check_bag(path)
@@ -84,7 +85,7 @@ def reading(path):
             from None
 
 
-def cli_errors(prog: str, main_body, *args) -> int:
+def cli_errors(prog: str, main_body: Callable[..., int], *args) -> int:
     """Run a tool's body; a BagError becomes ``prog: message`` on stderr and exit code 2."""
     try:
         return main_body(*args)
@@ -93,7 +94,8 @@ def cli_errors(prog: str, main_body, *args) -> int:
         return 2
 
 
-def recover(path, out=None) -> Dict[str, object]:
+def recover(path: str | os.PathLike, out: Optional[str | os.PathLike] = None
+            ) -> Dict[str, object]:
     """Rewrite the readable part of a cut-off recording into ``out`` (default
     ``<stem>_recovered.mcap`` beside it); returns what was recovered: messages, per-topic
     counts, schemas, channels, metadata records, and the bytes at the end that could not be

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import importlib
 import struct
-from typing import Callable, Dict, List
+from typing import Any, Callable, Dict, List
 
 #: size (= alignment) in bytes of the rosidl basic types
 PRIMITIVE_SIZE = {
@@ -41,7 +41,7 @@ _U32 = {True: struct.Struct('<I').unpack_from, False: struct.Struct('>I').unpack
 Walker = Callable[[bytes, int, bool], int]
 
 
-def message_class(type_name: str):
+def message_class(type_name: str) -> type:
     """'geometry_msgs/msg/WrenchStamped' -> the generated Python message class."""
     parts = type_name.split('/') if isinstance(type_name, str) else []
     if len(parts) != 3 or not all(parts):
@@ -54,7 +54,7 @@ def message_class(type_name: str):
                          f'({type(exc).__name__}: {exc})') from None
 
 
-def type_name_of(msg_or_class) -> str:
+def type_name_of(msg_or_class: Any) -> str:
     """The 'pkg/msg/Type' name of a message or message class."""
     cls = msg_or_class if isinstance(msg_or_class, type) else type(msg_or_class)
     parts = cls.__module__.split('.')
@@ -212,7 +212,7 @@ def walker(cls) -> Walker:
     return w
 
 
-def cdr_end(data, cls) -> int:
+def cdr_end(data: bytes | bytearray | memoryview, cls: type) -> int:
     """Length in bytes of the CDR message of type ``cls`` at the start of ``data`` (bytes:
     encapsulation header + payload; trailing bytes beyond the message are ignored)."""
     if not isinstance(data, (bytes, bytearray, memoryview)):
@@ -228,7 +228,7 @@ def cdr_end(data, cls) -> int:
     return HEADER + end
 
 
-def exact_cdr(data, cls) -> bytes:
+def exact_cdr(data: bytes | bytearray | memoryview, cls: type) -> bytes:
     """``data`` cut to the true length of its message (see the module docstring)."""
     n = cdr_end(data, cls)
     return bytes(data[:n]) if n != len(data) or not isinstance(data, bytes) else data

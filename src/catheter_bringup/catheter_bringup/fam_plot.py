@@ -6,9 +6,10 @@ the file is missing or older than the fam_solver sources (`is_current`), not on 
 from __future__ import annotations
 
 import importlib.util
+import os
 import pathlib
 import time
-from typing import Dict, Optional
+from typing import Dict, Optional, Sequence
 
 import numpy as np
 
@@ -24,14 +25,15 @@ def fam_sources_mtime() -> Optional[float]:
     return max((p.stat().st_mtime for p in files), default=None)
 
 
-def is_current(out_dir) -> bool:
+def is_current(out_dir: str | os.PathLike) -> bool:
     """True when out_dir/fam_accuracy.png exists and is newer than every fam_solver module."""
     png = pathlib.Path(out_dir) / FILE
     src = fam_sources_mtime()
     return png.exists() and src is not None and png.stat().st_mtime >= src
 
 
-def fam_accuracy_data(n_arcs=(1, 2, 4, 8, 12, 24, 48, 96, 200), alphas=(1.0, 5.0, 10.0),
+def fam_accuracy_data(n_arcs: Sequence[int] = (1, 2, 4, 8, 12, 24, 48, 96, 200),
+                      alphas: Sequence[float] = (1.0, 5.0, 10.0),
                       repeats: int = 3, arc_model: str = 'clothoid') -> Optional[Dict[str, list]]:
     """FAM tip error (fraction of L, worst over ``alphas`` = F L^2 / EI, perpendicular dead tip
     load) against the median solve time, for each arc count (equal arcs of ``arc_model``);
@@ -62,7 +64,8 @@ def fam_accuracy_data(n_arcs=(1, 2, 4, 8, 12, 24, 48, 96, 200), alphas=(1.0, 5.0
     return rows
 
 
-def fam_accuracy_plot(out_dir='out', data=None) -> Optional[str]:
+def fam_accuracy_plot(out_dir: str | os.PathLike = 'out',
+                      data: Optional[Dict[str, dict]] = None) -> Optional[str]:
     """Draw fam_accuracy.png; ``data``: {arc model: fam_accuracy_data(...)} (None: measured
     now for the clothoid and circular arcs). None when fam_solver is missing."""
     from catheter_bringup.plots import _plt

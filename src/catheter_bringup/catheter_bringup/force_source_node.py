@@ -24,7 +24,7 @@ from catheter_common.checks import all_finite, finite
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST, QOS_SENSOR
-from catheter_common.ros_node import run_node
+from catheter_common.ros_node import node_main
 
 COMPONENTS = ('magnitude', 'x', 'y')
 
@@ -98,10 +98,7 @@ class ForceSourceNode(Node):
 
 
 NODE_CLASS = ForceSourceNode
-
-
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':

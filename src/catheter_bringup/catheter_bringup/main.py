@@ -25,13 +25,14 @@ import os
 import pathlib
 import sys
 import time
+from typing import Optional, Sequence
 
 
 def _say(msg: str) -> None:
     print(f'[analysis] {msg}', flush=True)
 
 
-def main(argv=None):
+def main(argv: Optional[Sequence[str]] = None) -> int:
     from catheter_bringup.run_scenario import (DEFAULT_SCENARIO, add_run_arguments,
                                                prepare_scenario, summarize)
     ap = argparse.ArgumentParser(prog='scripts/run', description=__doc__.split('\n\n')[0])

@@ -23,9 +23,9 @@ from __future__ import annotations
 import argparse
 import pprint
 import sys
-from typing import Dict, List
+from typing import Dict, List, Optional, Sequence
 
-from catheter_bringup.scenario import load_scenario, resolve_nodes
+from catheter_bringup.scenario import NodeInstance, load_scenario, resolve_nodes
 
 
 def launch_entries(scenario: dict) -> List[Dict]:
@@ -54,7 +54,7 @@ def launch_entries(scenario: dict) -> List[Dict]:
     return out
 
 
-def split_entries(scenario: dict, nodes) -> List[Dict]:
+def split_entries(scenario: dict, nodes: Sequence[NodeInstance]) -> List[Dict]:
     """Layout split: one process per group of `split_processes` (the force loop's nodes
     together), each a `run_scenario` in real time running only its nodes, with the loop
     processes' SCHED_FIFO priority and their EventsExecutor; they talk over DDS."""
@@ -70,7 +70,7 @@ def split_entries(scenario: dict, nodes) -> List[Dict]:
     return out
 
 
-def main(argv=None):
+def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(prog='make_launch', description=__doc__.split('\n\n')[0])
     ap.add_argument('scenario', help="a scenario name of catheter_bringup's config/ or a YAML path")
     a = ap.parse_args(argv)

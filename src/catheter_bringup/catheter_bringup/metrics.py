@@ -80,7 +80,7 @@ def force_tracking(t_master: Sequence[float], f_master: Sequence[float],
             'outage': error_stats(err[keep & out_m])}
 
 
-def percentiles(x: Sequence[float], qs=(50, 99)) -> Dict[str, float]:
+def percentiles(x: Sequence[float], qs: Sequence[float] = (50, 99)) -> Dict[str, float]:
     x = np.asarray(x, dtype=float)
     x = x[np.isfinite(x)]
     if x.size == 0:

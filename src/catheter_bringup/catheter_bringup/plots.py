@@ -26,15 +26,21 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import pathlib
 import sys
-from typing import Dict, List, Optional
+from typing import Callable, Dict, List, Optional, Sequence, TYPE_CHECKING
 
 import numpy as np
 
 from catheter_bringup import metrics as M
 from catheter_bringup.bagfile import cli_errors
 from catheter_common import topics as T
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+    from catheter_bringup.recording import Recording
 
 #: one colour per renderer everywhere
 COLORS = {'ima': 'tab:blue', 'ima_thesis': 'tab:purple', 'dfr': 'tab:red',
@@ -61,7 +67,7 @@ class Windows:
         self.outage = intervals(outages, delay)
         self.eval_start = eval_start
 
-    def shade(self, ax) -> None:
+    def shade(self, ax: Axes) -> None:
         if self.eval_start > 0:
             ax.axvspan(0.0, self.eval_start, zorder=0, **SKIP_STYLE)
         for a, b in self.outage:
@@ -69,7 +75,7 @@ class Windows:
         for a, b in self.link_down:
             ax.axvspan(a, b, zorder=0, **LINK_DOWN_STYLE)
 
-    def key(self, fig, y: float = 1.0) -> None:
+    def key(self, fig: Figure, y: float = 1.0) -> None:
         from matplotlib.patches import Patch
         handles = [Patch(**SKIP_STYLE,
                          label=f'start-up, not evaluated (< {self.eval_start:.2f} s)')]
@@ -98,8 +104,10 @@ def _save(fig, path) -> str:
     return str(path)
 
 
-def run_plots(path, out_dir='out', name: Optional[str] = None, rec=None,
-              metrics: Optional[dict] = None, progress=None) -> List[str]:
+def run_plots(path: str | os.PathLike, out_dir: str | os.PathLike = 'out',
+              name: Optional[str] = None, rec: Optional[Recording] = None,
+              metrics: Optional[dict] = None,
+              progress: Optional[Callable[[str], None]] = None) -> List[str]:
     """Write the run's PNGs into ``out_dir``; returns their paths. ``rec``: the loaded
     recording and ``metrics``: its `analyze` result (computed here when not given)."""
     from catheter_bringup.analyze import (SLAVE_FORCE, _master_reference, _t0, analyze,
@@ -297,7 +305,7 @@ def _impedance(rec, t0, win, path, name) -> Optional[str]:
     return _save(fig, path)
 
 
-def main(argv=None):
+def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(prog='plots', description=__doc__.split('\n\n')[0])
     ap.add_argument('bag', nargs='?', help='an .mcap recording')
     ap.add_argument('--out', default='out')

@@ -301,7 +301,7 @@ class McapRecorder:
         return False
 
 
-def read_run_metadata(path) -> Dict[str, str]:
+def read_run_metadata(path: str | os.PathLike) -> Dict[str, str]:
     """The ``catheter_run`` metadata record of a recording ({} if it has none)."""
     from mcap.reader import make_reader
     with open(path, 'rb') as f:

@@ -9,6 +9,7 @@ std_msgs/Header, its stamp straight from the CDR bytes.
 from __future__ import annotations
 
 import math
+import os
 import struct
 from typing import Dict, Iterable, List, Optional
 
@@ -203,21 +204,21 @@ class Recording:
     def topics(self) -> List[str]:
         return sorted(self.log)
 
-    def t(self, topic) -> np.ndarray:
+    def t(self, topic: str) -> np.ndarray:
         return np.asarray(self.log.get(topic, []), dtype=float)
 
-    def stamps(self, topic) -> np.ndarray:
+    def stamps(self, topic: str) -> np.ndarray:
         return np.asarray(self.stamp.get(topic, []), dtype=float)
 
-    def force(self, topic, axis: int = 0) -> np.ndarray:
+    def force(self, topic: str, axis: int = 0) -> np.ndarray:
         return np.asarray([v[axis] for v in self.values.get(topic, [])], dtype=float)
 
-    def named(self, topic, name, field: int = 0) -> np.ndarray:
+    def named(self, topic: str, name: str, field: int = 0) -> np.ndarray:
         return np.asarray([v.get(name, (math.nan,) * 3)[field] if isinstance(v, dict)
                            else math.nan for v in self.values.get(topic, [])], dtype=float)
 
 
-def load(path) -> Recording:
+def load(path: str | os.PathLike) -> Recording:
     """The recording at ``path``, checked first (BagError: one line saying what is wrong)."""
     with reading(path):
         return Recording(path)

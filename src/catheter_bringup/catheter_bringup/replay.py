@@ -12,13 +12,18 @@ recorded CDR bytes (no deserialisation), paced by the recorded log times divided
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
-from typing import Iterable, Optional
+from typing import Callable, Iterable, Optional, Sequence, TYPE_CHECKING
 
 from catheter_bringup.bagfile import check_bag, cli_errors
 from catheter_bringup.recorder import read_run_metadata
 from catheter_common import topics as T
+
+if TYPE_CHECKING:
+    from rclpy.context import Context
+    from rclpy.node import Node
 
 
 def _qos_from_metadata(meta: dict):
@@ -43,9 +48,10 @@ def _qos_from_metadata(meta: dict):
     return prof
 
 
-def replay(path, rate: float = 1.0, topics: Optional[Iterable[str]] = None,
-           clock: bool = True, context=None, start: float = 0.0, loop: bool = False,
-           node=None, should_stop=lambda: False) -> dict:
+def replay(path: str | os.PathLike, rate: float = 1.0, topics: Optional[Iterable[str]] = None,
+           clock: bool = True, context: Optional[Context] = None, start: float = 0.0,
+           loop: bool = False, node: Optional[Node] = None,
+           should_stop: Callable[[], bool] = lambda: False) -> dict:
     """Republish ``path``; returns {'published': {topic: n}, 'wall_time': s}.
 
     ``rate``: speed factor (> 0); ``start``: seconds of the recording skipped;
@@ -118,7 +124,7 @@ def replay(path, rate: float = 1.0, topics: Optional[Iterable[str]] = None,
     return {'published': published, 'wall_time': time.perf_counter() - t_wall0}
 
 
-def main(argv=None):
+def main(argv: Optional[Sequence[str]] = None) -> int:
     import rclpy
     from rclpy.utilities import remove_ros_args
     args = list(sys.argv[1:] if argv is None else argv)

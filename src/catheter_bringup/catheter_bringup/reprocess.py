@@ -22,9 +22,10 @@ import argparse
 import hashlib
 import json
 import math
+import os
 import sys
 import tempfile
-from typing import Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -36,7 +37,7 @@ from catheter_bringup.recorder import read_run_metadata
 DIGEST_OVER = 256
 
 
-def flatten_message(msg) -> Tuple[np.ndarray, tuple]:
+def flatten_message(msg: Any) -> Tuple[np.ndarray, tuple]:
     """Every field of a decoded message (mcap_ros2 or rclpy) in field order: the numbers as one
     float
     array, the strings and digests of long byte sequences (images) as a tuple."""
@@ -82,7 +83,7 @@ def _stamped(path, topic) -> List[tuple]:
     return out
 
 
-def recorded_channels(path) -> set:
+def recorded_channels(path: str | os.PathLike) -> set:
     """Every topic with a channel in the recording (recorded, whether or not it had messages)."""
     from mcap.reader import make_reader
     with open(path, 'rb') as f:
@@ -90,7 +91,8 @@ def recorded_channels(path) -> set:
     return {c.topic for c in summary.channels.values()} if summary else set()
 
 
-def compare_streams(old_path, new_path, topic: str) -> dict:
+def compare_streams(old_path: str | os.PathLike, new_path: str | os.PathLike,
+                    topic: str) -> dict:
     """Messages of ``topic`` in two recordings matched by header stamp (in order when there is
     none), every field compared: counts, matched, max |difference| of the numbers (inf when
     the shapes, strings or image data differ)."""
@@ -116,8 +118,8 @@ def compare_streams(old_path, new_path, topic: str) -> dict:
     return {'recorded': len(old), 'now': len(new), 'matched': matched, 'max_diff': max_diff}
 
 
-def reprocess(path, nodes: Optional[List[str]] = None, tol: float = 1e-9,
-              log=print) -> Dict[str, dict]:
+def reprocess(path: str | os.PathLike, nodes: Optional[List[str]] = None, tol: float = 1e-9,
+              log: Callable[[str], None] = print) -> Dict[str, dict]:
     """Re-run node instances on a recording's inputs; returns {instance: {topic: comparison,
     'ok': bool}}."""
     from mcap.reader import make_reader
@@ -233,7 +235,7 @@ def format_results(results: Dict[str, dict]) -> str:
     return '\n'.join(lines)
 
 
-def main(argv=None):
+def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(prog='reprocess', description=__doc__.split('\n\n')[0])
     ap.add_argument('bag')
     ap.add_argument('--nodes', nargs='*', default=None)

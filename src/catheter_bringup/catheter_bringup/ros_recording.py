@@ -6,7 +6,7 @@ node clock's time (sim time in lockstep runs).
 """
 from __future__ import annotations
 
-from typing import Dict, Iterable, List, Optional
+from typing import Any, Dict, Iterable, List, Optional
 
 from rclpy.node import Node
 from rclpy.qos import (QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile,
@@ -16,7 +16,7 @@ from catheter_bringup.cdr import exact_cdr, message_class, type_name_of  # noqa:
 from catheter_bringup.recorder import McapRecorder
 
 
-def exact_bytes(msg) -> bytes:
+def exact_bytes(msg: Any) -> bytes:
     """The CDR payload of ``msg`` with its true length: what a DDS subscriber receives and
     what strict readers (rosbags) accept. ``rclpy.serialization.serialize_message`` alone
     returns the rmw's estimated size, with trailing garbage for messages with sequences."""

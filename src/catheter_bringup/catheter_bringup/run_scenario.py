@@ -17,11 +17,16 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+from typing import Optional, Sequence, TYPE_CHECKING, Tuple
+
+if TYPE_CHECKING:
+    from catheter_bringup.result import RunResult
+    from catheter_bringup.runner import ScenarioRunner
 
 DEFAULT_SCENARIO = 'experiment_ii'
 
 
-def build_parser():
+def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog='run_scenario', description=__doc__.split('\n\n')[0])
     p.add_argument('scenario', nargs='?', default=DEFAULT_SCENARIO,
                    help="name in catheter_bringup's config/ or path to a YAML file")
@@ -45,7 +50,7 @@ def build_parser():
     return p
 
 
-def add_run_arguments(p) -> None:
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """The options that say what runs (shared with the main command)."""
     p.add_argument('--mode', choices=('lockstep', 'realtime'), default=None)
     p.add_argument('--duration', type=float, default=None, help='override, s')
@@ -58,7 +63,7 @@ def add_run_arguments(p) -> None:
                         'the overrides)')
 
 
-def prepare_scenario(opts):
+def prepare_scenario(opts: argparse.Namespace) -> Tuple[dict, str]:
     """(scenario dict, why it is named so) from the parsed options; ValueError if invalid."""
     from catheter_bringup.overrides import apply_overrides, run_name
     from catheter_bringup.scenario import load_scenario
@@ -74,7 +79,7 @@ def prepare_scenario(opts):
     return sc, why
 
 
-def summarize(res) -> str:
+def summarize(res: RunResult) -> str:
     lines = [f'scenario {res.scenario}: {res.status}' + (f' ({res.reason})' if res.reason else ''),
              f'  simulated {res.sim_time:.3f} s in {res.wall_time:.2f} s wall '
              f'(real-time factor {res.realtime_factor:.2f}x)',
@@ -91,7 +96,7 @@ def summarize(res) -> str:
     return '\n'.join(lines)
 
 
-def install_stop_handlers(runner) -> dict:
+def install_stop_handlers(runner: ScenarioRunner) -> dict:
     """Ctrl-C and SIGTERM ask the runner to stop: it finishes the current step, closes the
     recording (status interrupted) and returns. The handler only sets a flag: an exception
     raised from a signal handler inside a C extension call (message (de)serialisation) would
@@ -105,12 +110,12 @@ def install_stop_handlers(runner) -> dict:
     return old
 
 
-def restore_handlers(old) -> None:
+def restore_handlers(old: Optional[dict]) -> None:
     for sig, handler in (old or {}).items():
         signal.signal(sig, handler)
 
 
-def main(args=None):
+def main(args: Optional[Sequence[str]] = None) -> int:
     from rclpy.utilities import remove_ros_args
     argv = list(sys.argv[1:] if args is None else args)
     argv = remove_ros_args(['x'] + argv)[1:]
@@ -152,7 +157,7 @@ def main(args=None):
     return 1 if res.status == 'failed' else 0
 
 
-def write_report(path: str, process: str, res) -> None:
+def write_report(path: str, process: str, res: RunResult) -> None:
     """A worker process's report (read by `catheter_bringup.worker.Workers`)."""
     import json
     with open(path, 'w') as f:

@@ -16,10 +16,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import sys
 import time
-from typing import Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Sequence, TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rclpy.subscription import Subscription
 
 #: sequences longer than this are shown as their length in `echo` (unless --full)
 SHOW_MAX = 16
@@ -39,7 +43,7 @@ class _Session:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
 
-    def spin_for(self, seconds: float, until=lambda: False) -> None:
+    def spin_for(self, seconds: float, until: Callable[[], bool] = lambda: False) -> None:
         end = time.monotonic() + seconds
         while time.monotonic() < end and not until():
             self.executor.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
@@ -55,7 +59,8 @@ class _Session:
         types = found.get(topic)
         return types[0] if types else None
 
-    def subscribe(self, topic: str, type_name: str, callback, raw: bool):
+    def subscribe(self, topic: str, type_name: str, callback: Callable[[Any], None],
+                  raw: bool) -> Subscription:
         """Best effort, volatile, keep last 1000: compatible with every publisher, also one
         discovered after this subscription (choosing from the publishers seen so far picked
         reliable when the topic was known only through a subscriber, and a best-effort
@@ -75,7 +80,7 @@ class _Session:
         self.rclpy.try_shutdown(context=self.context)
 
 
-def to_yaml(msg, full: bool = False, indent: str = '') -> List[str]:
+def to_yaml(msg: Any, full: bool = False, indent: str = '') -> List[str]:
     """A message as YAML-like lines (field: value; nested messages indented; long sequences
     as their length unless ``full``)."""
     lines = []
@@ -124,7 +129,7 @@ def _topic_type(s: '_Session', a) -> Optional[str]:
     return type_name
 
 
-def cmd_list(a) -> int:
+def cmd_list(a: argparse.Namespace) -> int:
     s = _Session()
     try:
         s.spin_for(a.wait)
@@ -135,7 +140,7 @@ def cmd_list(a) -> int:
     return 0
 
 
-def cmd_echo(a) -> int:
+def cmd_echo(a: argparse.Namespace) -> int:
     s = _Session()
     try:
         type_name = _topic_type(s, a)
@@ -167,7 +172,7 @@ def rate_stats(times: List[float]) -> Dict[str, float]:
             'std': statistics.pstdev(d), 'n': len(d)}
 
 
-def cmd_hz(a) -> int:
+def cmd_hz(a: argparse.Namespace) -> int:
     s = _Session()
     try:
         type_name = _topic_type(s, a)
@@ -209,7 +214,7 @@ def cmd_hz(a) -> int:
     return 0
 
 
-def cmd_bw(a) -> int:
+def cmd_bw(a: argparse.Namespace) -> int:
     s = _Session()
     try:
         type_name = _topic_type(s, a)
@@ -239,7 +244,7 @@ def cmd_bw(a) -> int:
     return 0
 
 
-def bag_info(path) -> dict:
+def bag_info(path: str | os.PathLike) -> dict:
     """What a recording holds: per topic type, count and QoS reliability; duration, start and
     end (s of its clock), size; the run's status and scenario when it has them."""
     import json
@@ -289,12 +294,12 @@ def format_info(info: dict) -> str:
     return '\n'.join(lines)
 
 
-def cmd_info(a) -> int:
+def cmd_info(a: argparse.Namespace) -> int:
     from catheter_bringup.bagfile import cli_errors
     return cli_errors('catheter_topic info', lambda: print(format_info(bag_info(a.bag))) or 0)
 
 
-def build_parser():
+def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog='catheter_topic', description=__doc__.split('\n\n')[0])
     sub = ap.add_subparsers(dest='command', required=True)
     p = sub.add_parser('list', help='topics on DDS')
@@ -326,7 +331,7 @@ def build_parser():
     return ap
 
 
-def main(argv=None) -> int:
+def main(argv: Optional[Sequence[str]] = None) -> int:
     from rclpy.utilities import remove_ros_args
     args = list(sys.argv[1:] if argv is None else argv)
     a = build_parser().parse_args(remove_ros_args(['x'] + args)[1:])

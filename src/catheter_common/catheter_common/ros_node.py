@@ -127,6 +127,15 @@ def run_node(node_factory: Callable[..., Node], args=None, executor: str = 'even
     return code
 
 
+def node_main(node_class, executor: str = 'events') -> Callable[..., int]:
+    """The ``main(args=None)`` entry point of a node module (its console_script): `run_node`
+    of `node_class`, returning the exit code."""
+    def main(args=None) -> int:
+        return run_node(node_class, args, executor)
+    main.__doc__ = f'Run {node_class.__name__} as a node executable (see run_node).'
+    return main
+
+
 def wall_time() -> float:
     """Monotonic wall time in seconds, for measuring latency only (never for node logic)."""
     return time.perf_counter()

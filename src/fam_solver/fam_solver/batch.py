@@ -3,7 +3,10 @@ the cases (converged cases drop out of the active set). No rclpy here.
 """
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .globalise import solve_cases, stability
 from .mesh import regrade
@@ -12,7 +15,8 @@ from .problem import (DEFAULT_ARC_MODEL, DEFAULT_SPACING, build_problem, check_a
                       problem_rates, subproblem)
 
 
-def solve_fam_batch(cat: Catheter, tip_forces, tip_moments=None, n_arcs: int = 12,
+def solve_fam_batch(cat: Catheter, tip_forces: ArrayLike,
+                    tip_moments: Optional[ArrayLike] = None, n_arcs: int = 12,
                     follower: bool = False, arc_model: str = DEFAULT_ARC_MODEL,
                     chunk: int = 4096, spacing: str = DEFAULT_SPACING) -> BatchShape:
     """Solve B tip-load cases at once (vectorised Newton over the batch).

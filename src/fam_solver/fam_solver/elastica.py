@@ -51,7 +51,7 @@ class _Rod:
             F += self.tipF
         return F * scale
 
-    def shoot(self, M0, Theta, scale, dense=False):
+    def shoot(self, M0: float, Theta: float, scale: float, dense: bool = False) -> tuple:
         """Integrate; returns residual (1 or 2,), Jacobian, solutions."""
         EI = self.cat.ei
         follower = self.loads.follower

@@ -71,9 +71,12 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
         raise ValueError(f'loads must be a Loads, got {type(loads).__name__}')
     n = int(n_arcs)
     tip = complex(*loads.tip_force)
+    # without a tip force the follower flag changes nothing (it turns only the tip force);
+    # dropping it lets base-fixed forces at the tip join the tip load (the fast path)
+    follower = bool(loads.follower) and tip != 0
     pfs = []
     for s, fx, fy in loads.point_forces:
-        if s >= 1.0 and not loads.follower:
+        if s >= 1.0 and not follower:
             tip += complex(fx, fy)
         else:
             pfs.append((s, np.array([complex(fx, fy)])))
@@ -89,10 +92,10 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
                             (np.asarray(init_frac) / init_len)[None])[0]
     clothoid = arc_model == 'clothoid'
     if arc_model != 'bezier' and not pfs:
-        out = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower, initial,
+        out = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, follower, initial,
                          spacing, clothoid)
         if out is None and initial is not None:
-            out = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower,
+            out = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, follower,
                              spacing=spacing, clothoid=clothoid)
         if out is not None:
             phi, conv, it, res, tipc, stable, frac, rho = out
@@ -100,23 +103,35 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
                              converged=True, iterations=it, stable=stable, warning='',
                              residual=res, arc_model=arc_model, spacing=spacing, fractions=frac,
                              rates=rho, _trusted=True)
-    prob = build_problem(cat, n, np.array([tip]), loads.follower,
+    prob = build_problem(cat, n, np.array([tip]), follower,
                          np.array([loads.tip_moment]), pfs, clothoid=clothoid)
-    start = None
+    start = gfrac = None
+    extra = 0
     if arc_model == 'bezier' and not pfs:
         # the Bezier model starts from the circular-arc solution (fast path): the two agree
-        # to O(phi^2) per arc, so Newton on the Bezier residual needs few iterations, about
-        # as many at every N (from the small-deflection start their count fell with N;
-        # beyond 64 arcs the general path's own coarse start doubled the time)
-        ex = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, loads.follower)
+        # to O(phi^2) per arc, so Newton on the Bezier residual (exact Jacobian) needs 1-3
+        # iterations; graded arcs are placed from the circular solution's curvature change
+        # (the fast path's graded pass) and the Bezier model is solved once, on them
+        ex = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, follower,
+                        spacing=spacing)
         if ex is not None:
-            start = ex[0][None]
-    phi, conv, iters, res, snapped = solve_cases(prob, 1, arc_model, start)
-    if start is not None:
-        iters = iters + ex[2]       # the circular-arc solve's iterations count too
-    stable = stability(prob, phi)
-    frac = None
-    if spacing == 'graded' and conv[0] and n > 1 and not loads.follower:
+            start, gfrac, extra = ex[0][None], ex[6], ex[2]   # its iterations count too
+    sprob = prob if gfrac is None else build_problem(
+        cat, n, np.array([tip]), follower, np.array([loads.tip_moment]), [],
+        fractions=gfrac[None])
+    phi, conv, iters, res, snapped = solve_cases(sprob, 1, arc_model, start)
+    if gfrac is not None and not conv[0]:     # not on the graded arcs: equal arcs, regraded
+        ex = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, follower)
+        start, gfrac = ex[0][None] if ex is not None else None, None
+        extra += ex[2] if ex is not None else 0
+        phi, conv, i2, res, snapped = solve_cases(prob, 1, arc_model, start)
+        iters = iters + i2
+    iters = iters + extra
+    frac = gfrac
+    # stability (buckling) on equal arcs: the same tangent-angle curve
+    stable = stability(prob, phi if gfrac is None else
+                       remap(phi, np.full((1, n), 1.0 / n), gfrac[None]))
+    if spacing == 'graded' and gfrac is None and conv[0] and n > 1 and not follower:
         pg, fg, okg, itg, rg = regrade(prob, phi, arc_model)
         iters = iters + itg
         if okg[0]:

@@ -13,6 +13,7 @@ from typing import Optional
 import numpy as np
 from scipy.linalg.lapack import dgesv as _dgesv
 
+from .arcs import row_product
 from .equations import RHO_MAX, clothoid_terms
 from .linsolve import banded_solve
 
@@ -54,7 +55,6 @@ _COEF8 = _EC @ _EMAP                    # ... and k, k - km, k', (k - km)'
 # fewer terms where all arcs are short (many arcs): k terms while max|phi|^k / k! <= 1e-17
 _TERMS_FOR = list(range(6, _K_FAST + 1))
 _PHI_FOR_TERMS = [(1e-17 * math.factorial(k)) ** (1.0 / k) for k in _TERMS_FOR]
-_BLOCK = 256
 
 
 def _fast_consts(n: int):
@@ -75,7 +75,7 @@ def _arc_values(phi: np.ndarray, pmax: float, V: np.ndarray, coef: np.ndarray) -
         V1 = V[:, 1:k]
         V1[...] = phi[:, None]
         np.multiply.accumulate(V1, axis=1, out=V1)
-        return _product(V[:, :k], coef[:k])
+        return row_product(V[:, :k], coef[:k])
     V1 = V[:, 1:]
     m = coef.shape[1]
     k = 5 if m == 8 else 3
@@ -92,19 +92,7 @@ def _arc_values(phi: np.ndarray, pmax: float, V: np.ndarray, coef: np.ndarray) -
         return R
     V1[...] = np.where(big, 0.0, phi)[:, None]
     np.multiply.accumulate(V1, axis=1, out=V1)
-    return np.where(big[:, None], R, _product(V, coef))
-
-
-def _product(V: np.ndarray, coef: np.ndarray) -> np.ndarray:
-    """V @ coef in row blocks of _BLOCK: a large product would start BLAS threads, which
-    stall when the machine's cores are busy; blocks this small stay in one thread."""
-    n = V.shape[0]
-    if n <= _BLOCK:
-        return V @ coef
-    out = np.empty((n, coef.shape[1]), dtype=complex)
-    for i in range(0, n, _BLOCK):
-        np.matmul(V[i:i + _BLOCK], coef, out=out[i:i + _BLOCK])
-    return out
+    return np.where(big[:, None], R, row_product(V, coef))
 
 
 def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,

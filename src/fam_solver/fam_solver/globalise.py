@@ -59,11 +59,18 @@ def newton(prob: Problem, phi: np.ndarray, scale, max_iter: int, step_limit: flo
     act = np.arange(B)
     sub, sc, ph = prob, scale, phi.copy()
     bz = bezier
+    # Bezier arcs with loads at arc ends: the exact Bezier Jacobian (factors only where a step
+    # is taken); the exact model's factors (branch check) once, at the returned phi
+    analytic = bz is not None and all(t >= 1.0 for _, t, _ in prob.point_forces)
     for it in range(max_iter + 1):
         loads, m = sub.loads(sc)
-        r, fac, _ = evaluate(ph, sub.l, sub.w, loads, m, jac=True, clothoid=sub.clothoid)
-        if bz is not None:
-            r = bz.residual(ph, loads, m)
+        fac = state = None
+        if analytic:
+            r, state = bz.residual_state(ph, loads, m)
+        else:
+            r, fac, _ = evaluate(ph, sub.l, sub.w, loads, m, jac=True, clothoid=sub.clothoid)
+            if bz is not None:
+                r = bz.residual(ph, loads, m)
         res = np.max(np.abs(r), axis=1)
         res = np.where(np.isfinite(res), res, np.inf)
         improve = res < best_res[act]
@@ -71,14 +78,20 @@ def newton(prob: Problem, phi: np.ndarray, scale, max_iter: int, step_limit: flo
             ii = act[improve]
             best[ii] = ph[improve]
             best_res[ii] = res[improve]
-            for fb, f in zip(fac_best, fac, strict=True):
-                fb[ii] = f[improve]
+            if fac is not None:
+                for fb, f in zip(fac_best, fac, strict=True):
+                    fb[ii] = f[improve]
         conv = res <= tolerance(ph)
         if np.all(conv) or it == max_iter:
             break
         iters[act] += 1
-        Jb = bz.jacobian(ph, sc) if bz is not None else None
-        if Jb is not None:
+        exact = bz.factors(state) if state is not None else None
+        if state is not None and exact is None:     # degenerate: the circular-arc Jacobian
+            _, fac, _ = evaluate(ph, sub.l, sub.w, loads, m, jac=True, clothoid=sub.clothoid)
+        Jb = bz.jacobian(ph, sc) if bz is not None and not analytic else None
+        if exact is not None:
+            dx, _ = newton_step(exact[0], exact[1], r)
+        elif Jb is not None:
             try:
                 dx = np.linalg.solve(Jb, -r[:, :, None])[:, :, 0]
             except np.linalg.LinAlgError:
@@ -95,6 +108,9 @@ def newton(prob: Problem, phi: np.ndarray, scale, max_iter: int, step_limit: flo
             sub = subproblem(sub, keep)
             if bz is not None:
                 bz = BezierResidual(sub)
+    if analytic:
+        loads, m = prob.loads(scale)
+        fac_best = evaluate(best, prob.l, prob.w, loads, m, jac=True, clothoid=prob.clothoid)[1]
     conv = best_res <= tolerance(best)
     return best, conv, iters, best_res, fac_best
 
@@ -176,8 +192,9 @@ def solve_cases(prob: Problem, B: int, arc_model: str = 'exact',
         phi0 = guess
     else:
         coarse = coarse_problem(prob)
-        pc, cc, ic, _, _ = solve_cases(coarse, B, 'exact')
+        pc, cc, ic, _, snapped_c = solve_cases(coarse, B, 'exact')
         iters += ic
+        snapped |= snapped_c & cc      # the fine solution continues the coarse one's branch
         # curvature at the coarse midpoints -> fine arcs (piecewise linear), phi = kappa l
         sc, sf = midpoints(coarse), midpoints(prob)
         phi0 = np.stack([np.interp(sf, sc, pc[b] / coarse.l) for b in range(B)]) * prob.l

@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Tuple
+from typing import Callable, Optional, Tuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from catheter_common.checks import finite
 
@@ -173,14 +174,14 @@ class Shape:
             self._arc_lengths = np.full(n, self.length / n) if n else np.zeros(0)
         return self._arc_lengths
 
-    def points_at(self, s) -> np.ndarray:
+    def points_at(self, s: ArrayLike) -> np.ndarray:
         """Positions (len(s), 2) in m at arc-length fractions s in [0, 1]."""
         s = np.atleast_1d(np.asarray(s, dtype=float))
         if s.ndim != 1 or not np.all(np.isfinite(s)) or np.any(s < 0) or np.any(s > 1):
             raise ValueError('s must be a 1-D array of fractions in [0, 1]')
         return self._points_fn(s)
 
-    def angles_at(self, s) -> np.ndarray:
+    def angles_at(self, s: ArrayLike) -> np.ndarray:
         """Tangent angles (len(s),) in rad at arc-length fractions s in [0, 1]."""
         s = np.atleast_1d(np.asarray(s, dtype=float))
         if s.ndim != 1 or not np.all(np.isfinite(s)) or np.any(s < 0) or np.any(s > 1):
@@ -213,8 +214,9 @@ def _bounds(frac):
     return b
 
 
-def arc_shape(length: float, phi: np.ndarray, tip=None, tip_angle=None, fractions=None,
-              spacing='uniform', rates=None, **kw) -> Shape:
+def arc_shape(length: float, phi: ArrayLike, tip: Optional[complex] = None,
+              tip_angle: Optional[float] = None, fractions: Optional[ArrayLike] = None,
+              spacing: str = 'uniform', rates: Optional[ArrayLike] = None, **kw) -> Shape:
     """Shape of N circular arcs with bending angles ``phi`` (N,), base at the origin; arc
     lengths ``length * fractions`` ((N,), summing to 1; None: equal arcs). ``rates`` (N,):
     clothoid arcs with rho_i = kappa1_i l_i^2 (first order in rho, see ``arcs``).
@@ -355,7 +357,7 @@ class BatchShape:
                          spacing=self.spacing, fractions=self._frac[b],
                          rates=None if self.arc_rates is None else self.arc_rates[b])
 
-    def points_at(self, s) -> np.ndarray:
+    def points_at(self, s: ArrayLike) -> np.ndarray:
         """(B, len(s), 2) positions in m at arc-length fractions s in [0, 1]."""
         s = np.atleast_1d(np.asarray(s, dtype=float))
         if s.ndim != 1 or not np.all(np.isfinite(s)) or np.any(s < 0) or np.any(s > 1):

@@ -25,12 +25,15 @@ No rclpy here.
 """
 from __future__ import annotations
 
+from typing import Tuple
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from scipy.linalg.lapack import dgesv as _dgesv
 
 from .arcs import _CCOEF, SERIES_LIMIT, _powers, arc_funcs
-from .model import _bounds, _locate
+from .model import Shape, _bounds, _locate
 
 _MASKS = {}
 _MAXR = np.maximum.reduce
@@ -46,7 +49,8 @@ def _masks(n):
     return m
 
 
-def shape_sensitivity(shape, tip_force, s, ei: float, tip_moment: float = 0.0):
+def shape_sensitivity(shape: Shape, tip_force: ArrayLike, s: ArrayLike, ei: float,
+                      tip_moment: float = 0.0) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points, their derivative with respect to the tip force, and unit tangents.
 
     shape: a converged ``Shape`` of the exact arc model under a dead (base-frame) tip force

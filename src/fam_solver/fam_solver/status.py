@@ -9,6 +9,7 @@ from __future__ import annotations
 from enum import IntEnum
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 class Status(IntEnum):
@@ -39,7 +40,7 @@ _MESSAGES = {
 }
 
 
-def status_codes(converged, stable, snap_through) -> np.ndarray:
+def status_codes(converged: ArrayLike, stable: ArrayLike, snap_through: ArrayLike) -> np.ndarray:
     """Status codes (int array, the shape of the broadcast inputs) from the three flags."""
     conv = np.asarray(converged, dtype=bool)
     out = np.where(conv, int(Status.CONVERGED), int(Status.NOT_CONVERGED))

@@ -12,6 +12,7 @@ Pure numpy; no rclpy.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Tuple
 
 import numpy as np
 
@@ -143,3 +144,14 @@ def classify(cov: np.ndarray, status: str = 'ok') -> str:
     if status == 'ok' and np.linalg.eigvalsh(cov)[-1] > UNOBSERVABLE_STD ** 2:
         return 'axial_unobservable'
     return status
+
+
+def status_of(cov: np.ndarray, *faults) -> Tuple[str, str]:
+    """(status, message) of an estimate: those of the first of `faults` -- (failed, status,
+    message) triples, in order of precedence -- that failed; else the `classify` status of
+    the covariance and no message. A message may be a callable returning it, formatted only
+    when its fault is the one reported."""
+    for failed, status, message in faults:
+        if failed:
+            return status, message() if callable(message) else message
+    return classify(cov), ''

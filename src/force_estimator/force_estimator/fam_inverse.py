@@ -75,8 +75,8 @@ from typing import Optional
 
 import numpy as np
 
-from force_estimator.estimate import (DOMAIN_UNKNOWN, ForceEstimate, bounded, classify,
-                                      domain_distance, failed_estimate)
+from force_estimator.estimate import (DOMAIN_UNKNOWN, ForceEstimate, bounded,
+                                      domain_distance, failed_estimate, status_of)
 from force_estimator.inputs import control_points_to_features
 from force_estimator.inputs import check_control_points
 from force_estimator.uncertainty import (ALIGN_SIGMA, FORCE_PRIOR, SHAPE_NOISE,
@@ -439,16 +439,12 @@ class FamInverseEstimator:
                 cov = np.eye(2) * FORCE_PRIOR ** 2
         else:
             cov = np.eye(2) * FORCE_PRIOR ** 2
-        if not conv:
-            status, msg = 'not_converged', 'the FAM inversion did not converge'
-        elif not res <= self.max_residual:
-            status, msg = 'no_fit', (f'no tip force explains the shape: residual '
-                                     f'{1e3 * res:.3f} mm > {1e3 * self.max_residual:.3f} mm')
-        elif clipped:
-            status, msg = 'out_of_envelope', (f'|f| = {np.hypot(*f):.3g} N > f_max '
-                                              f'{self.f_max:g} N (scaled back)')
-        else:
-            status, msg = classify(cov), ''
+        status, msg = status_of(
+            cov, (not conv, 'not_converged', 'the FAM inversion did not converge'),
+            (not res <= self.max_residual, 'no_fit', lambda: f'no tip force explains the shape: '
+             f'residual {1e3 * res:.3f} mm > {1e3 * self.max_residual:.3f} mm'),
+            (clipped, 'out_of_envelope',
+             lambda: f'|f| = {np.hypot(*f):.3g} N > f_max {self.f_max:g} N (scaled back)'))
         dist = domain_distance(res / self.max_residual if np.isfinite(res) else np.inf)
         return FamInverseResult(force=force, covariance=cov, status=status, method='fam',
                                 primary='fam', domain_distance=dist, message=msg,

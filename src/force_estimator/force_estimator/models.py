@@ -66,8 +66,8 @@ from typing import Dict, Optional, Tuple
 import numpy as np
 
 from force_estimator.domain import DomainCheck
-from force_estimator.estimate import (ForceEstimate, bounded, classify, domain_distance,
-                                      failed_estimate)
+from force_estimator.estimate import (ForceEstimate, bounded, domain_distance,
+                                      failed_estimate, status_of)
 from force_estimator.inputs import (MAX_COORD, N_FEATURES, check_control_points,
                                     control_points_to_features)
 from force_estimator.uncertainty import FORCE_PRIOR, ObservabilityTable
@@ -367,15 +367,11 @@ class ForceModel:
             * self._ys + self._ym
         force, clipped = bounded(raw, self.f_bound)
         cov = self.covariance(force, nb)
-        if not ratio <= 1.0:
-            status = 'out_of_domain'
-            msg = (f'the control points are {ratio:.3g} x the domain threshold from the '
-                   f'training inputs')
-        elif clipped:
-            status, msg = 'out_of_envelope', (f'the model gave |f| = {np.hypot(*raw):.3g} N '
-                                              f'> {self.f_bound:.3g} N (scaled back)')
-        else:
-            status, msg = classify(cov), ''
+        status, msg = status_of(
+            cov, (not ratio <= 1.0, 'out_of_domain', lambda: f'the control points are '
+                  f'{ratio:.3g} x the domain threshold from the training inputs'),
+            (clipped, 'out_of_envelope', lambda: f'the model gave |f| = {np.hypot(*raw):.3g} N '
+             f'> {self.f_bound:.3g} N (scaled back)'))
         return ForceEstimate(force=force, covariance=cov, status=status, method=self.kind,
                              primary=self.kind, domain_distance=domain_distance(ratio),
                              message=msg)

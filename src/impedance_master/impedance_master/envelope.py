@@ -20,7 +20,7 @@ from typing import Optional
 
 import numpy as np
 
-from catheter_common.checks import finite, positive
+from catheter_common.checks import check_fields, finite
 from impedance_master.impedance import Impedance
 
 
@@ -62,10 +62,9 @@ class ModelEnvelope:
     max_anchor_force: float = 20.0
 
     def __post_init__(self):
-        for name in ('max_mass', 'max_damping', 'max_stiffness', 'max_offset', 'max_table',
-                     'max_force', 'max_speed', 'max_accel', 'max_sigma', 'max_v_s',
-                     'max_beta', 'max_anchor_force'):
-            positive(name, getattr(self, name))
+        check_fields(self, positive=('max_mass', 'max_damping', 'max_stiffness', 'max_offset',
+                                     'max_table', 'max_force', 'max_speed', 'max_accel',
+                                     'max_sigma', 'max_v_s', 'max_beta', 'max_anchor_force'))
         if not finite('x_lo', self.x_lo) < finite('x_hi', self.x_hi):
             raise ValueError(f'x_lo must be < x_hi, got {self.x_lo!r}, {self.x_hi!r}')
 

@@ -36,7 +36,7 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from catheter_common.checks import finite, nonneg, positive
+from catheter_common.checks import check_fields, positive
 from impedance_master.haptic import DeviceParams, HapticDevice
 from impedance_master.identification import SlidingWindowIdentifier, make_identifier
 from impedance_master.metrics import (default_eval_start, error_stats, outage_mask,
@@ -120,13 +120,8 @@ class ExperimentConfig:
             raise ValueError(f'mode must be one of {MODES}, got {self.mode!r}')
         if self.experiment not in ('I', 'II'):
             raise ValueError(f"experiment must be 'I' or 'II', got {self.experiment!r}")
-        nonneg('delay', self.delay)
-        nonneg('jitter', self.jitter)
-        if not 0.0 <= finite('loss', self.loss) <= 1.0:
-            raise ValueError(f'loss must be in [0, 1], got {self.loss!r}')
-        positive('rate', self.rate)
-        positive('impedance_rate', self.impedance_rate)
-        positive('limit', self.limit)
+        check_fields(self, nonneg=('delay', 'jitter'), probability=('loss',),
+                     positive=('rate', 'impedance_rate', 'limit'))
         if self.duration is not None:
             positive('duration', self.duration)
         if self.pretrain not in (None, 'I', 'II'):

@@ -21,10 +21,11 @@ from __future__ import annotations
 
 import math
 import random
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Optional
 
-from catheter_common.checks import finite, nonneg, positive, seed as check_seed
+from catheter_common.checks import (check_declared, checked, finite, integer, nonneg, positive,
+                                    seed as check_seed)
 
 
 @dataclass(frozen=True)
@@ -39,35 +40,27 @@ class DeviceParams:
     feedforward True; force-sensor noise N 0.002; substeps 10 per control period.
     """
 
-    moving_mass: float = 0.15
-    coulomb_friction: float = 0.01
-    viscous_friction: float = 0.05
-    kt: float = 0.025
-    radius: float = 0.0125
-    resistance: float = 1.5
-    inductance: float = 6e-4
-    v_max: float = 12.0
-    i_max: float = 2.0
-    kp_i: float = 3.8
-    ki_i: float = 9400.0
-    kp: float = 0.35
-    ki: float = 150.0
-    kd: float = 0.0
+    moving_mass: float = checked(0.15, 'positive')
+    coulomb_friction: float = checked(0.01, 'nonneg')
+    viscous_friction: float = checked(0.05, 'nonneg')
+    kt: float = checked(0.025, 'positive')
+    radius: float = checked(0.0125, 'positive')
+    resistance: float = checked(1.5, 'positive')
+    inductance: float = checked(6e-4, 'positive')
+    v_max: float = checked(12.0, 'positive')
+    i_max: float = checked(2.0, 'positive')
+    kp_i: float = checked(3.8, 'nonneg')
+    ki_i: float = checked(9400.0, 'nonneg')
+    kp: float = checked(0.35, 'nonneg')
+    ki: float = checked(150.0, 'nonneg')
+    kd: float = checked(0.0, 'nonneg')
     feedforward: bool = True
-    sensor_noise: float = 0.002
+    sensor_noise: float = checked(0.002, 'nonneg')
     substeps: int = 10
 
     def __post_init__(self):
-        for f in fields(self):
-            if f.name in ('feedforward', 'substeps'):
-                continue
-            nonneg(f.name, getattr(self, f.name))
-        for name in ('moving_mass', 'kt', 'radius', 'resistance', 'inductance', 'v_max',
-                     'i_max'):
-            positive(name, getattr(self, name))
-        if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) \
-                or not 1 <= self.substeps <= 1000:
-            raise ValueError(f'substeps must be an int in 1..1000, got {self.substeps!r}')
+        check_declared(self)
+        integer('substeps', self.substeps, 1, 1000)
 
 
 class DeviceSample(float):

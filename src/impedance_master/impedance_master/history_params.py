@@ -9,13 +9,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Tuple
 
-from catheter_common.checks import finite, nonneg, positive
-
-
-def _int(name: str, value, lo: int, hi: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise ValueError(f'{name} must be an int in {lo}..{hi}, got {value!r}')
-    return value
+from catheter_common.checks import check_fields, finite, integer, nonneg
 
 
 @dataclass(frozen=True)
@@ -132,9 +126,9 @@ class HistoryParams:
         finite('x_max', self.x_max)
         if self.x_max <= self.x_min:
             raise ValueError(f'x_max must be > x_min, got {self.x_max!r} <= {self.x_min!r}')
-        _int('n_nodes', self.n_nodes, 3, 128)
-        _int('solve_every', self.solve_every, 1, 100_000)
-        _int('select_every', self.select_every, 1, 100_000)
+        integer('n_nodes', self.n_nodes, 3, 128)
+        integer('solve_every', self.solve_every, 1, 100_000)
+        integer('select_every', self.select_every, 1, 100_000)
         sig = self.sigmas
         if isinstance(sig, list):
             object.__setattr__(self, 'sigmas', tuple(sig))
@@ -145,13 +139,12 @@ class HistoryParams:
         if self.sigma not in self.sigmas:
             raise ValueError(f'sigma {self.sigma!r} must be one of sigmas {self.sigmas!r}')
         nonneg('sigma', self.sigma)
-        for name in ('v_s', 'beta', 'memory', 'rest_velocity', 'smoothness',
-                     'scale_time', 'friction_smoothness', 'static_ridge', 'breakaway_ridge',
-                     'viscous_ridge', 'max_mass', 'max_force'):
-            positive(name, getattr(self, name))
-        for name in ('friction_kink', 'origin_weight', 'residual_time', 'clip_floor',
-                     'clip_factor', 'select_margin'):
-            nonneg(name, getattr(self, name))
+        check_fields(self,
+                     positive=('v_s', 'beta', 'memory', 'rest_velocity', 'smoothness',
+                               'scale_time', 'friction_smoothness', 'static_ridge',
+                               'breakaway_ridge', 'viscous_ridge', 'max_mass', 'max_force'),
+                     nonneg=('friction_kink', 'origin_weight', 'residual_time', 'clip_floor',
+                             'clip_factor', 'select_margin'))
         if not isinstance(self.static_first_difference, bool):
             raise ValueError('static_first_difference must be a bool, got '
                              f'{self.static_first_difference!r}')

@@ -40,7 +40,7 @@ from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.messages import impedance_fields, impedance_key, master_command_values
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
-from catheter_common.ros_node import run_node
+from catheter_common.ros_node import node_main
 from impedance_master.impedance import Impedance
 from impedance_master.rendering import DfrRenderer, ImaRenderer
 
@@ -250,10 +250,7 @@ class ImaMasterNode(Node):
 
 
 NODE_CLASS = ImaMasterNode
-
-
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':

@@ -37,7 +37,7 @@ from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.messages import impedance_msg
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
-from catheter_common.ros_node import run_node
+from catheter_common.ros_node import node_main
 from impedance_master.identification import SlidingWindowIdentifier, make_identifier
 from impedance_master.state_file import StateFile
 
@@ -187,10 +187,7 @@ class ImpedanceIdentifierNode(Node):
 
 
 NODE_CLASS = ImpedanceIdentifierNode
-
-
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':

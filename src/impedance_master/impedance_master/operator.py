@@ -27,7 +27,7 @@ from typing import List, Tuple
 
 import numpy as np
 
-from catheter_common.checks import finite, positive, probability, seed as check_seed
+from catheter_common.checks import finite, integer, positive, probability, seed as check_seed
 
 X_MAX = 0.056        # m, thesis maximum insertion
 V_MAX = 0.0413       # m/s, thesis maximum insertion speed
@@ -150,8 +150,7 @@ class SinesTrajectory:
         self.seed = check_seed('seed', seed)
         self.x_lo, self.x_hi = _check_range(x_lo, x_hi)
         self.v_max = positive('v_max', v_max)
-        if isinstance(n_sines, bool) or not isinstance(n_sines, int) or not 1 <= n_sines <= 16:
-            raise ValueError(f'n_sines must be an int in 1..16, got {n_sines!r}')
+        integer('n_sines', n_sines, 1, 16)
         f_lo, f_hi = positive('f_lo', f_lo), positive('f_hi', f_hi)
         if f_hi < f_lo:
             raise ValueError(f'f_hi must be >= f_lo, got {f_hi!r} < {f_lo!r}')

@@ -61,35 +61,22 @@ def _same(a: Impedance, b: Optional[Impedance]) -> bool:
             and a.anchor == b.anchor)
 
 
+def _of_output(name: str) -> property:
+    """A runtime parameter of the safe output stage (SafeOutput validates it), read and set
+    through the renderer."""
+    return property(lambda self: getattr(self._out, name),
+                    lambda self, value: setattr(self._out, name, value))
+
+
 class _Rendered:
     """What both renderers share: the safe output stage and its runtime parameters."""
 
     _out: SafeOutput
     stale_time: float
 
-    @property
-    def limit(self) -> float:
-        return self._out.limit
-
-    @limit.setter
-    def limit(self, value) -> None:
-        self._out.limit = value
-
-    @property
-    def max_rate(self) -> float:
-        return self._out.max_rate
-
-    @max_rate.setter
-    def max_rate(self, value) -> None:
-        self._out.max_rate = value
-
-    @property
-    def fallback_time(self) -> float:
-        return self._out.fallback_time
-
-    @fallback_time.setter
-    def fallback_time(self, value) -> None:
-        self._out.fallback_time = value
+    limit = _of_output('limit')
+    max_rate = _of_output('max_rate')
+    fallback_time = _of_output('fallback_time')
 
     @property
     def n_clamped(self) -> int:

@@ -22,7 +22,7 @@ import numbers
 from dataclasses import dataclass, field
 from typing import Dict
 
-from catheter_common.checks import nonneg, positive
+from catheter_common.checks import Checked, nonneg, positive, positive_or_inf
 
 #: N, a candidate force beyond this is absurd (no accepted model gives it inside the
 #: renderer's state box): a fault, whatever the limit
@@ -49,16 +49,6 @@ class RendererStatus:
     limit: float = 0.0
 
 
-def _max_rate(value) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f'max_rate must be a number > 0 (inf: none), got {value!r}') from None
-    if math.isnan(v) or v <= 0.0:
-        raise ValueError(f'max_rate must be > 0 (inf: none), got {value!r}')
-    return v
-
-
 class SafeOutput:
     """Clamp, slew limit and fallback of a renderer's output (see module doc).
 
@@ -83,29 +73,9 @@ class SafeOutput:
         self.n_fallbacks = 0
 
     # runtime-settable parameters (validated; apply from the next call)
-    @property
-    def limit(self) -> float:
-        return self._limit
-
-    @limit.setter
-    def limit(self, value) -> None:
-        self._limit = positive('limit', value)
-
-    @property
-    def max_rate(self) -> float:
-        return self._max_rate
-
-    @max_rate.setter
-    def max_rate(self, value) -> None:
-        self._max_rate = _max_rate(value)
-
-    @property
-    def fallback_time(self) -> float:
-        return self._fallback_time
-
-    @fallback_time.setter
-    def fallback_time(self, value) -> None:
-        self._fallback_time = nonneg('fallback_time', value)
+    limit = Checked(positive)
+    max_rate = Checked(positive_or_inf)
+    fallback_time = Checked(nonneg)
 
     def fault(self) -> None:
         """Start (or continue) the fallback from the last safe output."""

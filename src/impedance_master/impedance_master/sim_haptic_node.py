@@ -39,11 +39,12 @@ from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.messages import impedance_fields, master_command_msg
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
-from catheter_common.ros_node import run_node
+from catheter_common.ros_node import node_main
 from impedance_master.haptic import HapticDevice
 from impedance_master.operator import OPERATORS, experiment_trajectory
 from sim_slave.link import Link
-from sim_slave.sim_slave_node import link_config, link_params
+from sim_slave.link_side import (RunClock, apply_link_changes, link_config, link_params,
+                                 link_to_diag)
 
 #: force at the operator's hand (re-exported for the tests and tools that import it here)
 MASTER_HAND_FORCE = T.MASTER_HAND_FORCE
@@ -86,8 +87,7 @@ class SimHapticNode(Node):
                                    hand_damping=p['hand_damping'], seed=self.seed)
         self._new_links()
         self.f_rendered = 0.0
-        self.t0 = None
-        self.t_last = None
+        self.run = RunClock()
         self.last = None
         self.diag = Diagnostics(self)
         self.diag.count('bad_messages', 0)
@@ -112,11 +112,9 @@ class SimHapticNode(Node):
             f'{self.link_cfg.describe()}')
 
     def _apply_params(self, changes, values) -> None:
-        if any(k.startswith('link.') for k in changes):
-            cfg = link_config(values)                    # ValueError refuses the change
+        cfg = apply_link_changes(changes, values, self.link_imp, self.link_force)
+        if cfg is not None:
             self.link_cfg = cfg
-            self.link_imp.config = cfg
-            self.link_force.config = cfg
 
     def _new_links(self) -> None:
         self.link_imp = Link(self.link_cfg, seed=2 * self.seed + 11)
@@ -124,15 +122,6 @@ class SimHapticNode(Node):
 
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
-
-    def _t(self):
-        """Time since the first tick (s), or None before it / after a clock jump back."""
-        if self.t0 is None:
-            return None
-        t = self._now() - self.t0
-        if self.t_last is not None and t < self.t_last:
-            return None
-        return t
 
     def _on_rendered(self, msg: WrenchStamped) -> None:
         f = msg.wrench.force.x
@@ -144,7 +133,7 @@ class SimHapticNode(Node):
         self.diag.count('rendered_forces')
 
     def _send(self, link: Link, msg, key: str) -> None:
-        t = self._t()
+        t = self.run.at(self._now())
         if t is None:
             self.diag.count(key + '_before_start')
             return
@@ -174,17 +163,12 @@ class SimHapticNode(Node):
 
     def _tick(self) -> None:
         stamp = self.get_clock().now()
-        now = stamp.nanoseconds * 1e-9
-        if self.t0 is None:
-            self.t0 = now
-        t = now - self.t0
-        if self.t_last is not None and t < self.t_last:
+        t, restarted = self.run.tick(stamp.nanoseconds * 1e-9)
+        if restarted:
             self.get_logger().warning('the clock jumped back: restarting script, device, links')
             self.diag.count('clock_resets')
-            self.t0, t = now, 0.0
             self.device.reset()
             self._new_links()
-        self.t_last = t
         xh, vh, ah = self.traj.sample(t)
         s = self.device.step(self.f_rendered, xh, vh, ah)
         self.last = s
@@ -215,15 +199,9 @@ class SimHapticNode(Node):
 
     def _to_diag(self) -> None:
         d = self.diag
-        for name, link in (('impedance', self.link_imp), ('force', self.link_force)):
-            st = link.stats
-            d.set(f'link_{name}_lost_random', st.lost_random)
-            d.set(f'link_{name}_lost_outage', st.lost_outage)
-            d.set(f'link_{name}_dropped_stale', st.dropped_stale)
-        outage = self.t_last is not None and self.link_imp.in_outage(self.t_last)
-        d.set('link_in_outage', str(outage))
-        d.condition('link_outage', WARN if outage else 0,
-                    'link outage: the slave\'s impedance and force do not arrive')
+        link_to_diag(d, [('link_impedance', self.link_imp), ('link_force', self.link_force)],
+                     self.run.t_last, 'the slave\'s impedance and force do not arrive',
+                     counters=('lost_random', 'lost_outage', 'dropped_stale'))
         if self.last is not None:
             d.set('hand_force_n', float(self.last.f_hand))
             d.set('insertion_m', float(self.last.x))
@@ -231,10 +209,7 @@ class SimHapticNode(Node):
 
 
 NODE_CLASS = SimHapticNode
-
-
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Optional, Tuple
 
-from catheter_common.checks import finite, nonneg, positive
+from catheter_common.checks import finite, nonneg, number, positive, positive_or_inf
 
 
 class SlaveRobot:
@@ -47,34 +47,14 @@ class SlaveRobot:
             raise ValueError(f'feedforward must be in [0, 1], got {feedforward!r}')
         self.ff_time_constant = nonneg('ff_time_constant', ff_time_constant)
         self.motor_time_constant = nonneg('motor_time_constant', motor_time_constant)
-        self.max_speed = self._limit('max_speed', max_speed)
-        self.max_accel = self._limit('max_accel', max_accel)
-        lo, hi = self._bound('x_min', x_min), self._bound('x_max', x_max)
+        self.max_speed = positive_or_inf('max_speed', max_speed)
+        self.max_accel = positive_or_inf('max_accel', max_accel)
+        lo, hi = number('x_min', x_min), number('x_max', x_max)
         if not lo < hi:
             raise ValueError(f'x_min must be < x_max, got x_min={x_min!r}, x_max={x_max!r}')
         self.x_min, self.x_max = lo, hi
         self.x0 = finite('x0', x0)
         self.reset()
-
-    @staticmethod
-    def _limit(name, value) -> float:
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(f'{name} must be a number > 0, got {value!r}') from None
-        if math.isnan(v) or v <= 0.0:
-            raise ValueError(f'{name} must be > 0 (inf for none), got {value!r}')
-        return v
-
-    @staticmethod
-    def _bound(name, value) -> float:
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(f'{name} must be a number, got {value!r}') from None
-        if math.isnan(v):
-            raise ValueError(f'{name} must not be NaN')
-        return v
 
     def reset(self, x0: Optional[float] = None) -> None:
         """Put the axis at rest at `x0` (default: the constructor's x0)."""

@@ -6,7 +6,7 @@ import math
 import random
 from typing import Optional
 
-from catheter_common.checks import finite, nonneg, seed as check_seed
+from catheter_common.checks import finite, nonneg, positive_or_inf, seed as check_seed
 
 
 class ForceSensor:
@@ -26,13 +26,7 @@ class ForceSensor:
         self.noise_std = nonneg('noise_std', noise_std)
         self.bias = finite('bias', bias)
         self.resolution = nonneg('resolution', resolution)
-        try:
-            sat = float(saturation)
-        except (TypeError, ValueError):
-            raise ValueError(f'saturation must be a number > 0, got {saturation!r}') from None
-        if math.isnan(sat) or sat <= 0.0:
-            raise ValueError(f'saturation must be > 0 (inf for none), got {saturation!r}')
-        self.saturation = sat
+        self.saturation = positive_or_inf('saturation', saturation)
         self.seed = check_seed('seed', seed)
         self.reset()
 

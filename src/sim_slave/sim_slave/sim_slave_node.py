@@ -41,8 +41,10 @@ from catheter_common.checks import finite
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
-from catheter_common.ros_node import run_node
-from sim_slave.link import Link, LinkConfig
+from catheter_common.ros_node import node_main
+from sim_slave.link import Link
+from sim_slave.link_side import (RunClock, apply_link_changes, link_config, link_params,
+                                 link_to_diag)
 from sim_slave.node_params import DEFAULT_VESSEL, VESSEL_CHOICES, vessel_from_params
 from sim_slave.robot import SlaveRobot
 from sim_slave.sensor import ForceSensor
@@ -74,31 +76,6 @@ VESSEL_PARAM_RANGES = {
 _VESSEL_LOWER = {'stribeck_ratio': 1.0, 'capstan_length': 1e-6, 'stribeck_velocity': 1e-6,
                  'presliding_displacement': 1e-7, 'wall_exponent': 0.1, 'cardiac_depth': 1e-6,
                  'catheter_mass': 1e-5}
-
-
-def _check_outages(flat):
-    LinkConfig.from_flat(0.0, 0.0, 0.0, flat)      # ValueError: odd length, negative length
-
-
-def link_params(what: str):
-    """The simulated link's parameters, declared the same way by every node that holds a side
-    of the link (`what` names the traffic this side receives). They apply at run time."""
-    return (
-        Param('link.delay', 0.2, f'one-way delay of {what}, s', 0.0, 10.0, dynamic=True),
-        Param('link.jitter', 0.0, f'extra delay U(0, jitter) per packet of {what}, s', 0.0, 5.0,
-              dynamic=True),
-        Param('link.loss', 0.0, f'probability that a packet of {what} is lost', 0.0, 1.0,
-              dynamic=True),
-        Param('link.outages', [4.0, 1.0, 8.0, 1.0], 'link outages as a flat list start,length,'
-              '... in s after the first timer tick; [0.0, 0.0] for none', numbers=True,
-              dynamic=True, check=_check_outages),
-    )
-
-
-def link_config(values) -> LinkConfig:
-    """The LinkConfig of the link.* parameter values."""
-    return LinkConfig.from_flat(values['link.delay'], values['link.jitter'],
-                                values['link.loss'], values['link.outages'])
 
 
 PARAMS = table(
@@ -147,8 +124,7 @@ class SimSlaveNode(Node):
                                    robot=robot, rotation=default_rotation_axis(self.rate))
         self.x_cmd = robot.x
         self.rot_cmd = self.sim.rotation.x
-        self.t0 = None              # node-clock time of the first tick, s
-        self.t_last = None          # relative time of the last tick, s
+        self.run = RunClock()
         self._err_max = 0.0
         self._err_sq = 0.0
         self._err_n = 0
@@ -173,8 +149,7 @@ class SimSlaveNode(Node):
             f'{self.pub_js.topic_name}, {self.pub_force.topic_name}')
 
     def _apply_params(self, changes, values) -> None:
-        if any(k.startswith('link.') for k in changes):
-            self.link.config = link_config(values)       # ValueError refuses the change
+        apply_link_changes(changes, values, self.link)
         if 'max_catchup_steps' in changes:
             self.max_catchup = values['max_catchup_steps']
 
@@ -182,7 +157,7 @@ class SimSlaveNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _on_command(self, msg: MasterCommand) -> None:
-        if self.t0 is None:
+        if self.run.t0 is None:
             self.diag.count('commands_before_start')
             return
         try:
@@ -192,8 +167,8 @@ class SimSlaveNode(Node):
             self.diag.count('bad_commands')
             self.diag.bad_input('command', str(exc))
             return
-        t = self._now() - self.t0
-        if self.t_last is not None and t < self.t_last:
+        t = self.run.at(self._now())
+        if t is None:
             return          # the clock jumped back; the next tick resets
         self.diag.count('commands_received')
         try:
@@ -201,14 +176,13 @@ class SimSlaveNode(Node):
         except ValueError:   # a send time before the previous one: only after a clock reset
             self.diag.count('commands_out_of_time')
 
-    def _restart(self, now: float) -> None:
+    def _restart(self) -> None:
         self.get_logger().warning('the clock jumped back: restarting the simulation')
         self.diag.count('clock_resets')
         self.sim.reset()
         self.link.reset()
         self.x_cmd = self.sim.robot.x
         self.rot_cmd = self.sim.rotation.x
-        self.t0, self.t_last = now, None
 
     def _tick(self) -> None:
         if not self.context.ok():      # shutting down (SIGTERM): a last queued tick does nothing
@@ -221,14 +195,9 @@ class SimSlaveNode(Node):
 
     def _step(self) -> None:
         stamp = self.get_clock().now()
-        now = stamp.nanoseconds * 1e-9
-        if self.t0 is None:
-            self.t0 = now
-        t = now - self.t0
-        if self.t_last is not None and t < self.t_last:
-            self._restart(now)
-            t = 0.0
-        self.t_last = t
+        t, restarted = self.run.tick(stamp.nanoseconds * 1e-9)
+        if restarted:
+            self._restart()
         got = self.link.receive(t)
         if got is not None:
             self.diag.count('commands_delivered')
@@ -263,17 +232,9 @@ class SimSlaveNode(Node):
             self.pub_force.publish(w)
 
     def _stats_to_diag(self) -> None:
-        s = self.link.stats
         d = self.diag
-        d.set('link_sent', s.sent)
-        d.set('link_delivered', s.delivered)
-        d.set('link_lost_random', s.lost_random)
-        d.set('link_lost_outage', s.lost_outage)
-        d.set('link_dropped_stale', s.dropped_stale)
-        outage = self.t_last is not None and self.link.in_outage(self.t_last)
-        d.set('link_in_outage', str(outage))
-        d.condition('link_outage', WARN if outage else 0,
-                    'link outage: master commands are lost, the robot holds the last one')
+        link_to_diag(d, [('link', self.link)], self.run.t_last,
+                     'master commands are lost, the robot holds the last one')
         last = self.sim.last
         if last is not None:
             d.set('insertion_m', float(last.x))
@@ -285,10 +246,7 @@ class SimSlaveNode(Node):
 
 
 NODE_CLASS = SimSlaveNode
-
-
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':

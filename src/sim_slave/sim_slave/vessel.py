@@ -32,16 +32,16 @@ from __future__ import annotations
 
 import math
 import random
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
-from catheter_common.checks import finite, nonneg, positive, seed as check_seed
+from catheter_common.checks import CheckedFields, checked, finite, seed as check_seed
 from sim_slave.vessel_extras import (VesselExtras, extra_friction, smooth_coulomb,
                                      stenosis_force)
 
 
 @dataclass(frozen=True)
-class VesselParams:
+class VesselParams(CheckedFields):
     """Parameters of the vessel interaction (SI units). Defaults reproduce the thesis's range.
 
     The thesis (Ch. 4, Exp. I) reports a maximum insertion force of 0.387 N for insertion up to
@@ -94,40 +94,28 @@ class VesselParams:
             a 1 m 7 Fr catheter weighs a few grams).
     """
 
-    friction_per_length: float = 3.0
-    capstan_length: float = 0.10
-    stribeck_ratio: float = 1.4
-    stribeck_velocity: float = 0.002
-    presliding_displacement: float = 3e-4
-    bristle_damping: float = 0.5
-    viscous_per_length: float = 20.0
-    wall_depth: float = 0.045
-    wall_stiffness: float = 70.0
-    wall_exponent: float = 1.5
-    wall_damping: float = 2.0
-    cardiac_amplitude: float = 0.01
-    cardiac_frequency: float = 1.2
-    cardiac_depth: float = 0.03
-    shaft_stiffness: float = 0.0
-    shaft_damping: float = 0.5
-    catheter_mass: float = 0.005
+    friction_per_length: float = checked(3.0, 'nonneg')
+    capstan_length: float = checked(0.10, 'positive')
+    stribeck_ratio: float = checked(1.4)
+    stribeck_velocity: float = checked(0.002, 'positive')
+    presliding_displacement: float = checked(3e-4, 'positive')
+    bristle_damping: float = checked(0.5, 'nonneg')
+    viscous_per_length: float = checked(20.0, 'nonneg')
+    wall_depth: float = checked(0.045, 'nonneg')
+    wall_stiffness: float = checked(70.0, 'nonneg')
+    wall_exponent: float = checked(1.5, 'positive')
+    wall_damping: float = checked(2.0, 'nonneg')
+    cardiac_amplitude: float = checked(0.01, 'nonneg')
+    cardiac_frequency: float = checked(1.2, 'nonneg')
+    cardiac_depth: float = checked(0.03, 'positive')
+    shaft_stiffness: float = checked(0.0, 'nonneg')
+    shaft_damping: float = checked(0.5, 'nonneg')
+    catheter_mass: float = checked(0.005, 'positive')
 
     def __post_init__(self):
-        for f in fields(self):
-            finite(f.name, getattr(self, f.name))
-        for name in ('friction_per_length', 'bristle_damping', 'viscous_per_length',
-                     'wall_depth', 'wall_stiffness', 'wall_damping', 'cardiac_amplitude',
-                     'cardiac_frequency', 'shaft_stiffness', 'shaft_damping'):
-            nonneg(name, getattr(self, name))
-        for name in ('capstan_length', 'stribeck_velocity', 'presliding_displacement',
-                     'wall_exponent', 'cardiac_depth', 'catheter_mass'):
-            positive(name, getattr(self, name))
+        super().__post_init__()
         if self.stribeck_ratio < 1.0:
             raise ValueError(f'stribeck_ratio must be >= 1, got {self.stribeck_ratio!r}')
-
-    def as_dict(self) -> dict:
-        """Field name -> value (for parameters, logs and YAML)."""
-        return asdict(self)
 
 
 class VesselForce(NamedTuple):

@@ -24,13 +24,13 @@ stateful parts (friction state, time) stay in `VesselModel`.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 
-from catheter_common.checks import finite, nonneg, positive
+from catheter_common.checks import CheckedFields, checked
 
 
 @dataclass(frozen=True)
-class VesselExtras:
+class VesselExtras(CheckedFields):
     """Structure terms added to a `VesselParams` vessel (SI units; all off by default).
 
     Attributes:
@@ -54,32 +54,18 @@ class VesselExtras:
         breathing_frequency: Hz, 0.25 (15 breaths per minute, > 0).
     """
 
-    friction_quadratic: float = 0.0
-    friction_step: float = 0.0
-    friction_step_spacing: float = 0.015
-    friction_step_width: float = 5e-4
-    coulomb_velocity: float = 0.0
-    wall_viscous: float = 0.0
-    stenosis_depth: float = 0.0
-    stenosis_length: float = 0.004
-    stenosis_force: float = 0.0
-    stenosis_friction: float = 0.0
-    breathing_amplitude: float = 0.0
-    breathing_frequency: float = 0.25
-
-    def __post_init__(self):
-        for f in fields(self):
-            finite(f.name, getattr(self, f.name))
-        for name in ('friction_quadratic', 'friction_step', 'coulomb_velocity', 'wall_viscous',
-                     'stenosis_depth', 'stenosis_force', 'stenosis_friction',
-                     'breathing_amplitude'):
-            nonneg(name, getattr(self, name))
-        for name in ('friction_step_spacing', 'friction_step_width', 'stenosis_length',
-                     'breathing_frequency'):
-            positive(name, getattr(self, name))
-
-    def as_dict(self) -> dict:
-        return asdict(self)
+    friction_quadratic: float = checked(0.0, 'nonneg')
+    friction_step: float = checked(0.0, 'nonneg')
+    friction_step_spacing: float = checked(0.015, 'positive')
+    friction_step_width: float = checked(5e-4, 'positive')
+    coulomb_velocity: float = checked(0.0, 'nonneg')
+    wall_viscous: float = checked(0.0, 'nonneg')
+    stenosis_depth: float = checked(0.0, 'nonneg')
+    stenosis_length: float = checked(0.004, 'positive')
+    stenosis_force: float = checked(0.0, 'nonneg')
+    stenosis_friction: float = checked(0.0, 'nonneg')
+    breathing_amplitude: float = checked(0.0, 'nonneg')
+    breathing_frequency: float = checked(0.25, 'positive')
 
     @property
     def friction_terms(self) -> bool:
