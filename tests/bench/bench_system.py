@@ -4,8 +4,10 @@ reference measured in the same run, and the ratio.
     scripts/bench system            # or: python tests/bench/bench_system.py [--quick]
 
 1. Lockstep: the 12 s Experiment II scenario (whatever of its graph exists) on the 1 ms simulated
-   clock: real-time factor with the in-process bus, with and without recording; reference: the
-   same graph in lockstep through DDS (waiting for delivery each step), 1.5 s.
+   clock: real-time factor with the in-process bus, with and without recording, and recorded
+   without the vision chain (its image outputs left out, so camera, shape and estimator do
+   not run); reference: the same graph in lockstep through DDS (waiting for delivery each
+   step), 1.5 s. After the table: each node's callback time per simulated second.
 2. Real time, the split layout (master / slave / vision processes over DDS, each recording
    its own nodes' messages, merged into the bag by the runner) beside the one-process layout
    (reference), on the machine as it is ("quiet") and with a busy-loop process occupying one
@@ -13,7 +15,8 @@ reference measured in the same run, and the ratio.
    each with 5 % injected link loss: rate and period p50/p99/max of every 1 kHz stream,
    measured where it is published; image -> tip force latency in the vision process; what
    DDS lost on the link topics (from the header stamps both ends saw) against the injected
-   loss; recorder loss; GC and scheduling per process; reference: a lone 1 kHz timer.
+   loss; recorder loss; GC and scheduling per process; the CPU each process used while its
+   loop ran (by thread) against the one process; reference: a lone 1 kHz timer.
 3. Image -> tip force latency alone: synthetic 800x800 frames of the system camera at 30 Hz ->
    shape_node -> force_estimator_node (svr; fam when no model is installed).
 4. Recorder: write throughput of McapRecorder (pre-serialised CDR) against mcap_ros2's Writer
@@ -78,6 +81,14 @@ def lockstep(duration, quick):
         row('  messages recorded / lost', sum(r.recorded.values()), None, '', ratio=float('nan'),
             fmt='{:.0f}')
         ROWS[-1] = (ROWS[-1][0], f'{sum(r.recorded.values())} / {sum(r.lost.values())}', '', '')
+        LOCK.append(r)
+        sc = load_scenario('experiment_ii')
+        sc['duration'] = duration
+        sc['outputs'] = [t for t in sc['outputs'] if t not in VISION_OUTPUTS]
+        rv = ScenarioRunner(sc, bag=f'{tmp}/nv.mcap', progress=False, log=lambda *_: None).run()
+        row(f'lockstep {duration:g} s Exp. II without the vision chain (outputs: no image '
+            'topics), recorded', rv.realtime_factor, r.realtime_factor, 'x', fmt='{:.2f}')
+        note('    its nodes', ', '.join(rv.nodes))
         sc = load_scenario('experiment_ii')
         sc['duration'] = duration
         r2 = ScenarioRunner(sc, record=False, progress=False, log=lambda *_: None).run()
@@ -92,6 +103,13 @@ def lockstep(duration, quick):
         note('  nodes in the lockstep graph', nodes)
         if r.skipped:
             note('  not available (not measured)', ', '.join(r.skipped))
+
+
+#: the outputs of Experiment II that only the vision chain (camera, shape, estimator) makes
+VISION_OUTPUTS = {'/catheter/tip_wrench', '/catheter/tip_force', '/catheter/control_points',
+                  '/camera/tip_force_truth'}
+#: the recorded lockstep run (for "where the time goes")
+LOCK = []
 
 
 #: the 1 kHz streams, the process that publishes them in the split layout, and which are
@@ -136,6 +154,12 @@ def realtime_run(layout, duration, tmp):
         streams.update(rt.get('streams', {}))
         lat.update(rt.get('latency', {}))
     return streams, lat, r
+
+
+def cpu_share(rt):
+    """CPU s per s of loop (1.0 = one core) from a process's real-time report (NaN without)."""
+    cpu, loop = rt.get('cpu_s'), rt.get('loop_s')
+    return cpu / loop if cpu is not None and loop else float('nan')
 
 
 def realtime(duration):
@@ -203,6 +227,22 @@ def realtime(duration):
             note(f'  {name} process: scheduling, GC collections (gen0/1/2), GC total',
                  f"{rt.get('scheduling')}, {g.get('gen0_count')}/{g.get('gen1_count')}/"
                  f"{g.get('gen2_count')}, {g.get('total_ms', 0):.1f} ms")
+        # CPU while the loops ran: each split process against the one process that holds
+        # the whole graph (the less noisy figure on a shared machine)
+        one_cpu = cpu_share(r_one.realtime)
+        for name, rep in sorted(r_split.processes.items()):
+            if name == 'link':
+                continue
+            rt = rep.get('realtime', {})
+            row(f'  {name} process CPU while its loop ran, % of a core (ref: the one process)',
+                100 * cpu_share(rt), 100 * one_cpu, ' %', fmt='{:.0f}')
+            threads = ', '.join(f'{k} {v:.2f}' for k, v in sorted(
+                (rt.get('thread_cpu_s') or {}).items(), key=lambda kv: -kv[1])[:3])
+            note(f'    {name}: CPU s by thread', threads or '-')
+            if rt.get('dds_topics') is not None:
+                d = rt['dds_topics']
+                note(f'    {name}: published on DDS besides its bus',
+                     d if isinstance(d, str) else (', '.join(d) or '-'))
         if load == 'quiet':
             WHERE.append((r_split, r_one, duration))
     row('reference: a lone 1 kHz timer (EventsExecutor), period p99 (quiet)', ref[1], 1.0,
@@ -218,6 +258,13 @@ def where_time_goes():
     from geometry_msgs.msg import WrenchStamped
     from rclpy.serialization import deserialize_message, serialize_message
     from sensor_msgs.msg import JointState
+    if LOCK:
+        r = LOCK[0]
+        print()
+        print(f'lockstep (recorded run above): wall s inside each node\'s callbacks per '
+              f'simulated s (the run: {r.wall_time / r.sim_time:.2f} s per simulated s)')
+        for node, c in sorted(r.cost.items(), key=lambda kv: -kv[1]['total_s']):
+            print(f"  {node:28s} {c['total_s'] / r.sim_time:6.3f}")
     if not WHERE:
         return
     r_split, r_one, duration = WHERE[0]

@@ -64,7 +64,8 @@ def test_merge_keeps_every_message_in_log_time_order(tmp_path):
     out = McapRecorder(bag)
     info = merge_parts(out, {'master': a, 'slave': b})
     out.close('complete')
-    assert info['master'] == {'messages': 5, 'complete': True, 'stopped_at': ''}
+    assert info['master'] == {'messages': 5, 'complete': True, 'stopped_at': '',
+                              'status': 'complete', 'reason': ''}
     assert info['slave']['messages'] == 6 and info['slave']['complete']
     assert not pathlib.Path(a).exists() and not pathlib.Path(b).exists()   # merged: removed
     assert read_run_metadata(bag)['counts'] == \

@@ -83,6 +83,26 @@ def test_take_and_wrap_callback_redirect_what_the_executor_delivers(ros):
     assert first == [] and [m.data for m in taken] == ['x'] and wrapped == ['x']
 
 
+def test_wrap_callback_keeps_the_message_info_of_a_callback_that_takes_it(ros):
+    node = ros.node('adapter_info')
+    infos, wrapped = [], []
+    sub = node.create_subscription(String, 'adapter/info', lambda m, info: infos.append(info),
+                                   QOS_DEFAULT)
+
+    def wrapper(cb):
+        def inner(*args):
+            wrapped.append(len(args))
+            return cb(*args)
+        return inner
+    A.wrap_callback(sub, wrapper)
+    assert A.callback_wants_info(sub) is True
+    pub = ros.node('adapter_info_pub').create_publisher(String, 'adapter/info', QOS_DEFAULT)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    pub.publish(String(data='x'))
+    assert ros.spin_until(lambda: infos, 10.0)
+    assert wrapped == [2] and infos[0]['publication_sequence_number'] == 1
+
+
 def test_detach_clock_removes_the_clock_subscription_and_set_time_sets_the_clock(ros):
     node = _sim_node(ros, 'adapter_clock')
     clock_subs = [s for s in node.subscriptions if s.topic_name == '/clock']

@@ -194,3 +194,47 @@ def test_nice_applies_to_every_thread_falls_back_and_refuses_bad_values(monkeypa
     logs = []
     assert R.set_nice(-5, logs.append) is None
     assert len(logs) == 1 and 'not permitted' in logs[0]
+
+
+def test_own_autogroup_writes_the_group_nice_and_refuses_bad_values(tmp_path, monkeypatch):
+    f = tmp_path / 'autogroup'
+    f.write_text('/autogroup-1 nice 0\n')
+    # no new session in the test process: setsid is stubbed (it would detach pytest)
+    monkeypatch.setattr(os, 'setsid', lambda: None)
+    assert R.own_autogroup(-10, log=lambda m: None, path=str(f)) == 'autogroup nice -10'
+    assert f.read_text() == '-10'
+    # no autogroup file (kernel without autogroups): nothing done, nothing said
+    logs = []
+    assert R.own_autogroup(-10, log=logs.append, path=str(tmp_path / 'none')) is None
+    assert logs == []
+    # a refused write: one log line, None
+    d = tmp_path / 'dir'
+    d.mkdir()
+    assert R.own_autogroup(-5, log=logs.append, path=str(d)) is None
+    assert len(logs) == 1 and 'autogroup nice -5 not permitted' in logs[0]
+    for bad in (-21, 20, 1.5, True, '3'):
+        with pytest.raises(ValueError, match='nice'):
+            R.own_autogroup(bad, path=str(f))
+
+
+def test_thread_cpu_sees_a_busy_thread_and_cpu_delta_keeps_positive_use():
+    import threading
+    import time
+
+    def spin():
+        t_end = time.process_time() + 0.3
+        while time.process_time() < t_end:
+            pass
+
+    before = R.thread_cpu()
+    th = threading.Thread(target=spin, name='busy_probe')
+    th.start()
+    th.join()
+    after = R.thread_cpu()
+    if not before:                                   # no /proc here
+        pytest.skip('no /proc/self/task on this system')
+    # the busy thread has ended: its time is not counted; this thread's time is >= 0
+    d = R.cpu_delta(before, after)
+    assert all(v > 0 for v in d.values())
+    assert R.cpu_delta({'a': 1.0}, {'a': 1.5, 'b': 0.2}) == {'a': 0.5, 'b': 0.2}
+    assert R.cpu_delta({'a': 1.0}, {'a': 1.0}) == {}

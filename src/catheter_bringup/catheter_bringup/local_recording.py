@@ -4,17 +4,19 @@ In layout split every node runs in a worker process (master, slave, vision). Rec
 from the runner's process through DDS cost a DDS hop and a Python callback per message in a
 process that competed with vision for a core, and lost most of the messages. Instead each
 worker records what ITS nodes publish, locally: the bus (`catheter_bringup.bus.LocalBus`)
-already serialises every publish once, and hands the bytes to ``LocalBus.record`` — here
-`PartRecorder.record`, which writes them with the wall-clock log time into a per-worker MCAP
-part file (``<bag stem>.<process>.part.mcap`` next to the run's bag). At the end of the run
-the runner merges the parts into the run's bag (`merge_parts`): every message, in log-time
-order, with the parts' schemas and QoS, and deletes them.
+already serialises every publish once, and hands the bytes to ``LocalBus.record`` — the
+worker's `catheter_bringup.part_pipe.PartPipe`, whose writer process writes them with the
+wall-clock log time, as `PartRecorder` does, into a per-worker MCAP part file (``<bag
+stem>.<process>.part.mcap`` next to the run's bag). At the end of the run the runner merges
+the parts into the run's bag (`merge_parts`, after each part's writer has let go of it):
+every message, in log-time order, with the parts' schemas and QoS, and deletes them.
 
-A worker killed with SIGKILL leaves its part without a summary (and maybe a cut-off chunk
-at its end): `read_part` reads such a file as a stream up to the cut, so the merge keeps
-every message of its complete chunks and reports the part as ``complete: False``. If the
-runner itself is killed the parts stay next to the bag; each is a recording on its own
-(``recover_bag`` turns a cut-off one into a readable file).
+A worker killed with SIGKILL: its writer closes the part (status interrupted). A part whose
+writer was killed too has no summary (and maybe a cut-off chunk at its end): `read_part`
+reads such a file as a stream up to the cut, so the merge keeps every message of its
+complete chunks and reports the part as ``complete: False``. If the runner itself is killed
+the parts stay next to the bag; each is a recording on its own (``recover_bag`` turns a
+cut-off one into a readable file).
 """
 from __future__ import annotations
 
@@ -66,11 +68,13 @@ class PartRecorder:
         self.recorder.add_topic(topic, type_name, qos)
         self.topics.add(topic)
 
-    def record(self, topic: str, data: bytes) -> None:
+    def record(self, topic: str, data: bytes, log_time_ns: Optional[int] = None) -> None:
+        """Write one publish (log time: now on the system clock, or ``log_time_ns``)."""
         if topic not in self.topics:
             return
         try:
-            self.recorder.write(topic, data, self._clock())
+            self.recorder.write(topic, data, self._clock() if log_time_ns is None
+                                else log_time_ns)
         except ValueError:
             self.errors += 1         # a payload the recorder refuses: counted, not fatal
 
@@ -94,14 +98,16 @@ def read_part(path) -> Tuple[Dict[str, tuple], List[tuple], dict]:
 
     Returns (channels: topic -> (type name, QoS dicts), messages: [(log time ns, sequence
     in the file, topic, data)] sorted by log time (stable), info: {'messages', 'complete',
-    'stopped_at'}). ValueError naming ``path`` if it is not an MCAP file at all."""
-    from mcap.records import Channel, DataEnd, Footer, Header, Message, Schema
+    'stopped_at', 'status', 'reason'}: the last two from the part's catheter_run record, ''
+    without one). ValueError naming ``path`` if it is not an MCAP file at all."""
+    from mcap.records import Channel, DataEnd, Footer, Header, Message, Metadata, Schema
     from mcap.stream_reader import StreamReader
     schemas: Dict[int, str] = {}
     chans: Dict[int, str] = {}
     channels: Dict[str, tuple] = {}
     messages: List[tuple] = []
-    complete, stopped, started = False, '', False
+    complete, stopped, started, status, reason = False, '', False, '', ''
+
     with open(path, 'rb') as f:
         try:
             for rec in StreamReader(f, skip_magic=False, emit_chunks=False).records:
@@ -118,6 +124,9 @@ def read_part(path) -> Tuple[Dict[str, tuple], List[tuple], dict]:
                     topic = chans.get(rec.channel_id)
                     if topic is not None:
                         messages.append((rec.log_time, len(messages), topic, rec.data))
+                elif isinstance(rec, Metadata) and rec.name == 'catheter_run':
+                    status = rec.metadata.get('status', '')
+                    reason = rec.metadata.get('reason', '')
                 elif isinstance(rec, (DataEnd, Footer)):
                     complete = True
         except Exception as exc:  # noqa: BLE001 - the cut of a killed worker's file
@@ -126,7 +135,7 @@ def read_part(path) -> Tuple[Dict[str, tuple], List[tuple], dict]:
         raise ValueError(f'path: {path} is not an MCAP file (no header record)')
     messages.sort(key=lambda m: m[0])
     return channels, messages, {'messages': len(messages), 'complete': complete,
-                                'stopped_at': stopped}
+                                'stopped_at': stopped, 'status': status, 'reason': reason}
 
 
 def merge_parts(recorder: McapRecorder, parts: Mapping[str, str],
@@ -139,7 +148,9 @@ def merge_parts(recorder: McapRecorder, parts: Mapping[str, str],
     each part once merged."""
     info: Dict[str, dict] = {}
     streams = []
+    from catheter_bringup.part_pipe import wait_written
     for k, (proc, path) in enumerate(sorted(parts.items())):
+        wait_written(path)             # a killed worker's writer may still be closing it
         try:
             channels, messages, inf = read_part(path)
         except (OSError, ValueError) as exc:

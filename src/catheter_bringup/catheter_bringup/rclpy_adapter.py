@@ -82,8 +82,18 @@ def take_callback(sub, replacement: Callable, raw: bool = False) -> Tuple[Callab
 
 
 def wrap_callback(sub, wrapper: Callable[[Callable], Callable]) -> None:
-    """``sub.callback = wrapper(sub.callback)`` (e.g. to count what it took)."""
-    sub.callback = wrapper(sub.callback)
+    """``sub.callback = wrapper(sub.callback)`` (e.g. to count what it took), keeping what the
+    executor hands it: a callback that takes (msg, message_info) still gets the info.
+
+    Relies on: rclpy decides at each assignment of ``sub.callback`` from the callable's
+    signature whether it takes message info (a ``*args`` wrapper would be taken for
+    message-only), so the wrapper is assigned with the original's arity."""
+    wants = callback_wants_info(sub)
+    inner = wrapper(sub.callback)
+    if wants:
+        sub.callback = lambda msg, info, _f=inner: _f(msg, info)
+    else:
+        sub.callback = lambda msg, _f=inner: _f(msg)
 
 
 # ------------------------------------------------------------------ time

@@ -10,6 +10,9 @@ the collector's pauses.
   machine's other work without preempting the loops (a SCHED_FIFO vision process rendering
   800x800 frames pushed the real-time tasks into the kernel's RT throttling: 68 ms stalls
   of the 1 kHz loops, measured).
+- `own_autogroup`: the vision process in a scheduling group (autogroup) of its own with a
+  negative nice: with autogroups enabled the process nice alone does not count against
+  other sessions' work.
 - `quiet_gc`: everything alive at start-up frozen out of the collector's sight (a full
   collection of a big heap inside the loop stalled it 55 ms), the young-generation
   threshold raised (fewer, slightly longer young collections), undone afterwards.
@@ -89,6 +92,41 @@ def set_nice(nice: int, log: Callable[[str], None] = print) -> Optional[int]:
     return old
 
 
+#: where Linux keeps the autogroup (session) of the calling process and the group's nice
+AUTOGROUP = '/proc/self/autogroup'
+
+
+def own_autogroup(nice: int, log: Callable[[str], None] = print,
+                  path: str = AUTOGROUP) -> Optional[str]:
+    """Give this process a scheduling group of its own with the nice value `nice`.
+
+    With ``kernel.sched_autogroup_enabled = 1`` (the default of desktop and many server
+    kernels, and on the benchmark machine) the CFS scheduler first shares the CPU equally
+    between sessions (autogroups) and only then by nice value inside each: a process's nice
+    -10 does nothing against other users' jobs in their own sessions (the vision process
+    was starved so on the shared machine: the package README, "Benchmark"). So: a new session
+    (``setsid``: its own autogroup) and the group's nice set through `path`. Returns a
+    description ('autogroup nice -10') or None when there is no autogroup file (scheduling
+    unchanged, no log line: the process nice then is all there is) or it is not permitted
+    (one log line). Needs root or CAP_SYS_NICE for a negative value."""
+    if isinstance(nice, bool) or not isinstance(nice, int) or not -20 <= nice <= 19:
+        raise ValueError(f'nice must be an int in -20..19, got {nice!r}')
+    if not os.path.exists(path):
+        return None
+    try:
+        if os.getsid(0) != os.getpid():
+            os.setsid()                   # a session of its own = an autogroup of its own
+    except OSError:
+        pass                              # a process group leader: keeps its session
+    try:
+        with open(path, 'w') as f:
+            f.write(str(nice))
+    except OSError as exc:
+        log(f'[run] autogroup nice {nice} not permitted ({exc.strerror}): the process nice only')
+        return None
+    return f'autogroup nice {nice}'
+
+
 #: young-generation collection threshold during a real-time loop (Python's default: 700)
 GC_THRESHOLD0 = 20_000
 
@@ -135,6 +173,36 @@ class GcWatch:
         out['total_ms'] = 1e3 * sum(allp)
         out['max_ms'] = 1e3 * max(allp) if allp else 0.0
         return out
+
+
+def thread_cpu() -> Dict[str, float]:
+    """CPU time (user + system, s) of every thread of this process, summed by thread name
+    (``/proc/self/task/<tid>/stat``; {} where there is no /proc). The difference of two calls
+    is what each kind of thread (the Python loop, DDS receive threads, the executor's) used
+    in between."""
+    out: Dict[str, float] = {}
+    try:
+        tids = os.listdir('/proc/self/task')
+        tck = float(os.sysconf('SC_CLK_TCK'))
+    except (OSError, ValueError):
+        return out
+    for tid in tids:
+        try:
+            with open(f'/proc/self/task/{tid}/stat') as f:
+                text = f.read()
+        except OSError:
+            continue                      # a thread that ended meanwhile
+        name = text[text.index('(') + 1:text.rindex(')')]
+        fields = text[text.rindex(')') + 2:].split()
+        out[name] = out.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / tck
+    return out
+
+
+def cpu_delta(before: Dict[str, float], after: Dict[str, float]) -> Dict[str, float]:
+    """Per thread name: CPU s used between two `thread_cpu` calls (threads that ended
+    meanwhile are not counted)."""
+    return {k: round(v - before.get(k, 0.0), 3) for k, v in sorted(after.items())
+            if v - before.get(k, 0.0) > 0}
 
 
 def stream_stats(times_s, skip_fraction: float = 0.1) -> Dict[str, float]:

@@ -38,7 +38,8 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
-from catheter_bringup.local_recording import PartRecorder, merge_parts, part_path, wanted
+from catheter_bringup.local_recording import merge_parts, part_path, wanted
+from catheter_bringup.part_pipe import PartPipe, RecorderPipe
 from catheter_bringup.node_start import available_instances, start_node
 from catheter_bringup.rclpy_adapter import count_extra_subscriber, detach_clock
 from catheter_bringup.recorder import McapRecorder
@@ -84,6 +85,17 @@ def _record_stop_signals(runner) -> dict:
     return old
 
 
+def worker_dds_topics(consumed_elsewhere) -> set:
+    """Layout split: what a worker publishes on DDS besides its local bus: the topics a node
+    of another process consumes (the link topics between master and slave, the slave's
+    joint state for the camera) and /diagnostics (the operator's tools). Nothing else: each
+    worker records its own nodes, so a DDS publish of a topic nobody outside takes cost a
+    serialisation hand-off to the rmw per message in the 1 kHz loop, and the process's own
+    subscriptions of it were handed the copy back by DDS (taken and dropped). The scenario's
+    ``dds: true`` puts every topic on DDS again (for outside tools: catheter_topic, rviz)."""
+    return set(consumed_elsewhere) | {T.DIAGNOSTICS}
+
+
 class ScenarioRunner(Stepping):
     """Runs one scenario. ``scenario``: a dict from `load_scenario` (or a name/path).
 
@@ -119,7 +131,7 @@ class ScenarioRunner(Stepping):
         #: a worker of the split layout: record what its nodes publish into this part file
         #: (`catheter_bringup.local_recording`; the runner merges the parts into the bag)
         self.part_bag = part_bag
-        self.part: Optional[PartRecorder] = None
+        self.part: Optional[PartPipe] = None
         #: layout split, recording: per worker process, its part file (merged at the end)
         self.parts: Dict[str, str] = {}
         #: after the merge: per worker process, what its part held (`merge_parts`)
@@ -185,7 +197,12 @@ class ScenarioRunner(Stepping):
         classes = available_instances(cands)
         chosen, missing = resolve_nodes(sc, set(classes), self.registry)
         wanted_all, _ = resolve_nodes(sc, None, self.registry)
+        #: topics a node of another process of the run consumes (a worker publishes only
+        #: these on DDS in layout split)
+        self._consumed_elsewhere = set()
         if self.only is not None:
+            self._consumed_elsewhere = {t for i in chosen if i.name not in self.only
+                                        for t in i.spec.consumes}
             chosen = [i for i in chosen if i.name in self.only]
             wanted_all = [i for i in wanted_all if i.name in self.only]
         elif not lockstep and sc.get('layout', 'one') == 'split':
@@ -235,7 +252,9 @@ class ScenarioRunner(Stepping):
             if self.child_nodes:
                 self.bus.dds_topics |= self._child_inputs
             if self.only is not None and not lockstep:
-                self.bus.dds = True       # a worker: its outputs go to the main process
+                self.bus.dds_topics |= worker_dds_topics(self._consumed_elsewhere)
+                # a worker of layout one: its outputs go to the main process's recorder
+                self.bus.dds = self.bus.dds or sc.get('layout', 'one') != 'split'
         # lockstep_transport: dds -> messages go through DDS, each step waits for delivery
         # (slower; kept as the reference the benchmark compares with)
         for inst in chosen:
@@ -269,11 +288,15 @@ class ScenarioRunner(Stepping):
         if self.part_bag and self.bus is not None:
             self._record_part()
         if self.bag:
-            # real time: small chunks, so compressing one (inside a write, in the loop's thread)
-            # takes a fraction of a 1 ms period; 1 MB chunks took up to 6 ms (measured)
-            self.recorder = McapRecorder(self.bag, chunk_size=REALTIME_CHUNK if not lockstep
-                                         else 1 << 20)
-            if not self.parts:
+            # real time: small chunks (a killed run loses less); lockstep: 1 MB
+            chunk = REALTIME_CHUNK if not lockstep else 1 << 20
+            if self.parts:
+                # layout split: the workers record; this process merges their parts at the end
+                self.recorder = McapRecorder(self.bag, chunk_size=chunk)
+            else:
+                # written by a writer process (`part_pipe`): the run's loop hands over bytes,
+                # the exact-length walk, mcap and zstd run on the other core
+                self.recorder = RecorderPipe(self.bag, chunk_size=chunk)
                 self.sink = RecordingSink(self.runner_node, self.recorder,
                                           exclude=sc['record']['exclude'],
                                           only=sc['record'].get('only') or None)
@@ -293,7 +316,8 @@ class ScenarioRunner(Stepping):
         as the bytes the bus serialised, into its part file."""
         from catheter_bringup.ros_recording import qos_to_dict
         rec = self.scenario['record']
-        self.part = PartRecorder(self.part_bag, self.process)
+        # written by a process of its own (`part_pipe`): the loop only hands over bytes
+        self.part = PartPipe(self.part_bag, self.process)
         for node in self.nodes.values():
             for pub in list(node.publishers):
                 if wanted(pub.topic_name, rec['exclude'], rec.get('only') or None):
@@ -466,6 +490,12 @@ class ScenarioRunner(Stepping):
                 **({'parts': self.part_info} if self.parts else {}),
                 'scenario_yaml': scenario_text(self.scenario),
             })
+        if isinstance(self.recorder, RecorderPipe) and self.sink is not None:
+            # what the writer process wrote (a writer that died is not hidden: `lost` shows it)
+            written = self.recorder.counts
+            recorded = {t: written.get(t, 0) for t in recorded}
+            if self.recorder.errors:
+                self.log(f'[run] the recording writer reported {self.recorder.errors} errors')
         # shares of the time the loop ran (a worker's wall time includes its wait for go)
         loop_s = getattr(self, 'realtime_info', {}).get('loop_s', wall)
         cost = self.bus.cost.summary(loop_s) if self.bus is not None else {}
@@ -491,7 +521,7 @@ class ScenarioRunner(Stepping):
         for sig, handler in self._old_handlers.items():
             signal.signal(sig, handler)
         self._old_handlers = {}
-        if self.part is not None and not self.part.recorder.closed:
+        if self.part is not None and not self.part.closed:
             self.part.close('interrupted', 'closed before the run finished')
         if self.recorder is not None and not self.recorder.closed:
             self.recorder.close('interrupted', 'closed before the run finished')

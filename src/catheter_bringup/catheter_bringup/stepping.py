@@ -10,14 +10,18 @@ from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.rclpy_adapter import (fire_timer, set_time, spin_ready, timer_due_in_ns,
                                             timer_ready, wrap_timer_callback)
-from catheter_bringup.realtime import (GcWatch, latency_stats, quiet_gc, reset_priority,
-                                       set_fifo_priority, set_nice, stream_stats)
+from catheter_bringup.realtime import (GcWatch, cpu_delta, latency_stats, own_autogroup,
+                                       quiet_gc, reset_priority, set_fifo_priority, set_nice,
+                                       stream_stats, thread_cpu)
 
 #: ns, real time with the local bus: how often DDS is polled for subscriptions outside the bus
 #: (the image worker's 30 Hz topics). One poll builds an rclpy wait set, 0.3-1.4 ms measured:
 #: every 2 ms that was the largest avoidable cost per 1 kHz tick; every 10 ms keeps up with
 #: 30 Hz streams (adds at most 10 ms to their delivery)
 EXTERNAL_SPIN_NS = 10_000_000
+#: s, the longest a worker's event loop stays in the executor before it looks at stop
+#: requests and rescans (`Stepping._run_realtime_events`)
+EVENTS_SLICE_S = 0.05
 #: ns, the least time to the next due timer for a DDS poll to start (a poll takes ~0.7 ms)
 SPIN_SLACK_NS = 800_000
 
@@ -167,6 +171,9 @@ class Stepping:
             old_nice = set_nice(VISION_NICE, self.log)
             if old_nice is not None:
                 info['scheduling'] = f'SCHED_OTHER nice {VISION_NICE}'
+            group = own_autogroup(VISION_NICE, self.log)
+            if group:
+                info['scheduling'] += f', {group}'
         # everything alive now (nodes, models, earlier runs' garbage) out of the collector's
         # sight: a full collection of a big heap inside the 1 kHz loop stalled it 55 ms (in
         # the benchmark, after lockstep runs in the same process); young collections remain,
@@ -179,11 +186,19 @@ class Stepping:
             self.bus.latency_topics = {T.TIP_WRENCH}
             self.bus.stamp_topics = set(LINK_TOPICS) if self.children is None else set()
             self.bus.wall_ns = time.time_ns
+            # what this process puts on DDS besides its bus (a worker of layout split: only
+            # what another process consumes, `runner.worker_dds_topics`)
+            info['dds_topics'] = 'all' if self.bus.dds else sorted(
+                t for t in self.bus.dds_topics if t in self.bus.counts)
         undo = quiet_gc()
         watch = GcWatch().start()
+        cpu0, threads0 = time.process_time(), thread_cpu()
         try:
             return self._run_realtime_inner(bar)
         finally:
+            # what the process used while its loop ran: all threads, and per kind of thread
+            info['cpu_s'] = time.process_time() - cpu0
+            info['thread_cpu_s'] = cpu_delta(threads0, thread_cpu())
             watch.stop()
             undo()
             if fifo:
@@ -285,29 +300,42 @@ class Stepping:
         """Real time in a worker process: the EventsExecutor fires the timers on the system
         clock (an rcl timer is due a whole number of periods after its start, so lateness
         never accumulates) and takes what DDS delivers from the other processes; what a
-        callback publishes reaches this process's subscribers through the bus at once."""
+        callback publishes reaches this process's subscribers through the bus at once.
+
+        The executor's own loop (C++) runs for up to `EVENTS_SLICE_S` at a time
+        (``spin_until_future_complete`` on a future nobody completes): one ``spin_once`` per
+        event returned to this Python loop thousands of times a second in the master
+        process, with a clock read each time. A stop request is seen within one slice."""
+        from rclpy.task import Future
         sc = self.scenario
-        clock = self.runner_node.get_clock()
-        start = clock.now().nanoseconds
+        start = time.time_ns()             # the nodes' clock in real time: the system clock
         end = start + int(sc['duration'] * 1e9)
         self._sim_reached = 0.0
         self._time_timers()
         next_scan = start + 200_000_000
-        spin = self.executor.spin_once
+        never = Future()
+        spin = getattr(self.executor, 'spin_until_future_complete', None)
         while True:
-            now = clock.now().nanoseconds
+            now = time.time_ns()
             if now >= end:
                 break
             if self.stop_requested:
                 raise KeyboardInterrupt
-            spin(timeout_sec=min(0.05, (end - now) * 1e-9))
+            left = min(EVENTS_SLICE_S, (end - now) * 1e-9, (next_scan - now) * 1e-9)
+            if spin is not None:
+                spin(never, timeout_sec=max(left, 1e-4))
+            else:
+                self.executor.spin_once(timeout_sec=max(left, 1e-4))
+            now = time.time_ns()
+            if self.part is not None:
+                self.part.flush()         # the recording's buffer to its writer process
             if now >= next_scan:
                 self._now_ns = now
                 self._sim_reached = min((now - start) * 1e-9, sc['duration'])
                 self._rescan()
                 self._time_timers()
                 next_scan = now + 200_000_000
-        self._sim_reached = min((clock.now().nanoseconds - start) * 1e-9, sc['duration'])
+        self._sim_reached = min((time.time_ns() - start) * 1e-9, sc['duration'])
         return 0, self._sim_reached
 
     def _time_timers(self) -> None:

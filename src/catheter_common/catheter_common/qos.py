@@ -13,6 +13,13 @@ QOS_SENSOR = qos_profile_sensor_data
 QOS_FAST = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=10,
                       reliability=QoSReliabilityPolicy.BEST_EFFORT,
                       durability=QoSDurabilityPolicy.VOLATILE)
+#: a 1 kHz state sampled at a lower rate by its consumer (the camera's 30 Hz frames take the
+#: robot's newest joint state): best effort, keep last 1. A consumer that is busy or preempted
+#: for a while takes one message afterwards, not the ten stale ones QOS_FAST would queue
+#: (each a DDS take and a deserialisation in its process). Compatible with QOS_FAST publishers.
+QOS_LATEST = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1,
+                        reliability=QoSReliabilityPolicy.BEST_EFFORT,
+                        durability=QoSDurabilityPolicy.VOLATILE)
 #: on-demand topics (tip load, shape, diagnostics): reliable, keep last 10
 QOS_DEFAULT = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=10,
                          reliability=QoSReliabilityPolicy.RELIABLE,

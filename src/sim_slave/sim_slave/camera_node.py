@@ -2,7 +2,8 @@
 by the tip's wall-contact force.
 
 Subscribes  slave/joint_state        sensor_msgs/JointState (position[0] insertion m,
-                                     velocity[0] m/s), QOS_FAST: the newest one is used
+                                     velocity[0] m/s), QOS_LATEST (keep last 1): the newest
+                                     one is used
 Publishes   camera/image_raw         sensor_msgs/Image mono8, frame camera_optical_frame,
                                      sensor-data QoS (only while subscribed)
             camera/tip_force_truth   geometry_msgs/WrenchStamped, frame catheter_base: the tip
@@ -29,7 +30,7 @@ from catheter_common.checks import first
 from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.images import array_to_image
 from catheter_common.params import NodeParams, Param, table
-from catheter_common.qos import QOS_FAST, QOS_SENSOR
+from catheter_common.qos import QOS_LATEST, QOS_SENSOR
 from catheter_common.ros_node import run_node
 from sim_slave.camera import BLAZER_EI, BLAZER_LENGTH, DEFAULT_CAMERA, TipCamera
 from sim_slave.node_params import DEFAULT_VESSEL, VESSEL_CHOICES, vessel_from_params
@@ -93,7 +94,7 @@ class CameraNode(Node):
         self.pub_truth = self.create_publisher(WrenchStamped,
                                                T.relative(T.CAMERA_TIP_FORCE_TRUTH), QOS_SENSOR)
         self.sub = self.create_subscription(JointState, T.relative(T.SLAVE_JOINT_STATE),
-                                            self._on_state, QOS_FAST)
+                                            self._on_state, QOS_LATEST)
         self.timer = self.create_timer(1.0 / rate, self._tick)
         psi = ', '.join(f'{v:.9g}' for v in self.camera.psi.reshape(-1))
         self.get_logger().info(
