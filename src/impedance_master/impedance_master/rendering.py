@@ -39,12 +39,15 @@ from typing import Optional, Tuple
 
 from catheter_common.checks import nonneg, positive
 from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
-from impedance_master.impedance import FrictionState, Impedance
+from impedance_master.impedance import FrictionState, Impedance, steady_states
 from impedance_master.safety import ERROR, OK, WARN, RendererStatus, SafeOutput, check_number
+from impedance_master.support import Support
 
 ANCHORING = ('none', 'full', 'residual', 'local')
 #: m, default reach in depth of the 'local' anchor correction (see ImaRenderer)
 LOCAL_ANCHOR_LENGTH = 0.005
+#: m, depth step of the slope with which a model is extended beyond its data (support)
+SLOPE_STEP = 0.005
 #: s, smallest time constant of the take-over from the fallback to the model's force
 RECOVER_TIME = 0.05
 
@@ -133,6 +136,16 @@ class ImaRenderer(_Rendered):
             'residual' (the model plus the identifier's low-passed residual at the anchor,
             fading with distance over `anchor_length` m).
         anchor_length: m (None: LOCAL_ANCHOR_LENGTH = 5 mm for 'local', inf otherwise).
+        support_half: with 'local' anchoring, weigh the model by its data support
+            (`support.Support`, counted from the anchors of the models received; None: off):
+            the anchors near the master's depth at which a confidence is 1/2. Where the
+            slave has not measured in BOTH directions near this depth, the model's change
+            of the friction direction from the anchor's is taken only in proportion to that
+            confidence (a force seen in one direction may be static: hold it, do not flip
+            it); where it has not measured in the master's direction near this depth, the
+            anchor correction fades only in proportion to that confidence (thin support:
+            the anchored baseline).
+        support_width: m, reach in depth of one anchor's support (triangular kernel).
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
     (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
     `n_bad_input`, `n_clamped`, `energy` (J, observer), `n_passivity` (steps with added
@@ -144,7 +157,10 @@ class ImaRenderer(_Rendered):
                  max_damping: float = 50.0, envelope: Optional[ModelEnvelope] = None,
                  fallback_time: float = 0.5, stale_time: float = 0.1,
                  state_box: Optional[Tuple[float, float, float, float]] = None,
-                 anchoring: str = 'local', anchor_length: Optional[float] = None):
+                 anchoring: str = 'local', anchor_length: Optional[float] = None,
+                 support_half: Optional[float] = None, support_width: float = 0.003,
+                 support_hold: float = 0.0, support_extrap: float = 0.0,
+                 support_anchor: float = 0.0):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -173,14 +189,22 @@ class ImaRenderer(_Rendered):
             anchor_length = LOCAL_ANCHOR_LENGTH if anchoring == 'local' else math.inf
         self.anchor_length = float(anchor_length) if anchor_length == math.inf else \
             positive('anchor_length', anchor_length)
+        self.support_hold = float(support_hold)
+        self.support_extrap = float(support_extrap)
+        self.support_anchor = float(support_anchor)
+        self.support: Optional[Support] = None
+        if support_half is not None and anchoring == 'local':
+            self.support = Support(lo, hi, support_width, support_half)
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
         self._bump = 0.0
         self._state: Optional[FrictionState] = None
         self._z = (0.0, 0.0)
         self._rho = 0.0
+        self._rho_set = False
         self._xa = 0.0
         self._za = 0.0
+        self._za2 = 0.0
         self._age = math.inf
         self._refused_since_accept = False
         self._bad_now = False
@@ -240,6 +264,8 @@ class ImaRenderer(_Rendered):
 
     def _eval(self, x: float, xd: float, xdd: float) -> float:
         m = self.model
+        if self.support is not None and self._rho_set:
+            return self._eval_supported(x, xd, xdd)
         f = m.force(x, xd, xdd, self._z if self._state is not None else None)
         if self._rho:
             d = abs(x - self._xa)
@@ -249,6 +275,48 @@ class ImaRenderer(_Rendered):
                 g *= max(0.0, 1.0 - 0.5 * abs(z1 - self._za))
             f += self._rho * g
         return f
+
+    def _eval_supported(self, x: float, xd: float, xdd: float) -> float:
+        """'local' anchoring weighed by the data support (see `support_half`)."""
+        m = self.model
+        sup = self.support
+        z = self._z if self._state is not None else steady_states(xd, m.v_s, m.beta)
+        za = (self._za, self._za2)
+        hold = m.force(x, xd, xdd, za)          # the anchor's direction of friction
+        flip = m.force(x, xd, xdd, z) - hold    # the model's change of direction
+        if self.support_extrap > 0.0:
+            # not seen in this direction near here: the model's tables there are its
+            # priors' guess; extend the nearest depth seen this way linearly instead
+            c = sup.anywhere(x)
+            xs = sup.nearest_any(x) if c < 1.0 else None
+            if xs is not None and xs != x:
+                # the slope over SLOPE_STEP inside the data, never negative: beyond its
+                # data the force is not taken to fall with depth (friction grows with the
+                # inserted length, a wall with the depth)
+                step = SLOPE_STEP if x > xs else -SLOPE_STEP
+                fs = m.force(xs, xd, xdd, za)
+                slope = max(0.0, (fs - m.force(xs - step, xd, xdd, za)) / step)
+                ext = fs + slope * (x - xs)
+                w = self.support_extrap * (1.0 - c)
+                hold = (1.0 - w) * hold + w * ext
+        cb = sup.both(x)
+        if cb < 1.0 and self.support_hold > 0.0 and flip != 0.0:
+            # seen in one direction only near here: the model's split of the force into
+            # static and friction is its prior's guess; take the friction that the
+            # nearest depth seen both ways shows, growing with depth, no larger than the
+            # model's (None: nothing seen both ways yet, the model's guess stands)
+            xs = sup.nearest(x, None)
+            if xs is not None:
+                ext = (m.force(xs, xd, xdd, z) - m.force(xs, xd, xdd, za)) * (x / xs)
+                if abs(ext) < abs(flip):
+                    w = self.support_hold * (1.0 - cb)
+                    flip = (1.0 - w) * flip + w * ext
+        d = abs(x - self._xa)
+        g = (math.exp(-d / self.anchor_length) if d else 1.0)
+        g *= max(0.0, 1.0 - 0.5 * abs(z[0] - self._za))
+        if self.support_anchor > 0.0:   # thin support: toward the anchored force
+            g = 1.0 - (1.0 - self.support_anchor * (1.0 - sup.confidence(x, z[0]))) * (1.0 - g)
+        return hold + flip + self._rho * g
 
     def _switch(self, x: float, xd: float, xdd: float) -> None:
         new = self._pending
@@ -268,9 +336,14 @@ class ImaRenderer(_Rendered):
             old_f = self._out.last
         a = new.anchor
         self._rho = 0.0
+        self._rho_set = False
         if self.anchoring != 'none' and a is not None:
+            self._rho_set = True
             self._xa = a.x
             self._za = a.z1
+            self._za2 = a.z2
+            if self.support is not None:
+                self.support.add(a.x, a.xd)
             if self.anchoring in ('full', 'local'):
                 self._rho = a.f - new.force(a.x, a.xd, a.xdd, (a.z1, a.z2))
             else:
