@@ -46,6 +46,10 @@ from impedance_master.support import Support
 ANCHORING = ('none', 'full', 'residual', 'local')
 #: m, default reach in depth of the 'local' anchor correction (see ImaRenderer)
 LOCAL_ANCHOR_LENGTH = 0.005
+#: anchors (slave samples, one per model) near a depth at which its support is 1/2
+SUPPORT_HALF = 3.0
+#: m, reach in depth of one anchor's support
+SUPPORT_WIDTH = 0.003
 #: m, depth step of the slope with which a model is extended beyond its data (support)
 SLOPE_STEP = 0.005
 #: s, smallest time constant of the take-over from the fallback to the model's force
@@ -137,14 +141,16 @@ class ImaRenderer(_Rendered):
             fading with distance over `anchor_length` m).
         anchor_length: m (None: LOCAL_ANCHOR_LENGTH = 5 mm for 'local', inf otherwise).
         support_half: with 'local' anchoring, weigh the model by its data support
-            (`support.Support`, counted from the anchors of the models received; None: off):
-            the anchors near the master's depth at which a confidence is 1/2. Where the
-            slave has not measured in BOTH directions near this depth, the model's change
-            of the friction direction from the anchor's is taken only in proportion to that
-            confidence (a force seen in one direction may be static: hold it, do not flip
-            it); where it has not measured in the master's direction near this depth, the
-            anchor correction fades only in proportion to that confidence (thin support:
-            the anchored baseline).
+            (third round of issue 12; None: off, the second round's 'local'): the
+            renderer counts the anchors of the models it receives (the slave's samples,
+            `support.Support`) over depth; `support_half` anchors near a depth give a
+            support c of 1/2 there (c = n / (n + support_half)). Where c is thin the
+            model's tables are its priors' guess (beyond the deepest point reached, above
+            the shallowest): the model is extended from the nearest depth with data
+            instead (shallower: in proportion to the depth; deeper: with the slope found
+            there, never toward a smaller |force|), with weight 1 - c, and the anchor's
+            miss is kept with weight (1 - c)^2 (toward the anchored baseline: the latest
+            measured force plus the model's change).
         support_width: m, reach in depth of one anchor's support (triangular kernel).
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
     (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
@@ -158,9 +164,8 @@ class ImaRenderer(_Rendered):
                  fallback_time: float = 0.5, stale_time: float = 0.1,
                  state_box: Optional[Tuple[float, float, float, float]] = None,
                  anchoring: str = 'local', anchor_length: Optional[float] = None,
-                 support_half: Optional[float] = None, support_width: float = 0.003,
-                 support_hold: float = 0.0, support_extrap: float = 0.0,
-                 support_anchor: float = 0.0):
+                 support_half: Optional[float] = SUPPORT_HALF,
+                 support_width: float = SUPPORT_WIDTH):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -189,9 +194,6 @@ class ImaRenderer(_Rendered):
             anchor_length = LOCAL_ANCHOR_LENGTH if anchoring == 'local' else math.inf
         self.anchor_length = float(anchor_length) if anchor_length == math.inf else \
             positive('anchor_length', anchor_length)
-        self.support_hold = float(support_hold)
-        self.support_extrap = float(support_extrap)
-        self.support_anchor = float(support_anchor)
         self.support: Optional[Support] = None
         if support_half is not None and anchoring == 'local':
             self.support = Support(lo, hi, support_width, support_half)
@@ -277,45 +279,35 @@ class ImaRenderer(_Rendered):
         return f
 
     def _eval_supported(self, x: float, xd: float, xdd: float) -> float:
-        """'local' anchoring weighed by the data support (see `support_half`)."""
+        """'local' anchoring where the model has data; beyond its data (the support
+        `c` near x is thin) the model's tables are its priors' guess: extend the model
+        from the nearest depth with data instead (weight 1 - c) and keep more of the
+        anchor's measured force (weight (1 - c)^2): toward the anchored baseline."""
         m = self.model
         sup = self.support
         z = self._z if self._state is not None else steady_states(xd, m.v_s, m.beta)
         za = (self._za, self._za2)
         hold = m.force(x, xd, xdd, za)          # the anchor's direction of friction
         flip = m.force(x, xd, xdd, z) - hold    # the model's change of direction
-        if self.support_extrap > 0.0:
-            # not seen in this direction near here: the model's tables there are its
-            # priors' guess; extend the nearest depth seen this way linearly instead
-            c = sup.anywhere(x)
-            xs = sup.nearest_any(x) if c < 1.0 else None
-            if xs is not None and xs != x:
-                # the slope over SLOPE_STEP inside the data, never negative: beyond its
-                # data the force is not taken to fall with depth (friction grows with the
-                # inserted length, a wall with the depth)
-                step = SLOPE_STEP if x > xs else -SLOPE_STEP
-                fs = m.force(xs, xd, xdd, za)
-                slope = max(0.0, (fs - m.force(xs - step, xd, xdd, za)) / step)
+        c = sup.anywhere(x)
+        xs = sup.nearest_any(x) if c < 1.0 else None
+        if xs is not None and xs != x:
+            # shallower than the data: in proportion to the depth (friction and drag grow
+            # with the inserted length from 0); deeper: the slope over SLOPE_STEP inside
+            # the data, never toward a smaller |force| (friction grows with the length, a
+            # wall with the depth)
+            fs = m.force(xs, xd, xdd, za)
+            if x < xs:
+                ext = fs * max(0.0, x) / xs
+            else:
+                slope = (fs - m.force(xs - SLOPE_STEP, xd, xdd, za)) / SLOPE_STEP
+                slope = max(0.0, slope) if fs >= 0.0 else min(0.0, slope)
                 ext = fs + slope * (x - xs)
-                w = self.support_extrap * (1.0 - c)
-                hold = (1.0 - w) * hold + w * ext
-        cb = sup.both(x)
-        if cb < 1.0 and self.support_hold > 0.0 and flip != 0.0:
-            # seen in one direction only near here: the model's split of the force into
-            # static and friction is its prior's guess; take the friction that the
-            # nearest depth seen both ways shows, growing with depth, no larger than the
-            # model's (None: nothing seen both ways yet, the model's guess stands)
-            xs = sup.nearest(x, None)
-            if xs is not None:
-                ext = (m.force(xs, xd, xdd, z) - m.force(xs, xd, xdd, za)) * (x / xs)
-                if abs(ext) < abs(flip):
-                    w = self.support_hold * (1.0 - cb)
-                    flip = (1.0 - w) * flip + w * ext
+            hold += (1.0 - c) * (ext - hold)
         d = abs(x - self._xa)
         g = (math.exp(-d / self.anchor_length) if d else 1.0)
         g *= max(0.0, 1.0 - 0.5 * abs(z[0] - self._za))
-        if self.support_anchor > 0.0:   # thin support: toward the anchored force
-            g = 1.0 - (1.0 - self.support_anchor * (1.0 - sup.confidence(x, z[0]))) * (1.0 - g)
+        g = 1.0 - (1.0 - (1.0 - c) ** 2) * (1.0 - g)
         return hold + flip + self._rho * g
 
     def _switch(self, x: float, xd: float, xdd: float) -> None:
