@@ -26,7 +26,10 @@ every other vessel x operator x seed, cold start.
   ranges) for every operator family and each of the seeds 100-104 (the seed also sets the
   operator's motion, the disturbances' phases and the sensor noise): 90 worlds, defined
   before the second round's design work and run once, after it was final. The third round
-  used them (and the development set) for development: they are seen now.
+  used them (and the development set) for development: they are seen now. The third
+  round's renderer settings (`ImaRenderer` support weighing, `support_half` 3) were chosen
+  on the development set (seeds 10-12) and the fresh seeds 100 and 101, and checked on the
+  tuning family's Experiment II.
 * Second fresh held-out worlds (`drawn_cases(FRESH2_SEEDS)`, seeds 200-204, the same
   families and operators, 90 worlds): defined and committed before the third round's
   design work, run once after its design was final: the third round's blind figure.
