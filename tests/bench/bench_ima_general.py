@@ -11,14 +11,18 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
   round looked at them while developing: they are a development set now.
 * ``fresh``: the fresh held-out worlds (`drawn_cases(FRESH_SEEDS)`): a randomised physical
   draw of every vessel family for every operator and seeds 100-104, 90 worlds, run once
-  after the second round's design was final.
+  after the second round's design was final (seen during the third round's development).
+* ``fresh2``: the third round's held-out worlds (`drawn_cases(FRESH2_SEEDS)`, seeds
+  200-204, the same families and operators, 90 worlds), committed before the third
+  round's design work and run once, after its design was final. Not part of ``all``
+  (run it explicitly: ``--section fresh2``).
 
 Tables per section: every case (MAE normal / outage / max, N); per vessel and per operator;
 the count of cases where the default beats DFR (normal MAE < DFR's, outage MAE < DFR's /
 2, max < DFR's) and where its mean error ('all' intervals) is no worse than the anchored
 baseline's; the averages over cases with the ratios to DFR.
-Options: --section dev|fresh|all (default all), --quick (one seed), --jobs N (cases run in
-N processes; default 1).
+Options: --section dev|fresh|fresh2|all (default all = dev and fresh), --quick (one
+seed), --jobs N (cases run in N processes; default 1).
 """
 from __future__ import annotations
 
@@ -35,9 +39,9 @@ for pkg in ('impedance_master', 'sim_slave', 'catheter_common'):
     if p not in sys.path:
         sys.path.insert(0, p)
 
-from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH_SEEDS,  # noqa: E402
-                                             MODES, TUNING, beats_dfr, cases, drawn_cases,
-                                             run_case)
+from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS,  # noqa: E402
+                                             FRESH_SEEDS, MODES, TUNING, beats_dfr, cases,
+                                             drawn_cases, run_case)
 
 LABEL = {'ima': 'IMA default', 'ima_thesis': 'IMA thesis', 'dfr': 'DFR',
          'anchored': 'anchored'}
@@ -112,12 +116,12 @@ def report(title, todo, results, counted):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--section', choices=('dev', 'fresh', 'all'), default='all')
+    ap.add_argument('--section', choices=('dev', 'fresh', 'fresh2', 'all'), default='all')
     ap.add_argument('--quick', action='store_true', help='one seed per section')
     ap.add_argument('--jobs', type=int, default=1, help='processes (cases in parallel)')
     ap.add_argument('--draw-seeds', default=None,
                     help='comma-separated seeds: the randomised section on these seeds '
-                         'instead of the fresh ones (development draws, never 100-104)')
+                         'instead of the fresh ones (development draws, never 200-204)')
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     if a.section in ('dev', 'all'):
@@ -135,8 +139,8 @@ def main(argv=None):
         title = 'fresh held-out worlds'
         if a.draw_seeds:
             seeds = [int(s) for s in a.draw_seeds.split(',')]
-            if set(seeds) & set(FRESH_SEEDS):
-                ap.error('--draw-seeds must not name the fresh seeds')
+            if set(seeds) & set(FRESH2_SEEDS):
+                ap.error('--draw-seeds must not name the held-out seeds 200-204')
             title = f'development draws (seeds {seeds})'
         todo = drawn_cases(seeds)
         print(f'\n# bench_ima_general, {title}: {len(todo)} randomised draws '
@@ -144,6 +148,17 @@ def main(argv=None):
               f'seeds {seeds}, cold start, Experiment II timing')
         report(title, todo, run_all(todo, a.jobs), lambda c: True)
         print(f'(fresh worlds: {time.perf_counter() - t1:.0f} s)')
+    if a.section == 'fresh2':
+        t2 = time.perf_counter()
+        seeds = list(FRESH2_SEEDS)[:1 if a.quick else None]
+        title = 'second fresh held-out worlds'
+        todo = drawn_cases(seeds)
+        print(f'\n# bench_ima_general, {title}: {len(todo)} randomised draws '
+              f'(sim_slave.vessels.draw_vessel) of every vessel family x every operator x '
+              f'seeds {seeds}, cold start, Experiment II timing; held out from the third '
+              f'round\'s design work')
+        report(title, todo, run_all(todo, a.jobs), lambda c: True)
+        print(f'(second fresh worlds: {time.perf_counter() - t2:.0f} s)')
     print(f'\n(total {time.perf_counter() - t0:.0f} s)', flush=True)
 
 

@@ -7,7 +7,8 @@ import random
 
 import pytest
 
-from impedance_master.generalisation import FRESH_SEEDS, drawn_cases
+from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FRESH_SEEDS,
+                                             drawn_cases)
 from impedance_master.operator import OPERATORS
 from sim_slave.vessels import DRAW_RULES, VESSELS, draw_vessel, make_vessel, vessel_spec
 
@@ -68,3 +69,11 @@ def test_fresh_cases_are_every_family_operator_and_seed_each_its_own_world():
     assert one[0] in todo
     for _v, _op, _s, params in todo[:3]:
         assert all(math.isfinite(x) for _, x in params)
+
+
+def test_second_fresh_set_is_new_worlds_disjoint_from_every_seen_seed():
+    assert not set(FRESH2_SEEDS) & (set(FRESH_SEEDS) | set(DEVELOPMENT_SEEDS))
+    todo = drawn_cases(FRESH2_SEEDS)
+    assert len(todo) == 90
+    seen = {c[3] for c in drawn_cases(FRESH_SEEDS)}
+    assert not {c[3] for c in todo} & seen               # no world of the first draw again

@@ -1,12 +1,12 @@
-"""Issue 12's second round: the renderer's 'local' anchor correction, the default
-(hand-checked values)."""
+"""Issue 12's second and third rounds: the renderer's 'local' anchor correction and its
+weighing by the data support, the default (hand-checked values)."""
 import math
 
 import pytest
 
 from impedance_master import ImaRenderer, Impedance
 from impedance_master.impedance import steady_states
-from impedance_master.rendering import LOCAL_ANCHOR_LENGTH
+from impedance_master.rendering import LOCAL_ANCHOR_LENGTH, SUPPORT_HALF
 
 
 def _anchored_model(miss=0.1, x=0.03, xd=0.01):
@@ -18,6 +18,10 @@ def _anchored_model(miss=0.1, x=0.03, xd=0.01):
     return Impedance(0.0, 2.0, 5.0, 0.01, anchor=(x, xd, 0.0, z1, z2, f, 0.0))
 
 
+def _render_unsupported(imp, state, **kw):
+    return _render(imp, state, support_half=None, **kw)
+
+
 def _render(imp, state, **kw):
     ima = ImaRenderer(blend_time=0.0, max_rate=1e9, **kw)
     assert ima.set_impedance(imp)
@@ -25,9 +29,11 @@ def _render(imp, state, **kw):
 
 
 def test_local_anchor_corrects_near_the_anchor_and_fades_with_depth_and_reversal():
+    """The second round's 'local' correction alone (support off: support_half=None)."""
     imp = _anchored_model(miss=0.1)
     assert ImaRenderer().anchoring == 'local'               # the default
     assert ImaRenderer().anchor_length == LOCAL_ANCHOR_LENGTH == 0.005
+    _render = _render_unsupported
     at = (0.03, 0.01, 0.0)
     assert _render(imp, at) == pytest.approx(imp.force(*at) + 0.1)     # the measured force
     near = (0.035, 0.01, 0.0)                                           # one length deeper
@@ -51,3 +57,60 @@ def test_other_anchorings_render_the_model_or_the_anchored_baseline():
     assert _render(no_anchor, at) == pytest.approx(no_anchor.force(*at))
     with pytest.raises(ValueError, match='anchor_length'):
         ImaRenderer(anchor_length=-1.0)
+
+
+def test_without_data_support_the_default_renders_the_anchored_force():
+    """One model (one anchor): no depth has support, so the anchor's miss is kept whole at
+    any distance (the anchored baseline), not faded to the model's guess."""
+    imp = _anchored_model(miss=0.1)
+    assert ImaRenderer().support is not None and ImaRenderer().support.n_half == SUPPORT_HALF
+    far = (0.07, 0.01, 0.0)
+    assert _render(imp, far) == pytest.approx(imp.force(*far) + 0.1)
+    assert _render(imp, far, anchoring='none') == pytest.approx(imp.force(*far))
+
+
+def _learned(k, offset=0.05, miss=0.02, lo=0.02, hi=0.04, xd=0.01):
+    """A renderer that has received models (a linear model k x + offset + 2 x', the
+    measurement `miss` above it) anchored every 0.5 mm from lo to hi m, inserting."""
+    ima = ImaRenderer(blend_time=0.0, max_rate=1e9)
+    imp = None
+    for x in [lo + 0.0005 * i for i in range(int(round((hi - lo) / 0.0005)) + 1)]:
+        base = Impedance(0.0, 2.0, k, offset)
+        z1, z2 = steady_states(xd, base.v_s, base.beta)
+        imp = Impedance(0.0, 2.0, k, offset,
+                        anchor=(x, xd, 0.0, z1, z2, base.force(x, xd, 0.0) + miss, 0.0))
+        assert ima.set_impedance(imp)
+        ima.desired_force(x, xd, 0.0)
+    return ima, imp
+
+
+def test_supported_depths_render_the_model_with_the_local_correction():
+    ima, imp = _learned(k=5.0, miss=0.02)
+    assert ima.support.anywhere(0.03) > 0.7       # 8 anchors near: 8 / (8 + 3)
+    x = 0.03                                    # 10 mm from the last anchor (40 mm)
+    c = ima.support.anywhere(x)
+    g = 1.0 - (1.0 - (1.0 - c) ** 2) * (1.0 - math.exp(-0.01 / LOCAL_ANCHOR_LENGTH))
+    assert ima.desired_force(x, 0.01, 0.0) == pytest.approx(imp.force(x, 0.01, 0.0)
+                                                            + 0.02 * g)
+
+
+def test_beyond_the_data_the_model_is_extended_not_its_prior_guess():
+    # deeper: a model falling with depth (k < 0) is held at the edge of the data (never
+    # toward a smaller |force|), the anchor's miss kept whole
+    ima, imp = _learned(k=-5.0, offset=0.5)
+    xs = ima.support.nearest_any(0.06)
+    assert 0.039 <= xs <= 0.041
+    assert ima.support.anywhere(0.06) == 0.0
+    assert ima.desired_force(0.06, 0.01, 0.0) == pytest.approx(imp.force(xs, 0.01, 0.0)
+                                                               + 0.02)
+    # a model rising with depth is extended with its own slope: the model itself
+    ima, imp = _learned(k=5.0)
+    assert ima.desired_force(0.06, 0.01, 0.0) == pytest.approx(imp.force(0.06, 0.01, 0.0)
+                                                               + 0.02)
+    # shallower than the data: in proportion to the depth
+    ima, imp = _learned(k=5.0)
+    xs = ima.support.nearest_any(0.005)
+    assert 0.019 <= xs <= 0.021
+    assert ima.support.anywhere(0.005) == 0.0
+    want = imp.force(xs, 0.01, 0.0) * 0.005 / xs + 0.02
+    assert ima.desired_force(0.005, 0.01, 0.0) == pytest.approx(want)

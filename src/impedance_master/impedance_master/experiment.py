@@ -77,7 +77,9 @@ class ExperimentConfig:
     operator_params: {name: value} keyword parameters of that family;
     anchoring, anchor_length: the ImaRenderer's (default 'local', None: its default 5 mm);
     mode 'anchored' renders 'full' at any distance (the anchored baseline);
-    ident_params: {name: value} HistoryParams overrides of the default identifier.
+    ident_params: {name: value} HistoryParams overrides of the default identifier;
+    render_params: {name: value} further keyword arguments of the ImaRenderer (modes ima
+    and ima_thesis; e.g. support_half).
     """
     experiment: str = 'II'
     mode: str = 'ima'
@@ -106,9 +108,10 @@ class ExperimentConfig:
     anchoring: str = 'local'
     anchor_length: Optional[float] = None
     ident_params: Tuple[Tuple[str, object], ...] = ()
+    render_params: Tuple[Tuple[str, object], ...] = ()
 
     def __post_init__(self):
-        for name in ('vessel_params', 'operator_params', 'ident_params'):
+        for name in ('vessel_params', 'operator_params', 'ident_params', 'render_params'):
             v = getattr(self, name)
             if isinstance(v, dict):
                 object.__setattr__(self, name, tuple(sorted(v.items())))
@@ -188,7 +191,8 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
                                max_rate=cfg.max_rate, passivity=cfg.passivity,
                                anchoring='full' if cfg.mode == 'anchored' else cfg.anchoring,
                                anchor_length=(math.inf if cfg.mode == 'anchored'
-                                              else cfg.anchor_length))
+                                              else cfg.anchor_length),
+                               **({} if cfg.mode == 'anchored' else dict(cfg.render_params)))
     imp_every = max(1, int(round(cfg.rate / cfg.impedance_rate)))
 
     keys = ('t', 'x_hand', 'x_master', 'xd_master', 'x_slave', 'f_hand', 'f_desired', 'reference',

@@ -25,7 +25,14 @@ every other vessel x operator x seed, cold start.
   every vessel family (`sim_slave.vessels.draw_vessel`, within its documented physical
   ranges) for every operator family and each of the seeds 100-104 (the seed also sets the
   operator's motion, the disturbances' phases and the sensor noise): 90 worlds, defined
-  before the second round's design work and run once, after it was final.
+  before the second round's design work and run once, after it was final. The third round
+  used them (and the development set) for development: they are seen now. The third
+  round's renderer settings (`ImaRenderer` support weighing, `support_half` 3) were chosen
+  on the development set (seeds 10-12) and the fresh seeds 100 and 101, and checked on the
+  tuning family's Experiment II.
+* Second fresh held-out worlds (`drawn_cases(FRESH2_SEEDS)`, seeds 200-204, the same
+  families and operators, 90 worlds): defined and committed before the third round's
+  design work, run once after its design was final: the third round's blind figure.
 """
 from __future__ import annotations
 
@@ -43,6 +50,8 @@ MODES = ('ima', 'ima_thesis', 'dfr', 'anchored')
 DEVELOPMENT_SEEDS = (10, 11, 12)
 #: seeds of the fresh held-out worlds (randomised draws; see the module doc)
 FRESH_SEEDS = (100, 101, 102, 103, 104)
+#: seeds of the third round's held-out worlds (run once, after its design was final)
+FRESH2_SEEDS = (200, 201, 202, 203, 204)
 
 
 @dataclass(frozen=True)

@@ -39,12 +39,19 @@ from typing import Optional, Tuple
 
 from catheter_common.checks import nonneg, positive
 from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
-from impedance_master.impedance import FrictionState, Impedance
+from impedance_master.impedance import FrictionState, Impedance, steady_states
 from impedance_master.safety import ERROR, OK, WARN, RendererStatus, SafeOutput, check_number
+from impedance_master.support import Support
 
 ANCHORING = ('none', 'full', 'residual', 'local')
 #: m, default reach in depth of the 'local' anchor correction (see ImaRenderer)
 LOCAL_ANCHOR_LENGTH = 0.005
+#: anchors (slave samples, one per model) near a depth at which its support is 1/2
+SUPPORT_HALF = 3.0
+#: m, reach in depth of one anchor's support
+SUPPORT_WIDTH = 0.003
+#: m, depth step of the slope with which a model is extended beyond its data (support)
+SLOPE_STEP = 0.005
 #: s, smallest time constant of the take-over from the fallback to the model's force
 RECOVER_TIME = 0.05
 
@@ -120,6 +127,18 @@ class ImaRenderer(_Rendered):
             'residual' (the model plus the identifier's low-passed residual at the anchor,
             fading with distance over `anchor_length` m).
         anchor_length: m (None: LOCAL_ANCHOR_LENGTH = 5 mm for 'local', inf otherwise).
+        support_half: with 'local' anchoring, weigh the model by its data support
+            (third round of issue 12; None: off, the second round's 'local'): the
+            renderer counts the anchors of the models it receives (the slave's samples,
+            `support.Support`) over depth; `support_half` anchors near a depth give a
+            support c of 1/2 there (c = n / (n + support_half)). Where c is thin the
+            model's tables are its priors' guess (beyond the deepest point reached, above
+            the shallowest): the model is extended from the nearest depth with data
+            instead (shallower: in proportion to the depth; deeper: with the slope found
+            there, never toward a smaller |force|), with weight 1 - c, and the anchor's
+            miss is kept with weight (1 - c)^2 (toward the anchored baseline: the latest
+            measured force plus the model's change).
+        support_width: m, reach in depth of one anchor's support (triangular kernel).
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
     (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
     `n_bad_input`, `n_clamped`, `energy` (J, observer), `n_passivity` (steps with added
@@ -131,7 +150,9 @@ class ImaRenderer(_Rendered):
                  max_damping: float = 50.0, envelope: Optional[ModelEnvelope] = None,
                  fallback_time: float = 0.5, stale_time: float = 0.1,
                  state_box: Optional[Tuple[float, float, float, float]] = None,
-                 anchoring: str = 'local', anchor_length: Optional[float] = None):
+                 anchoring: str = 'local', anchor_length: Optional[float] = None,
+                 support_half: Optional[float] = SUPPORT_HALF,
+                 support_width: float = SUPPORT_WIDTH):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -160,14 +181,19 @@ class ImaRenderer(_Rendered):
             anchor_length = LOCAL_ANCHOR_LENGTH if anchoring == 'local' else math.inf
         self.anchor_length = float(anchor_length) if anchor_length == math.inf else \
             positive('anchor_length', anchor_length)
+        self.support: Optional[Support] = None
+        if support_half is not None and anchoring == 'local':
+            self.support = Support(lo, hi, support_width, support_half)
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
         self._bump = 0.0
         self._state: Optional[FrictionState] = None
         self._z = (0.0, 0.0)
         self._rho = 0.0
+        self._rho_set = False
         self._xa = 0.0
         self._za = 0.0
+        self._za2 = 0.0
         self._age = math.inf
         self._refused_since_accept = False
         self._bad_now = False
@@ -227,6 +253,8 @@ class ImaRenderer(_Rendered):
 
     def _eval(self, x: float, xd: float, xdd: float) -> float:
         m = self.model
+        if self.support is not None and self._rho_set:
+            return self._eval_supported(x, xd, xdd)
         f = m.force(x, xd, xdd, self._z if self._state is not None else None)
         if self._rho:
             d = abs(x - self._xa)
@@ -236,6 +264,38 @@ class ImaRenderer(_Rendered):
                 g *= max(0.0, 1.0 - 0.5 * abs(z1 - self._za))
             f += self._rho * g
         return f
+
+    def _eval_supported(self, x: float, xd: float, xdd: float) -> float:
+        """'local' anchoring where the model has data; beyond its data (the support
+        `c` near x is thin) the model's tables are its priors' guess: extend the model
+        from the nearest depth with data instead (weight 1 - c) and keep more of the
+        anchor's measured force (weight (1 - c)^2): toward the anchored baseline."""
+        m = self.model
+        sup = self.support
+        z = self._z if self._state is not None else steady_states(xd, m.v_s, m.beta)
+        za = (self._za, self._za2)
+        hold = m.force(x, xd, xdd, za)          # the anchor's direction of friction
+        flip = m.force(x, xd, xdd, z) - hold    # the model's change of direction
+        c = sup.anywhere(x)
+        xs = sup.nearest_any(x) if c < 1.0 else None
+        if xs is not None and xs != x:
+            # shallower than the data: in proportion to the depth (friction and drag grow
+            # with the inserted length from 0); deeper: the slope over SLOPE_STEP inside
+            # the data, never toward a smaller |force| (friction grows with the length, a
+            # wall with the depth)
+            fs = m.force(xs, xd, xdd, za)
+            if x < xs:
+                ext = fs * max(0.0, x) / xs
+            else:
+                slope = (fs - m.force(xs - SLOPE_STEP, xd, xdd, za)) / SLOPE_STEP
+                slope = max(0.0, slope) if fs >= 0.0 else min(0.0, slope)
+                ext = fs + slope * (x - xs)
+            hold += (1.0 - c) * (ext - hold)
+        d = abs(x - self._xa)
+        g = (math.exp(-d / self.anchor_length) if d else 1.0)
+        g *= max(0.0, 1.0 - 0.5 * abs(z[0] - self._za))
+        g = 1.0 - (1.0 - (1.0 - c) ** 2) * (1.0 - g)
+        return hold + flip + self._rho * g
 
     def _switch(self, x: float, xd: float, xdd: float) -> None:
         new = self._pending
@@ -255,9 +315,14 @@ class ImaRenderer(_Rendered):
             old_f = self._out.last
         a = new.anchor
         self._rho = 0.0
+        self._rho_set = False
         if self.anchoring != 'none' and a is not None:
+            self._rho_set = True
             self._xa = a.x
             self._za = a.z1
+            self._za2 = a.z2
+            if self.support is not None:
+                self.support.add(a.x, a.xd)
             if self.anchoring in ('full', 'local'):
                 self._rho = a.f - new.force(a.x, a.xd, a.xdd, (a.z1, a.z2))
             else:

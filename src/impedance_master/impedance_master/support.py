@@ -1,0 +1,125 @@
+"""Data support of the rendered model, as the master can know it: at which depths the
+slave has measured (issue 12, third round).
+
+Every model the identifier sends carries its `Anchor`: the slave's state at the sample the
+model was made at. The renderer counts these anchors (one per distinct model, i.e. one per
+identifier solve, 50 per second) in a histogram over inserted length (1 mm bins), one row
+per direction of motion (the anchor's velocity sign; anchors at rest, |x'| below
+`min_speed`, are not counted: the identifier does not learn from them either). Each count
+is spread over the neighbouring bins with a triangular kernel of half-width `width`, so
+the count at a depth is the data within about `width` of it; between bins it is linear
+(continuous in depth, so a renderer using it does not step).
+
+`anywhere(x)` = n / (n + n_half) of the count n of both directions near x: does the model
+know the force HERE, or do its tables there only repeat its priors (smoothness, the
+static force's pull to 0) beyond the data. `nearest_any(x)`: the depth nearest x with at
+least n_half anchors (the edge of the data to extend the model from). Counts only grow.
+
+No rclpy, no numpy: O(kernel) per anchor, O(1) per query (a bisection for `nearest`).
+"""
+from __future__ import annotations
+
+import bisect
+import math
+from typing import Optional
+
+from catheter_common.checks import positive
+
+#: m, bin width of the support histogram
+BIN = 0.001
+
+
+class Support:
+    """Anchor counts over depth x direction.
+
+    Args:
+        x_lo, x_hi: m, the range of depths counted (outside: the nearest end bin).
+        width: m, half-width of the triangular spreading kernel.
+        n_half: anchors at which the support `anywhere` is 1/2, and the count from which
+            a depth is 'seen' (`nearest`).
+        min_speed: m/s, anchors slower than this are not counted (at rest).
+        min_depth: m, depths shallower are never 'seen' (a renderer extends the model
+            toward the entry in proportion to depth / seen depth).
+    """
+
+    __slots__ = ('x_lo', 'n_bins', 'width', 'n_half', 'min_speed', 'min_depth', '_w', '_k',
+                 '_seen', 'n')
+
+    def __init__(self, x_lo: float = -0.07, x_hi: float = 0.25, width: float = 0.003,
+                 n_half: float = 3.0, min_speed: float = 0.001, min_depth: float = 0.005):
+        if not x_lo < x_hi:
+            raise ValueError(f'x_lo must be below x_hi, got {x_lo!r}, {x_hi!r}')
+        self.x_lo = float(x_lo)
+        self.n_bins = int(math.ceil((x_hi - x_lo) / BIN)) + 1
+        self.width = positive('width', width)
+        self.n_half = positive('n_half', n_half)
+        self.min_speed = positive('min_speed', min_speed)
+        self.min_depth = positive('min_depth', min_depth)
+        h = max(1, int(round(width / BIN)))
+        self._k = [(j, 1.0 - abs(j) / (h + 1)) for j in range(-h, h + 1)]
+        self._w = ([0.0] * self.n_bins, [0.0] * self.n_bins)      # [retracting, inserting]
+        self._seen = ([], [])           # sorted depths with >= n_half anchors, same order
+        self.n = 0
+
+    def _bin(self, x: float) -> int:
+        i = int(round((x - self.x_lo) / BIN))
+        return 0 if i < 0 else (self.n_bins - 1 if i >= self.n_bins else i)
+
+    def add(self, x: float, xd: float) -> bool:
+        """Count a slave sample at depth x (m) moving at xd (m/s); False if at rest (or
+        not finite: not counted)."""
+        if not (math.isfinite(x) and math.isfinite(xd)) or abs(xd) < self.min_speed:
+            return False
+        d = 1 if xd > 0.0 else 0
+        row = self._w[d]
+        seen = self._seen[d]
+        i0 = self._bin(x)
+        for j, w in self._k:
+            i = i0 + j
+            if 0 <= i < self.n_bins:
+                row[i] += w
+                xb = self.x_lo + i * BIN
+                if row[i] >= self.n_half and xb >= self.min_depth:
+                    k = bisect.bisect_left(seen, xb)
+                    if k == len(seen) or seen[k] != xb:
+                        seen.insert(k, xb)
+        self.n += 1
+        return True
+
+    def count(self, x: float, direction: float) -> float:
+        """Kernel-weighted anchors near depth x (m) moving in the direction sign(direction)
+        (linear between bins: continuous in x)."""
+        row = self._w[1 if direction > 0.0 else 0]
+        s = (x - self.x_lo) / BIN
+        if not s > 0.0:                 # below the range (the renderer checks x is finite)
+            return row[0]
+        if s >= self.n_bins - 1:
+            return row[-1]
+        i = int(s)
+        return row[i] + (s - i) * (row[i + 1] - row[i])
+
+    def anywhere(self, x: float) -> float:
+        """n / (n + n_half) of both directions' counts near x together, in [0, 1)."""
+        n = self.count(x, 1.0) + self.count(x, -1.0)
+        return n / (n + self.n_half)
+
+    def nearest(self, x: float, direction: float) -> Optional[float]:
+        """The depth (m, a bin at least min_depth deep) nearest x with at least n_half
+        anchors moving in the direction's sign, or None if there is none."""
+        b = self._seen[1 if direction > 0.0 else 0]
+        if not b:
+            return None
+        j = bisect.bisect_left(b, x)
+        if j == 0:
+            return b[0]
+        if j == len(b):
+            return b[-1]
+        return b[j] if b[j] - x < x - b[j - 1] else b[j - 1]
+
+    def nearest_any(self, x: float) -> Optional[float]:
+        """The depth nearest x seen (n_half anchors) in either direction, or None."""
+        a = self.nearest(x, 1.0)
+        b = self.nearest(x, -1.0)
+        if a is None or b is None:
+            return b if a is None else a
+        return a if abs(a - x) <= abs(b - x) else b

@@ -1,0 +1,77 @@
+"""Issue 12, third round: the renderer's data-support map (`support.Support`), hand-checked."""
+import math
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from impedance_master.support import BIN, Support
+
+
+def test_one_anchor_spreads_a_triangle_over_its_width_in_its_direction_only():
+    s = Support(0.0, 0.1, width=0.003, n_half=2.0)
+    assert s.add(0.05, 0.01)
+    assert s.count(0.05, 1.0) == pytest.approx(1.0)
+    assert s.count(0.05 + BIN, 1.0) == pytest.approx(0.75)
+    assert s.count(0.05 - 3 * BIN, 1.0) == pytest.approx(0.25)
+    assert s.count(0.05 + 4 * BIN, 1.0) == 0.0                 # beyond the width
+    assert s.count(0.05, -1.0) == 0.0                           # the other direction: none
+    assert s.count(0.05 + 0.5 * BIN, 1.0) == pytest.approx(0.875)   # linear between bins
+    assert s.anywhere(0.05) == pytest.approx(1.0 / 3.0)             # n / (n + n_half)
+    assert s.nearest(0.05, 1.0) is None                             # 1 < n_half: not seen
+    s.add(0.05, -0.02)
+    assert s.anywhere(0.05) == pytest.approx(0.5)
+    assert s.count(0.05, -1.0) == pytest.approx(1.0)
+
+
+def test_nearest_seen_depth_per_direction_and_in_either():
+    s = Support(0.0, 0.1, width=0.001, n_half=1.5)   # kernel: 1/2, 1, 1/2
+    for _ in range(2):
+        s.add(0.020, 0.01)                           # bin 20: 2, bins 19, 21: 1
+        s.add(0.060, -0.01)
+    assert s.nearest(0.0, 1.0) == pytest.approx(0.020)
+    assert s.nearest(0.05, 1.0) == pytest.approx(0.020)
+    assert s.nearest(0.05, -1.0) == pytest.approx(0.060)
+    assert s.nearest_any(0.035) == pytest.approx(0.020)
+    assert s.nearest_any(0.045) == pytest.approx(0.060)
+    s2 = Support(0.0, 0.1, width=0.001, n_half=1.5, min_depth=0.03)
+    s2.add(0.020, 0.01)
+    s2.add(0.020, 0.01)
+    assert s2.nearest_any(0.02) is None              # shallower than min_depth: never seen
+
+
+def test_anchors_at_rest_or_not_finite_are_not_counted_and_ends_clamp():
+    s = Support(0.0, 0.1, min_speed=0.001)
+    assert not s.add(0.05, 0.0005)
+    assert not s.add(math.nan, 0.01)
+    assert s.n == 0 and s.count(0.05, 1.0) == 0.0
+    assert s.add(-1.0, 0.01)                                    # below the range: first bin
+    assert s.count(0.0, 1.0) == pytest.approx(1.0)
+    assert s.count(-5.0, 1.0) == pytest.approx(1.0)
+    assert s.add(7.0, -0.01)                                    # above: last bin
+    assert s.count(7.0, -1.0) == pytest.approx(1.0)
+
+
+def test_bad_arguments_name_themselves():
+    with pytest.raises(ValueError, match='width'):
+        Support(width=0.0)
+    with pytest.raises(ValueError, match='n_half'):
+        Support(n_half=-1.0)
+    with pytest.raises(ValueError, match='x_lo'):
+        Support(0.1, 0.0)
+
+
+@given(st.lists(st.tuples(st.floats(-0.1, 0.3), st.floats(-0.1, 0.1)), max_size=30),
+       st.floats(-0.1, 0.3))
+def test_support_is_in_unit_interval_grows_with_data_and_nearest_is_seen(anchors, x):
+    s = Support(-0.07, 0.25, n_half=3.0)
+    before = s.anywhere(x)
+    for a in anchors:
+        s.add(*a)
+        now = s.anywhere(x)
+        assert 0.0 <= now < 1.0 and now >= before - 1e-15
+        before = now
+    xs = s.nearest_any(x)
+    if xs is not None:
+        assert xs >= s.min_depth
+        assert max(s.count(xs, 1.0), s.count(xs, -1.0)) >= s.n_half - 1e-9
