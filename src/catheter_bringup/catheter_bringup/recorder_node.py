@@ -17,7 +17,7 @@ from rclpy.node import Node
 
 from catheter_bringup.recorder import McapRecorder
 from catheter_bringup.ros_recording import RecordingSink
-from catheter_common.ros_node import Diagnostics, declare, run_node
+from catheter_common.ros_node import Diagnostics, declare, node_main
 
 
 def default_bag_dir() -> pathlib.Path:
@@ -76,8 +76,7 @@ class RecorderNode(Node):
 NODE_CLASS = RecorderNode
 
 
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':

@@ -39,7 +39,7 @@ from catheter_common import topics as T
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.images import array_to_image, image_to_array  # noqa: F401  (re-exported)
 from catheter_common.params import NodeParams, Param, table
-from catheter_common.ros_node import run_node, wall_time
+from catheter_common.ros_node import node_main, wall_time
 from catheter_shape.bezier import bezier_derivative, bezier_eval
 from catheter_shape.camera import SYSTEM_CAMERA, system_psi
 from catheter_shape.segmentation import METHODS
@@ -310,8 +310,7 @@ class ShapeNode(Node):
 NODE_CLASS = ShapeNode
 
 
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':

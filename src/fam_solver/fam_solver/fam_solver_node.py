@@ -31,7 +31,7 @@ from catheter_common import topics as T
 from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_DEFAULT
-from catheter_common.ros_node import run_node, wall_time
+from catheter_common.ros_node import node_main, wall_time
 from fam_solver import ARC_MODELS, DEFAULT_ARC_MODEL, Catheter, Loads, solve_fam
 from fam_solver.fam import DEFAULT_SPACING, SPACINGS
 
@@ -196,8 +196,7 @@ class FamSolverNode(Node):
 NODE_CLASS = FamSolverNode
 
 
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':

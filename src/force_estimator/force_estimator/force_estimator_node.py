@@ -40,7 +40,7 @@ from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.messages import tip_force_msg
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_SENSOR
-from catheter_common.ros_node import run_node, wall_time
+from catheter_common.ros_node import node_main, wall_time
 
 METHODS = ('svr', 'mlp', 'fam')
 #: the parameters of the FAM inversion (method fam, or the learned models' fallback)
@@ -214,8 +214,7 @@ class ForceEstimatorNode(Node):
 NODE_CLASS = ForceEstimatorNode
 
 
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':

@@ -31,7 +31,7 @@ from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.images import array_to_image
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_LATEST, QOS_SENSOR
-from catheter_common.ros_node import run_node
+from catheter_common.ros_node import node_main
 from sim_slave.camera import BLAZER_EI, BLAZER_LENGTH, DEFAULT_CAMERA, TipCamera
 from sim_slave.node_params import DEFAULT_VESSEL, VESSEL_CHOICES, vessel_from_params
 from sim_slave.vessel import VesselParams
@@ -149,8 +149,7 @@ class CameraNode(Node):
 NODE_CLASS = CameraNode
 
 
-def main(args=None):
-    return run_node(NODE_CLASS, args)
+main = node_main(NODE_CLASS)
 
 
 if __name__ == '__main__':
