@@ -165,7 +165,9 @@ def test_sim_haptic_node_commands_and_delays_the_slave_streams(ros):
     # the handle's state travels whole, acceleration included (the script moves after 0.4 s)
     from catheter_bringup.rclpy_adapter import intercept_publish
     sent = []
-    orig = intercept_publish(node.pub_cmd, lambda m: (sent.append((m, node.last)), orig(m)))
+    # the node reuses its command message (catheter_common.outgoing): what is kept is copied
+    orig = intercept_publish(node.pub_cmd,
+                             lambda m: (sent.append((copy.deepcopy(m), node.last)), orig(m)))
     node.run.t0 -= 1.0
     assert ros.spin_until(lambda: len(sent) > 5, 10.0)
     assert all((m.position, m.velocity, m.acceleration) == (s.x, s.xd, s.xdd) for m, s in sent)
