@@ -36,7 +36,7 @@ from rclpy.node import Node
 from catheter_common import topics as T
 from catheter_common.checks import all_finite
 from catheter_common.diagnostics import WARN, Diagnostics
-from catheter_common.messages import impedance_fields
+from catheter_common.messages import impedance_fields, impedance_key
 from catheter_common.outgoing import CommandOut, WrenchOut
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
@@ -109,6 +109,7 @@ class SimHapticNode(Node):
         self._cmd_out = CommandOut(T.FRAME_CATHETER_BASE)
         self._hand_out = WrenchOut(T.FRAME_CATHETER_BASE)
         self._clock = self.get_clock()
+        self._imp_checked = None      # impedance_key of the last model that passed the check
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self.diag.add_updater(self._to_diag)
         self.get_logger().info(
@@ -151,11 +152,17 @@ class SimHapticNode(Node):
         self.diag.count(key + '_sent')
 
     def _on_impedance(self, msg: ImpedanceModel) -> None:
-        try:
-            impedance_fields(msg)        # a model the master could not read is not sent
-        except ValueError as exc:
-            self.diag.bad_input('impedance', str(exc))
-            return
+        key = impedance_key(msg)
+        if key != self._imp_checked:
+            # a model the master could not read is not sent; checked once per model (the
+            # identifier re-sends a held model re-stamped every period; a key holding a NaN
+            # never equals an earlier one)
+            try:
+                impedance_fields(msg)
+            except ValueError as exc:
+                self.diag.bad_input('impedance', str(exc))
+                return
+            self._imp_checked = key
         self._send(self.link_imp, msg, 'impedance')
 
     def _on_slave_force(self, msg: WrenchStamped) -> None:
