@@ -3,8 +3,9 @@
     python tests/bench/bench_node_ticks.py [--against /path/to/other/checkout] [--rounds 3]
     scripts/bench node_ticks
 
-Runs lockstep Experiment II (4 s simulated, not recorded, the vision chain left out: its
-image outputs dropped, as bench_system's "without the vision chain" row) in a fresh
+Runs lockstep Experiment II (4 s simulated, recorded, the vision chain left out: its image
+outputs dropped, as bench_system's "without the vision chain" row; recorded, so every
+stream has a subscriber and is built and published, as in the main command) in a fresh
 interpreter with each checkout's environment (its scripts/env.sh), alternating this
 checkout and ``--against``, and prints the wall time per call (us) of each 1 kHz callback
 of the teleoperation nodes (sim_haptic_node, ima / dfr_master_node, sim_slave_node,
@@ -25,7 +26,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from bench_system_ab import ROOT, run_in  # noqa: E402
 
 CHILD = r'''
-import importlib, json, sys, time
+import importlib, json, sys, tempfile, time
 from catheter_bringup.runner import ScenarioRunner
 from catheter_bringup.scenario import load_scenario
 #: the 1 kHz callbacks of the nodes (timers first), wrapped on their class before the runner
@@ -58,7 +59,8 @@ for mod, names in METHODS.items():
 sc = load_scenario('experiment_ii')
 sc['duration'] = float(sys.argv[1])
 sc['outputs'] = [t for t in sc['outputs'] if t not in VISION_OUTPUTS]
-r = ScenarioRunner(sc, record=False, progress=False, log=lambda *_: None).run()
+with tempfile.TemporaryDirectory() as tmp:      # recorded: every stream has a subscriber
+    r = ScenarioRunner(sc, bag=f'{tmp}/run.mcap', progress=False, log=lambda *_: None).run()
 out = {'run_s_per_sim_s': r.wall_time / r.sim_time,
        'us_per_call': {k: v[1] / v[0] * 1e6 for k, v in acc.items() if v[0]},
        'calls': {k: v[0] for k, v in acc.items()}}
@@ -78,8 +80,8 @@ def main(argv=None) -> int:
         for k, root in sides:
             res[k].append(run_in(root, a.duration, CHILD))
     keys = sorted(res['this'][0]['us_per_call'])
-    print(f'lockstep Experiment II {a.duration:g} s, vision chain left out, {a.rounds} rounds '
-          'alternating; us per call, per round (run: wall s per simulated s)')
+    print(f'lockstep Experiment II {a.duration:g} s recorded, vision chain left out, '
+          f'{a.rounds} rounds alternating; us per call, per round (run: wall s per simulated s)')
     head = '  '.join(f'{k} {i + 1:d}' for i in range(a.rounds) for k, _ in sides)
     print(f'{"callback":42s} {"calls":>6s}  {head}')
     rows = [('run', None)] + [(k, res['this'][0]['calls'][k]) for k in keys]
@@ -93,7 +95,8 @@ def main(argv=None) -> int:
         ratio = ''
         if a.against:
             ts, os_ = vals[0::2], vals[1::2]
-            ratio = f'   this/other {statistics.median(t / o for t, o in zip(ts, os_, strict=True)):.2f}'
+            med = statistics.median(t / o for t, o in zip(ts, os_, strict=True))
+            ratio = f'   this/other {med:.2f}'
         print(f'{key:42s} {calls if calls else "":>6}  '
               + '  '.join(f'{v:7.3f}' if key == 'run' else f'{v:7.1f}' for v in vals) + ratio)
     return 0
