@@ -165,7 +165,9 @@ def test_sim_haptic_node_commands_and_delays_the_slave_streams(ros):
     # the handle's state travels whole, acceleration included (the script moves after 0.4 s)
     from catheter_bringup.rclpy_adapter import intercept_publish
     sent = []
-    orig = intercept_publish(node.pub_cmd, lambda m: (sent.append((m, node.last)), orig(m)))
+    # the node reuses its command message (catheter_common.outgoing): what is kept is copied
+    orig = intercept_publish(node.pub_cmd,
+                             lambda m: (sent.append((copy.deepcopy(m), node.last)), orig(m)))
     node.run.t0 -= 1.0
     assert ros.spin_until(lambda: len(sent) > 5, 10.0)
     assert all((m.position, m.velocity, m.acceleration) == (s.x, s.xd, s.xdd) for m, s in sent)
@@ -265,3 +267,37 @@ def test_identifier_node_never_overwrites_a_state_file_it_could_not_load(ros, tm
     assert beside == ['ident.1.json'], beside
     assert node.diag.level()[0] == 1 and 'rejected' in node.diag.level()[1]
     node.destroy_node()
+
+
+def test_sim_haptic_node_checks_each_model_once_and_still_refuses_a_bad_one(ros):
+    """The link side checks a model only when it differs from the last one that passed (the
+    identifier re-sends a held model every period): a re-sent model is relayed, a model with
+    a NaN anywhere is refused every time, also right after the same model without it."""
+    node = ros.add(SimHapticNode(context=ros.context))
+    node._tick()                                   # the run starts: sends are timed from here
+    good = impedance_msg(Impedance(0.1, 2.0, 3.0, 0.5, x0=0.0, dx=0.01, S=[1, 2], F=[0, 0],
+                                   B=[0, 0], C=[0, 0]), 5)
+    sent = lambda: node.diag.get('impedance_sent') or 0          # noqa: E731
+    node._on_impedance(good)
+    node._on_impedance(copy.deepcopy(good))
+    assert sent() == 2 and (node.diag.get('bad_messages') or 0) == 0
+    checks = []
+    import impedance_master.sim_haptic_node as shn
+    orig = shn.impedance_fields
+    shn.impedance_fields = lambda m: (checks.append(1), orig(m))[1]
+    try:
+        node._on_impedance(copy.deepcopy(good))    # the same model: relayed, not re-checked
+        assert checks == [] and sent() == 3
+        for attr, val in (('s_table', [1.0, math.nan]), ('m', math.inf), ('sigma', math.nan)):
+            bad = copy.deepcopy(good)
+            setattr(bad, attr, val)
+            for _ in range(2):
+                node._on_impedance(bad)
+        assert sent() == 3 and node.diag.get('bad_messages') == 6 and len(checks) == 6
+        node._on_impedance(copy.deepcopy(good))    # the model that passed: relayed unchecked
+        assert sent() == 4 and len(checks) == 6
+        other = impedance_msg(Impedance(0.1, 2.5, 3.0, 0.5), 6)
+        node._on_impedance(other)                  # a new model: checked
+        assert sent() == 5 and len(checks) == 7
+    finally:
+        shn.impedance_fields = orig

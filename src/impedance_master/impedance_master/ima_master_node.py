@@ -38,6 +38,7 @@ from catheter_common import topics as T
 from catheter_common.checks import finite
 from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.messages import impedance_fields, impedance_key, master_command_values
+from catheter_common.outgoing import WrenchOut
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import node_main
@@ -117,6 +118,10 @@ class ImaMasterNode(Node):
                                  self._on_impedance, QOS_FAST)
         self.create_subscription(WrenchStamped, T.relative(T.MASTER_LINK_FORCE), self._on_force,
                                  QOS_FAST)
+        # the 1 kHz render's own objects: one reused message (serialised at publish,
+        # catheter_common.outgoing) and the node clock (the same object for the node's life)
+        self._out = WrenchOut(T.FRAME_CATHETER_BASE)
+        self._clock = self.get_clock()
         self.timer = self.create_timer(dt, self._render)
         self.diag.add_updater(self._to_diag)
         self.get_logger().info(
@@ -137,7 +142,7 @@ class ImaMasterNode(Node):
             set_core_limit(self.renderer, self.limit)
 
     def _now_ns(self) -> int:
-        return self.get_clock().now().nanoseconds
+        return self._clock.now().nanoseconds
 
     def _on_command(self, msg: MasterCommand) -> None:
         try:
@@ -199,11 +204,8 @@ class ImaMasterNode(Node):
             except ValueError as exc:     # the renderer refused the state: render nothing
                 self.diag.event('renderer_refused', ERROR, f'renderer refused the state: {exc}')
                 f = 0.0
-        msg = WrenchStamped()
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.header.frame_id = T.FRAME_CATHETER_BASE
-        msg.wrench.force.x = self._safe(f)
-        self.pub.publish(msg)
+        ns = self._clock.now().nanoseconds
+        self.pub.publish(self._out.fill(ns, self._safe(f)))
         self.diag.count('rendered')
 
     def _safe(self, f) -> float:

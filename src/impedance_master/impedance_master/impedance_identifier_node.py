@@ -35,6 +35,7 @@ from catheter_common import topics as T
 from catheter_common.checks import first
 from catheter_common.diagnostics import ERROR, WARN, Diagnostics
 from catheter_common.messages import impedance_msg
+from catheter_common.outgoing import set_stamp
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import node_main
@@ -87,6 +88,7 @@ class ImpedanceIdentifierNode(Node):
         self.diag = Diagnostics(self)
         self.diag.count('bad_messages', 0)
         self._msg = None             # the message of _published_model (re-stamped when held)
+        self._clock = self.get_clock()   # the same object for the node's life
         self.pub = self.create_publisher(ImpedanceModel, T.relative(T.SLAVE_IMPEDANCE),
                                          QOS_FAST)
         self.sub = self.create_subscription(JointState, T.relative(T.SLAVE_JOINT_STATE),
@@ -133,13 +135,14 @@ class ImpedanceIdentifierNode(Node):
     def _publish(self) -> None:
         if self.model is None or self.pub.get_subscription_count() == 0:
             return
-        stamp = self.get_clock().now().to_msg()
+        ns = self._clock.now().nanoseconds
         if self.model is not self._published_model or self._msg is None:
-            # a new model: converted once (a held model is re-sent re-stamped)
-            self._msg = impedance_msg(self.model, stamp, T.FRAME_CATHETER_BASE)
+            # a new model: converted once (a held model is re-sent re-stamped in place:
+            # serialised at publish, catheter_common.outgoing)
+            self._msg = impedance_msg(self.model, ns, T.FRAME_CATHETER_BASE)
             self._published_model = self.model
         msg = self._msg
-        msg.header.stamp = stamp
+        set_stamp(msg.header.stamp, ns)
         msg.status = self.model.status
         self.pub.publish(msg)
         self.diag.count('published')

@@ -36,7 +36,8 @@ from rclpy.node import Node
 from catheter_common import topics as T
 from catheter_common.checks import all_finite
 from catheter_common.diagnostics import WARN, Diagnostics
-from catheter_common.messages import impedance_fields, master_command_msg
+from catheter_common.messages import impedance_fields, impedance_key
+from catheter_common.outgoing import CommandOut, WrenchOut
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import node_main
@@ -103,6 +104,12 @@ class SimHapticNode(Node):
                                  QOS_FAST)
         self.create_subscription(WrenchStamped, rel(T.SLAVE_FORCE), self._on_slave_force,
                                  QOS_FAST)
+        # the 1 kHz tick's own objects: one message per stream, reused (serialised at publish,
+        # catheter_common.outgoing), and the node clock (the same object for the node's life)
+        self._cmd_out = CommandOut(T.FRAME_CATHETER_BASE)
+        self._hand_out = WrenchOut(T.FRAME_CATHETER_BASE)
+        self._clock = self.get_clock()
+        self._imp_checked = None      # impedance_key of the last model that passed the check
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self.diag.add_updater(self._to_diag)
         self.get_logger().info(
@@ -121,7 +128,7 @@ class SimHapticNode(Node):
         self.link_force = Link(self.link_cfg, seed=2 * self.seed + 12)
 
     def _now(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
+        return self._clock.now().nanoseconds * 1e-9
 
     def _on_rendered(self, msg: WrenchStamped) -> None:
         f = msg.wrench.force.x
@@ -145,11 +152,17 @@ class SimHapticNode(Node):
         self.diag.count(key + '_sent')
 
     def _on_impedance(self, msg: ImpedanceModel) -> None:
-        try:
-            impedance_fields(msg)        # a model the master could not read is not sent
-        except ValueError as exc:
-            self.diag.bad_input('impedance', str(exc))
-            return
+        key = impedance_key(msg)
+        if key != self._imp_checked:
+            # a model the master could not read is not sent; checked once per model (the
+            # identifier re-sends a held model re-stamped every period; a key holding a NaN
+            # never equals an earlier one)
+            try:
+                impedance_fields(msg)
+            except ValueError as exc:
+                self.diag.bad_input('impedance', str(exc))
+                return
+            self._imp_checked = key
         self._send(self.link_imp, msg, 'impedance')
 
     def _on_slave_force(self, msg: WrenchStamped) -> None:
@@ -162,8 +175,8 @@ class SimHapticNode(Node):
         self._send(self.link_force, msg, 'force')
 
     def _tick(self) -> None:
-        stamp = self.get_clock().now()
-        t, restarted = self.run.tick(stamp.nanoseconds * 1e-9)
+        ns = self._clock.now().nanoseconds
+        t, restarted = self.run.tick(ns * 1e-9)
         if restarted:
             self.get_logger().warning('the clock jumped back: restarting script, device, links')
             self.diag.count('clock_resets')
@@ -172,30 +185,28 @@ class SimHapticNode(Node):
         xh, vh, ah = self.traj.sample(t)
         s = self.device.step(self.f_rendered, xh, vh, ah)
         self.last = s
-        self.diag.count('ticks')
-        st = stamp.to_msg()
+        diag = self.diag
+        diag.count('ticks')
         if self.pub_cmd.get_subscription_count() > 0:
             try:
-                cmd = master_command_msg(s.x, s.xd, s.xdd, 0.0, st, T.FRAME_CATHETER_BASE)
+                cmd = self._cmd_out.fill(ns, s.x, s.xd, s.xdd, 0.0)
             except ValueError as exc:     # a device state that is not finite is not sent
-                self.diag.count('nonfinite_commands')
-                self.diag.event('nonfinite_command', WARN, f'command not sent: {exc}')
+                diag.count('nonfinite_commands')
+                diag.event('nonfinite_command', WARN, f'command not sent: {exc}')
             else:
                 self.pub_cmd.publish(cmd)
         if self.pub_hand.get_subscription_count() > 0:
-            w = WrenchStamped()
-            w.header.stamp = st
-            w.header.frame_id = T.FRAME_CATHETER_BASE
-            w.wrench.force.x = s.f_hand
-            self.pub_hand.publish(w)
+            self.pub_hand.publish(self._hand_out.fill(ns, s.f_hand))
+        # what the links deliver is the slave's own message object: re-published as it is
+        # (never one of the reused ones above)
         got = self.link_imp.receive(t)
         if got is not None:
             self.pub_imp.publish(got)
-            self.diag.count('impedance_delivered')
+            diag.count('impedance_delivered')
         got = self.link_force.receive(t)
         if got is not None:
             self.pub_force.publish(got)
-            self.diag.count('force_delivered')
+            diag.count('force_delivered')
 
     def _to_diag(self) -> None:
         d = self.diag

@@ -28,6 +28,7 @@ robot/sensor/link.
 """
 from __future__ import annotations
 
+import array
 import math
 from dataclasses import fields
 
@@ -41,6 +42,7 @@ from catheter_common.checks import finite
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
+from catheter_common.outgoing import set_stamp
 from catheter_common.ros_node import node_main
 from sim_slave.link import Link
 from sim_slave.link_side import (RunClock, apply_link_changes, link_config, link_params,
@@ -132,8 +134,15 @@ class SimSlaveNode(Node):
         self._js = JointState()
         self._js.header.frame_id = T.FRAME_CATHETER_BASE
         self._js.name = JOINT_NAMES
+        # the reused message's float64[] fields, written in place each tick (an assigned list
+        # is range-checked element by element and copied by the generated setter)
+        self._js.position = array.array('d', (0.0, 0.0))
+        self._js.velocity = array.array('d', (0.0, 0.0))
+        self._js.effort = array.array('d', (0.0, 0.0))
+        self._js_arrays = (self._js.position, self._js.velocity, self._js.effort)
         self._wrench = WrenchStamped()
         self._wrench.header.frame_id = T.FRAME_CATHETER_BASE
+        self._clock = self.get_clock()       # the same object for the node's life
         self.diag = Diagnostics(self)
         self.diag.count('bad_messages', 0)
         self.pub_js = self.create_publisher(JointState, T.relative(T.SLAVE_JOINT_STATE), QOS_FAST)
@@ -154,7 +163,7 @@ class SimSlaveNode(Node):
             self.max_catchup = values['max_catchup_steps']
 
     def _now(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
+        return self._clock.now().nanoseconds * 1e-9
 
     def _on_command(self, msg: MasterCommand) -> None:
         if self.run.t0 is None:
@@ -194,8 +203,8 @@ class SimSlaveNode(Node):
                 raise
 
     def _step(self) -> None:
-        stamp = self.get_clock().now()
-        t, restarted = self.run.tick(stamp.nanoseconds * 1e-9)
+        ns = self._clock.now().nanoseconds
+        t, restarted = self.run.tick(ns * 1e-9)
         if restarted:
             self._restart()
         got = self.link.receive(t)
@@ -216,18 +225,20 @@ class SimSlaveNode(Node):
         self._err_max = max(self._err_max, err)
         self._err_sq += err * err
         self._err_n += 1
-        msg_stamp = stamp.to_msg()
         if self.pub_js.get_subscription_count() > 0:
-            js = self._js            # reused: rclpy serialises at publish
-            js.header.stamp = msg_stamp
+            js = self._js            # reused: serialised at publish (catheter_common.outgoing)
+            set_stamp(js.header.stamp, ns)
             rotation = self.sim.rotation
-            js.position = [sample.x, rotation.x]
-            js.velocity = [sample.xd, rotation.xd]
-            js.effort = [sample.f_meas, 0.0]
+            pos, vel, eff = self._js_arrays
+            pos[0] = sample.x
+            pos[1] = rotation.x
+            vel[0] = sample.xd
+            vel[1] = rotation.xd
+            eff[0] = sample.f_meas
             self.pub_js.publish(js)
         if self.pub_force.get_subscription_count() > 0:
             w = self._wrench
-            w.header.stamp = msg_stamp
+            set_stamp(w.header.stamp, ns)
             w.wrench.force.x = sample.f_meas
             self.pub_force.publish(w)
 
