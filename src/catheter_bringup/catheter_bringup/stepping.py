@@ -220,10 +220,21 @@ class Stepping:
             return self._run_realtime_events(bar)
         if self.bus is not None:
             return self._run_realtime_local(bar)
-        sc = self.scenario
+        for _clock, now, end in self._wall_loop(bar):
+            self.executor.spin_once(timeout_sec=min(0.05, (end - now) * 1e-9))
+        # let the recorder take what is still in flight
+        t_end = time.perf_counter() + 0.5
+        while not self._caught_up() and time.perf_counter() < t_end:
+            self.executor.spin_once(timeout_sec=0.01)
+        return 0, self._sim_reached
+
+    def _wall_loop(self, bar):
+        """The iterations of a real-time loop on the runner's clock, until the scenario's
+        duration has passed: yields ``(clock, now_ns, end_ns)``; a stop request raises
+        KeyboardInterrupt. Before each iteration, the upkeep (`_upkeep`)."""
         clock = self.runner_node.get_clock()
         start = clock.now().nanoseconds
-        end = start + int(sc['duration'] * 1e9)
+        end = start + int(self.scenario['duration'] * 1e9)
         last = 0.0
         self._sim_reached = 0.0
         next_scan = start
@@ -231,16 +242,11 @@ class Stepping:
             now = clock.now().nanoseconds
             self._now_ns = now
             if now >= end:
-                break
+                return
             if self.stop_requested:
                 raise KeyboardInterrupt
-            self.executor.spin_once(timeout_sec=min(0.05, (end - now) * 1e-9))
             next_scan, last = self._upkeep(clock, now, start, next_scan, bar, last)
-        # let the recorder take what is still in flight
-        t_end = time.perf_counter() + 0.5
-        while not self._caught_up() and time.perf_counter() < t_end:
-            self.executor.spin_once(timeout_sec=0.01)
-        return 0, self._sim_reached
+            yield clock, now, end
 
     def _upkeep(self, clock, now: int, start: int, next_scan: int, bar, last: float):
         """Per-iteration upkeep of the real-time loops: the time reached, a rescan for new
@@ -263,21 +269,10 @@ class Stepping:
         """Real time on the system clock with the in-process bus: ready timers are called
         directly and what they publish is delivered at once; between timers the loop sleeps
         until the next one is due (no DDS, no wait-set construction per callback)."""
-        sc = self.scenario
-        clock = self.runner_node.get_clock()
-        start = clock.now().nanoseconds
-        end = start + int(sc['duration'] * 1e9)
-        last = 0.0
-        self._sim_reached = 0.0
-        next_scan = start
-        next_spin = start
-        while True:
-            now = clock.now().nanoseconds
-            self._now_ns = now
-            if now >= end:
-                break
-            if self.stop_requested:
-                raise KeyboardInterrupt
+        next_spin = None
+        for clock, now, end in self._wall_loop(bar):
+            if next_spin is None:
+                next_spin = now            # the first external spin is due at the start
             self._drain_bus(100000)
             if self.bus.external and now >= next_spin:
                 # poll DDS in the idle gap before the next timer, not across it (unless overdue)
@@ -286,7 +281,6 @@ class Stepping:
                 if slack >= SPIN_SLACK_NS or now >= next_spin + 5 * EXTERNAL_SPIN_NS:
                     self._spin_external()
                     next_spin = now + EXTERNAL_SPIN_NS
-            next_scan, last = self._upkeep(clock, now, start, next_scan, bar, last)
             wait = min((t.time_until_next_call() or 0 for t in self._timers
                         if not t.is_canceled()), default=1_000_000)
             if self.bus.external:
