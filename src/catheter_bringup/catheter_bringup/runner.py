@@ -18,8 +18,9 @@ Layout split (real time): every node in a worker process (master, slave, vision;
 part file and this process merges the parts into the bag (`local_recording`).
 
 The parts: `node_start` (building the node instances), `bus` (the in-process transport and
-the counters), `stepping` (the lockstep and real-time loops), `worker` (the worker processes
-of multi-process real-time runs), `realtime` (scheduling, GC, real-time figures),
+the counters), `stepping` (the lockstep and real-time loops), `split_run` (the runner's side
+of the split layout: DDS topics, part recording, starting the workers), `worker` (the worker
+processes of multi-process real-time runs), `realtime` (scheduling, GC, real-time figures),
 `rclpy_adapter` (every rclpy internal all of these use).
 """
 from __future__ import annotations
@@ -38,28 +39,27 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
-from catheter_bringup.local_recording import merge_parts, part_path, wanted
+from catheter_bringup.local_recording import merge_parts, part_path
 from catheter_bringup.part_pipe import PartPipe, RecorderPipe
 from catheter_bringup.node_start import available_instances, start_node
-from catheter_bringup.rclpy_adapter import count_extra_subscriber, detach_clock
+from catheter_bringup.rclpy_adapter import detach_clock
 from catheter_bringup.recorder import McapRecorder
 from catheter_bringup.result import RunResult  # noqa: F401  (re-exported: part of the API)
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
 from catheter_bringup.scenario import load_scenario, resolve_nodes, run_start_info, scenario_text
+from catheter_bringup.split_run import SplitRun, worker_dds_topics
 from catheter_bringup.stepping import Stepping
 from catheter_bringup.worker import Workers
 from catheter_common import qos as Q
 from catheter_common import topics as T
 from catheter_common.params import declare
-from catheter_common.ros_node import make_executor
+from catheter_common.ros_node import STOP_SIGNALS, make_executor
 
 RUNNER_NODE = 'run_scenario'
 #: bytes, MCAP chunk size of real-time recordings (lockstep: 1 MB)
 REALTIME_CHUNK = 64 * 1024
 
 
-#: how the run status names the signals that stop a run
-STOP_SIGNALS = {signal.SIGINT: 'SIGINT (Ctrl-C)', signal.SIGTERM: 'SIGTERM'}
 
 
 def _record_stop_signals(runner) -> dict:
@@ -85,18 +85,7 @@ def _record_stop_signals(runner) -> dict:
     return old
 
 
-def worker_dds_topics(consumed_elsewhere) -> set:
-    """Layout split: what a worker publishes on DDS besides its local bus: the topics a node
-    of another process consumes (the link topics between master and slave, the slave's
-    joint state for the camera) and /diagnostics (the operator's tools). Nothing else: each
-    worker records its own nodes, so a DDS publish of a topic nobody outside takes cost a
-    serialisation hand-off to the rmw per message in the 1 kHz loop, and the process's own
-    subscriptions of it were handed the copy back by DDS (taken and dropped). The scenario's
-    ``dds: true`` puts every topic on DDS again (for outside tools: catheter_topic, rviz)."""
-    return set(consumed_elsewhere) | {T.DIAGNOSTICS}
-
-
-class ScenarioRunner(Stepping):
+class ScenarioRunner(Stepping, SplitRun):
     """Runs one scenario. ``scenario``: a dict from `load_scenario` (or a name/path).
 
     >>> res = ScenarioRunner('smoke', bag='bags/smoke.mcap').run()
@@ -310,71 +299,6 @@ class ScenarioRunner(Stepping):
         if self.child_groups:
             self._start_children()
         return self
-
-    def _record_part(self):
-        """A worker of the split layout: every publish of its nodes' recorded topics goes,
-        as the bytes the bus serialised, into its part file."""
-        from catheter_bringup.ros_recording import qos_to_dict
-        rec = self.scenario['record']
-        # written by a process of its own (`part_pipe`): the loop only hands over bytes
-        self.part = PartPipe(self.part_bag, self.process)
-        for node in self.nodes.values():
-            for pub in list(node.publishers):
-                if wanted(pub.topic_name, rec['exclude'], rec.get('only') or None):
-                    self.part.add_topic(pub.topic_name, type_name_of(pub.msg_type),
-                                        [qos_to_dict(pub.qos_profile)])
-                    # the part records it: a subscriber, as the DDS recorder was (nodes that
-                    # publish only while someone subscribes keep publishing it)
-                    count_extra_subscriber(pub)
-        self.bus.record = self.part.record
-
-    def _start_children(self):
-        """Start the worker processes (real time) and wait until their nodes are in the
-        graph."""
-        self.children = Workers(self.scenario, self.child_groups, self.log, parts=self.parts)
-        if not self.children.wait_in_graph(self.runner_node.get_node_names):
-            self.children = None
-            if not self.nodes:
-                raise RuntimeError('a worker process failed to start (see the log)')
-            return
-        if self.sink is not None:
-            # the workers' topics, recorded through DDS: subscribed before their loops start
-            want = {t for t in self._child_produces if self.sink.wants(t)}
-            t_end = time.monotonic() + 10.0
-            while time.monotonic() < t_end:
-                self.sink.discover()
-                if not (want - set(self.sink.subs)):
-                    break
-                time.sleep(0.1)
-            self._track()
-            time.sleep(0.5)            # the workers' publishers match the new subscriptions
-        self.children.go()
-        # the workers stop at the end of the run even when this process cannot keep up
-        # (an executor busy with a backlog of recorder messages returns late)
-        self._watchdog = threading.Timer(self.scenario['duration'] + 1.0,
-                                         self.children.interrupt)
-        self._watchdog.daemon = True
-        self._watchdog.start()
-
-    def _stop_children(self):
-        """Stop the workers (the recorder takes what they still publish meanwhile) and keep
-        their reports."""
-        if self.children is None:
-            return
-        if getattr(self, '_watchdog', None) is not None:
-            self._watchdog.cancel()
-        spin = self._spin_external if self.bus is not None else (
-            lambda: self.executor.spin_once(timeout_sec=0.01))
-        self.children.stop(spin)
-        self.child_reports = dict(self.children.reports)
-        if self.children.link:
-            self.child_reports['link'] = self.children.link
-        self.child_published = self.children.published()
-        self.child_cost = self.children.cost()
-        t_end = time.perf_counter() + 0.3
-        while time.perf_counter() < t_end:
-            spin()
-        self.children = None
 
     def _drive_clock_of(self, node: Node):
         """Lockstep: the runner sets the node's sim time directly each step (what its /clock

@@ -187,7 +187,7 @@ class Stepping:
             self.bus.stamp_topics = set(LINK_TOPICS) if self.children is None else set()
             self.bus.wall_ns = time.time_ns
             # what this process puts on DDS besides its bus (a worker of layout split: only
-            # what another process consumes, `runner.worker_dds_topics`)
+            # what another process consumes, `split_run.worker_dds_topics`)
             info['dds_topics'] = 'all' if self.bus.dds else sorted(
                 t for t in self.bus.dds_topics if t in self.bus.counts)
         undo = quiet_gc()
