@@ -146,3 +146,22 @@ def test_the_writer_outlives_signals_sent_to_the_process_group(tmp_path):
     from catheter_bringup.recorder import read_run_metadata
     meta = read_run_metadata(tmp_path / 's.mcap')
     assert meta['status'] == 'interrupted' and meta['reason'] == 'SIGTERM'
+
+
+@pytest.mark.parametrize('kind', ['mcap', 'part'])
+def test_add_topic_checks_are_the_same_for_both_recorders(tmp_path, kind):
+    """McapRecorder and PartPipe share `recorder.known_channel`: an absolute name, one type
+    per topic, the same id for a repeat, nothing added once closed."""
+    from catheter_bringup.recorder import McapRecorder
+    rec = (McapRecorder(str(tmp_path / 'a.mcap')) if kind == 'mcap'
+           else P.PartPipe(tmp_path / 'a.master.part.mcap', 'master'))
+    wrench = 'geometry_msgs/msg/WrenchStamped'
+    first = rec.add_topic('/w', wrench, None)
+    assert rec.add_topic('/w', wrench, None) == first
+    with pytest.raises(ValueError, match='absolute name'):
+        rec.add_topic('w', wrench, None)
+    with pytest.raises(ValueError, match='already recorded as'):
+        rec.add_topic('/w', 'sensor_msgs/msg/JointState', None)
+    rec.close('complete')
+    with pytest.raises(ValueError, match='closed'):
+        rec.add_topic('/js', 'sensor_msgs/msg/JointState', None)

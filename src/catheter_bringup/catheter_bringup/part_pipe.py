@@ -91,15 +91,11 @@ class RecorderPipe:
         self._buf += body
 
     def add_topic(self, topic: str, type_name: str, qos: Optional[List[Mapping]] = None) -> int:
-        if not isinstance(topic, str) or not topic.startswith('/'):
-            raise ValueError(f'topic must be an absolute name like "/a/b", got {topic!r}')
-        if topic in self.topics:
-            if self._types[topic] != type_name:
-                raise ValueError(f'type_name: {topic} already recorded as {self._types[topic]}')
-            return self.topics[topic]
-        if self.closed:
-            raise ValueError('recorder is closed')
         from catheter_bringup.cdr import message_class
+        from catheter_bringup.recorder import known_channel
+        known = known_channel(topic, type_name, self.topics, self._types, self.closed)
+        if known is not None:
+            return known
         message_class(type_name)       # an unknown type is refused here (ImportError/ValueError)
         tid = self.topics[topic] = len(self.topics)
         self._types[topic] = type_name

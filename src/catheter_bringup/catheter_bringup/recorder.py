@@ -144,6 +144,22 @@ def qos_yaml(profiles: List[Mapping]) -> str:
     return '\n'.join(lines) + '\n' if lines else ''
 
 
+def known_channel(topic: str, type_name: str, ids: Mapping[str, int],
+                  types: Mapping[str, str], closed: bool) -> Optional[int]:
+    """The checks of a recorder's ``add_topic`` (McapRecorder, part_pipe.PartPipe): an
+    absolute topic name, one type per topic. Returns the topic's id when it is already
+    recorded, None for a new topic (refused when the recorder is closed)."""
+    if not isinstance(topic, str) or not topic.startswith('/'):
+        raise ValueError(f'topic must be an absolute name like "/a/b", got {topic!r}')
+    if topic in ids:
+        if types[topic] != type_name:
+            raise ValueError(f'type_name: {topic} already recorded as {types[topic]}')
+        return ids[topic]
+    if closed:
+        raise ValueError('recorder is closed')
+    return None
+
+
 class McapRecorder:
     """Writes messages of many topics into one MCAP file; thread safe; close() is idempotent.
 
@@ -185,15 +201,10 @@ class McapRecorder:
     def add_topic(self, topic: str, type_name: str, qos: Optional[List[Mapping]] = None) -> int:
         """Register a channel (once per topic); returns its id. ``qos``: offered profiles
         (dicts)."""
-        if not isinstance(topic, str) or not topic.startswith('/'):
-            raise ValueError(f'topic must be an absolute name like "/a/b", got {topic!r}')
         with self._lock:
-            if topic in self._channels:
-                if self._types[topic] != type_name:
-                    raise ValueError(f'type_name: {topic} already recorded as {self._types[topic]}')
-                return self._channels[topic]
-            if self.closed:
-                raise ValueError('recorder is closed')
+            known = known_channel(topic, type_name, self._channels, self._types, self.closed)
+            if known is not None:
+                return known
             cls = message_class(type_name)
             if type_name not in self._schemas:
                 self._schemas[type_name] = self._w.register_schema(
