@@ -185,3 +185,41 @@ def test_executors_call_replaced_callbacks_and_take_raw_after_creation(ros, kind
         ex.remove_node(node)
         ex.shutdown()
     assert got and isinstance(got[0], bytes) and fired
+
+
+def test_without_ros_args_drops_the_ros_arguments_only():
+    argv = ['smoke', '--ros-args', '-r', '__node:=x', '--', '--duration', '2']
+    assert A.without_ros_args(argv) == ['smoke', '--duration', '2']
+    assert A.without_ros_args(['smoke']) == ['smoke']
+
+
+def test_serializer_round_trips_a_message():
+    ser, de = A.serializer()
+    msg = String(data='catheter')
+    assert de(ser(msg), String) == msg
+
+
+def test_spin_for_runs_the_events_executor_for_about_the_time_asked():
+    import time
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.experimental import EventsExecutor
+    ctx = Context()
+    rclpy.init(context=ctx)
+    try:
+        node = rclpy.create_node('spin_for_probe', context=ctx)
+        ex = EventsExecutor(context=ctx)
+        ex.add_node(node)
+        ticks = []
+        node.create_timer(0.01, lambda: ticks.append(1))
+        never = A.never_done()
+        t0 = time.monotonic()
+        A.spin_for(ex, 0.2, never)
+        took = time.monotonic() - t0
+        assert 0.15 <= took < 2.0          # returned after its slice, not at once or never
+        assert len(ticks) >= 5             # the executor ran the timer inside the slice
+        assert not never.done()
+        ex.shutdown()
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)

@@ -12,7 +12,8 @@ import collections
 import time
 from typing import Callable, Dict, List, Optional
 
-from catheter_bringup.rclpy_adapter import intercept_publish, take_callback, wrap_callback
+from catheter_bringup.rclpy_adapter import (intercept_publish, serializer, take_callback,
+                                            wrap_callback)
 
 
 class PublishCounter:
@@ -135,7 +136,7 @@ class LocalBus:
         self.wrap_subscriptions(node)
 
     def wrap_publishers(self, node) -> None:
-        from rclpy.serialization import serialize_message
+        serialize_message = serializer()[0]
         for pub in list(node.publishers):
             if id(pub) in self._pubs:
                 continue
@@ -226,7 +227,7 @@ class LocalBus:
             self.cost.add(owner, clock() - t - (self.delivery_s - d0))
 
     def deliver_all(self) -> int:
-        from rclpy.serialization import deserialize_message
+        deserialize_message = serializer()[1]
         n = 0
         q = self.queue
         clock = time.perf_counter

@@ -181,3 +181,34 @@ def spin_ready(executor, limit: int, timeout: float = 0.0) -> int:
             raise exc
         n += 1
     return n
+
+
+def never_done():
+    """A future nobody completes, for `spin_for` (one per run loop)."""
+    from rclpy.task import Future
+    return Future()
+
+
+def spin_for(executor, timeout: float, never) -> None:
+    """Let the executor run its own loop for `timeout` s (EventsExecutor: its C++ loop, no
+    Python turn per event): ``spin_until_future_complete`` on `never` (`never_done()`); an
+    executor without it gets one ``spin_once``."""
+    spin = getattr(executor, 'spin_until_future_complete', None)
+    if spin is None:
+        executor.spin_once(timeout_sec=timeout)
+    else:
+        spin(never, timeout_sec=timeout)
+
+
+# ------------------------------------------------------------------ serialisation, arguments
+def serializer() -> Tuple[Callable, Callable]:
+    """(serialize_message, deserialize_message) of rclpy (the bus's transport)."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    return serialize_message, deserialize_message
+
+
+def without_ros_args(argv) -> list:
+    """A command line without its ROS arguments (``--ros-args ... --``), as ros2 run passes
+    them; argv[0] is not a program name here."""
+    from rclpy.utilities import remove_ros_args
+    return remove_ros_args(['x'] + list(argv))[1:]

@@ -126,7 +126,7 @@ def replay(path: str | os.PathLike, rate: float = 1.0, topics: Optional[Iterable
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     import rclpy
-    from rclpy.utilities import remove_ros_args
+    from catheter_bringup.rclpy_adapter import without_ros_args
     args = list(sys.argv[1:] if argv is None else argv)
     ap = argparse.ArgumentParser(prog='replay', description=__doc__.split('\n\n')[0])
     ap.add_argument('bag')
@@ -135,7 +135,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument('--no-clock', action='store_true')
     ap.add_argument('--loop', action='store_true')
     ap.add_argument('--start', type=float, default=0.0, help='skip the first S seconds')
-    a = ap.parse_args(remove_ros_args(['replay'] + args)[1:])
+    a = ap.parse_args(without_ros_args(args))
 
     def body():
         check_bag(a.bag)

@@ -116,9 +116,8 @@ def restore_handlers(old: Optional[dict]) -> None:
 
 
 def main(args: Optional[Sequence[str]] = None) -> int:
-    from rclpy.utilities import remove_ros_args
-    argv = list(sys.argv[1:] if args is None else args)
-    argv = remove_ros_args(['x'] + argv)[1:]
+    from catheter_bringup.rclpy_adapter import without_ros_args
+    argv = without_ros_args(sys.argv[1:] if args is None else args)
     opts = build_parser().parse_args(argv)
     import datetime
     import os

@@ -8,8 +8,9 @@ import time
 
 from rosgraph_msgs.msg import Clock
 
-from catheter_bringup.rclpy_adapter import (fire_timer, set_time, spin_ready, timer_due_in_ns,
-                                            timer_ready, wrap_timer_callback)
+from catheter_bringup.rclpy_adapter import (fire_timer, never_done, set_time, spin_for,
+                                            spin_ready, timer_due_in_ns, timer_ready,
+                                            wrap_timer_callback)
 from catheter_bringup.realtime import (GcWatch, cpu_delta, latency_stats, own_autogroup,
                                        quiet_gc, reset_priority, set_fifo_priority, set_nice,
                                        stream_stats, thread_cpu)
@@ -300,15 +301,13 @@ class Stepping:
         (``spin_until_future_complete`` on a future nobody completes): one ``spin_once`` per
         event returned to this Python loop thousands of times a second in the master
         process, with a clock read each time. A stop request is seen within one slice."""
-        from rclpy.task import Future
         sc = self.scenario
         start = time.time_ns()             # the nodes' clock in real time: the system clock
         end = start + int(sc['duration'] * 1e9)
         self._sim_reached = 0.0
         self._time_timers()
         next_scan = start + 200_000_000
-        never = Future()
-        spin = getattr(self.executor, 'spin_until_future_complete', None)
+        never = never_done()
         while True:
             now = time.time_ns()
             if now >= end:
@@ -316,10 +315,7 @@ class Stepping:
             if self.stop_requested:
                 raise KeyboardInterrupt
             left = min(EVENTS_SLICE_S, (end - now) * 1e-9, (next_scan - now) * 1e-9)
-            if spin is not None:
-                spin(never, timeout_sec=max(left, 1e-4))
-            else:
-                self.executor.spin_once(timeout_sec=max(left, 1e-4))
+            spin_for(self.executor, max(left, 1e-4), never)
             now = time.time_ns()
             if self.part is not None:
                 self.part.flush()         # the recording's buffer to its writer process

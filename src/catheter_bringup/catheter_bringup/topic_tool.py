@@ -30,23 +30,16 @@ SHOW_MAX = 16
 
 
 class _Session:
-    """A private rclpy context with one node (named catheter_topic) and its executor."""
+    """A private rclpy context (`catheter_common.ros_testing.RosHarness`) with one node named
+    catheter_topic."""
 
     def __init__(self):
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        self.rclpy = rclpy
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node('catheter_topic', context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
+        from catheter_common.ros_testing import RosHarness
+        self.harness = RosHarness()
+        self.node = self.harness.node('catheter_topic')
 
     def spin_for(self, seconds: float, until: Callable[[], bool] = lambda: False) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end and not until():
-            self.executor.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
+        self.harness.spin_until(until, timeout=seconds)
 
     def topic_type(self, topic: str, wait: float) -> Optional[str]:
         """The type of ``topic`` once it is in the graph (None after ``wait`` s)."""
@@ -75,9 +68,7 @@ class _Session:
                                              raw=raw)
 
     def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
-        self.rclpy.try_shutdown(context=self.context)
+        self.harness.close()
 
 
 def to_yaml(msg: Any, full: bool = False, indent: str = '') -> List[str]:
@@ -332,9 +323,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    from rclpy.utilities import remove_ros_args
-    args = list(sys.argv[1:] if argv is None else argv)
-    a = build_parser().parse_args(remove_ros_args(['x'] + args)[1:])
+    from catheter_bringup.rclpy_adapter import without_ros_args
+    a = build_parser().parse_args(without_ros_args(sys.argv[1:] if argv is None else argv))
     try:
         return a.func(a)
     except KeyboardInterrupt:
