@@ -20,10 +20,7 @@ import os
 import statistics
 import sys
 import time
-from typing import Any, Callable, Dict, List, Optional, Sequence, TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from rclpy.subscription import Subscription
+from typing import Any, Callable, Dict, List, Optional, Sequence
 
 #: sequences longer than this are shown as their length in `echo` (unless --full)
 SHOW_MAX = 16
@@ -53,19 +50,15 @@ class _Session:
         return types[0] if types else None
 
     def subscribe(self, topic: str, type_name: str, callback: Callable[[Any], None],
-                  raw: bool) -> Subscription:
+                  raw: bool) -> Any:
         """Best effort, volatile, keep last 1000: compatible with every publisher, also one
         discovered after this subscription (choosing from the publishers seen so far picked
         reliable when the topic was known only through a subscriber, and a best-effort
         publisher found a moment later was refused as incompatible)."""
-        from rclpy.qos import (QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile,
-                               QoSReliabilityPolicy)
         from catheter_bringup.cdr import message_class
-        qos = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1000,
-                         reliability=QoSReliabilityPolicy.BEST_EFFORT,
-                         durability=QoSDurabilityPolicy.VOLATILE)
-        return self.node.create_subscription(message_class(type_name), topic, callback, qos,
-                                             raw=raw)
+        from catheter_common.qos import QOS_OBSERVE
+        return self.node.create_subscription(message_class(type_name), topic, callback,
+                                             QOS_OBSERVE, raw=raw)
 
     def close(self) -> None:
         self.harness.close()

@@ -24,3 +24,9 @@ QOS_LATEST = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1,
 QOS_DEFAULT = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=10,
                          reliability=QoSReliabilityPolicy.RELIABLE,
                          durability=QoSDurabilityPolicy.VOLATILE)
+#: an observing tool (catheter_topic echo / hz / bw): best effort, keep last 1000, volatile:
+#: compatible with every publisher, also one discovered after the subscription, and deep
+#: enough that a burst is counted, not dropped by the tool's own queue
+QOS_OBSERVE = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1000,
+                         reliability=QoSReliabilityPolicy.BEST_EFFORT,
+                         durability=QoSDurabilityPolicy.VOLATILE)
