@@ -24,7 +24,7 @@ import functools
 import math
 from typing import Dict, Mapping, Sequence, Tuple
 
-from catheter_interfaces.msg import ImpedanceModel, MasterCommand, TipForceEstimate
+from catheter_interfaces.msg import ImpedanceModel, TipForceEstimate
 
 from catheter_common.checks import finite, nonneg
 from catheter_common.topics import FRAME_CATHETER_BASE
@@ -286,11 +286,13 @@ def tip_force_values(msg) -> dict:
 # ------------------------------------------------------------------ master command
 def master_command_msg(position: float, velocity: float, acceleration: float = 0.0,
                        rotation: float = 0.0, stamp=None, frame_id: str = ''):
-    """A MasterCommand: insertion position m, velocity m/s, acceleration m/s^2, rotation rad."""
-    return MasterCommand(header=_header(stamp, frame_id), position=finite('position', position),
-                         velocity=finite('velocity', velocity),
-                         acceleration=finite('acceleration', acceleration),
-                         rotation=finite('rotation', rotation))
+    """A MasterCommand: insertion position m, velocity m/s, acceleration m/s^2, rotation rad
+    (the checks of `catheter_common.outgoing.CommandOut`, which the 1 kHz publisher reuses)."""
+    from catheter_common.outgoing import CommandOut
+    header = _header(stamp, frame_id)
+    msg = CommandOut(frame_id).fill(0, position, velocity, acceleration, rotation)
+    msg.header = header
+    return msg
 
 
 def master_command_values(msg) -> Tuple[float, float, float, float]:
