@@ -86,15 +86,22 @@ class LocalBus:
     deserialised for them). With ``dds=True`` every message is also published on DDS, for
     tools outside the process.
 
-    ``immediate=True`` (real time driven by an executor): a publish delivers at once, in the
-    publisher's callback (a publish made by a subscriber during delivery is queued and
-    delivered by the same loop, in order). What DDS delivers to subscriptions outside the bus
-    is counted per topic in ``received``."""
+    ``immediate=True`` (real time driven by an executor): what a callback run through `timed`
+    (a timer, or a delivery from DDS) publishes is delivered as soon as it returns, in publish
+    order, before the executor runs anything else: its publishes go out back to back, not
+    each after its subscribers' work (the slave's force waited for the identifier's update of
+    the joint state published before it), and the subscribers see the messages in the order
+    lockstep delivers them (after the timer). A publish outside such a callback delivers at
+    once, in the publisher's call; a publish made by a subscriber during delivery is queued
+    and delivered by the same loop, in order. What DDS delivers to subscriptions outside the
+    bus is counted per topic in ``received``."""
 
     def __init__(self, dds: bool = False, immediate: bool = False):
         self.queue = collections.deque()
         self.immediate = immediate
         self._delivering = False
+        #: immediate: inside a callback run by `timed` (its publishes wait until it returns)
+        self._holding = False
         #: s spent delivering in total (callers subtract it from a timer's own time)
         self.delivery_s = 0.0
         #: per topic: messages DDS delivered to this process's subscriptions outside the bus
@@ -155,7 +162,7 @@ class LocalBus:
                 bus.queue.append((_topic, data))
                 if bus.times is not None:
                     bus.note_times(_topic, msg)
-                if bus.immediate and not bus._delivering:
+                if bus.immediate and not (bus._delivering or bus._holding):
                     bus.deliver_all()
 
             intercept_publish(pub, publish)
@@ -217,14 +224,22 @@ class LocalBus:
 
     def timed(self, owner: str, fn, *args):
         """Call fn(*args), adding its wall time minus the deliveries it caused to `owner`'s
-        cost (a timer's own work, not its subscribers')."""
+        cost (a timer's own work, not its subscribers'). Immediate: what fn publishes is
+        delivered when it returns (see the class docstring)."""
         clock = time.perf_counter
+        hold = self.immediate and not (self._holding or self._delivering)
         d0 = self.delivery_s
         t = clock()
+        if hold:
+            self._holding = True
         try:
             return fn(*args)
         finally:
             self.cost.add(owner, clock() - t - (self.delivery_s - d0))
+            if hold:
+                self._holding = False
+                if self.queue:
+                    self.deliver_all()
 
     def deliver_all(self) -> int:
         deserialize_message = serializer()[1]
