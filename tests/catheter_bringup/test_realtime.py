@@ -229,6 +229,30 @@ def test_immediate_bus_delivers_a_callbacks_publishes_when_it_returns(ros):
     assert order[:2] == ['tick: state sent', 'tick: force sent']
 
 
+@pytest.mark.ros
+def test_align_timers_puts_timers_of_one_period_on_one_grid(ros):
+    """Timers created at different phases fall due together after `align_timers`; a canceled
+    timer stays canceled, a destroyed one is skipped."""
+    import time
+    node = ros.node('align')
+    timers = []
+    for _ in range(3):
+        timers.append(node.create_timer(0.01, lambda: None))
+        time.sleep(0.0033)
+    canceled = node.create_timer(0.01, lambda: None)
+    canceled.cancel()
+    gone = node.create_timer(0.01, lambda: None)
+    node.destroy_timer(gone)
+
+    def spread_ns():
+        due = [t.time_until_next_call() for t in timers]
+        return max(due) - min(due)
+    assert spread_ns() > 5_000_000                # 3.3 ms apart, twice
+    assert R.align_timers(timers + [canceled, gone]) == 3
+    assert spread_ns() < 1_000_000               # microseconds apart (a loaded machine: < 1 ms)
+    assert canceled.is_canceled()
+
+
 def test_nice_applies_to_every_thread_falls_back_and_refuses_bad_values(monkeypatch):
     with pytest.raises(ValueError, match='nice'):
         R.set_nice(-21)
