@@ -2,6 +2,7 @@
 reference measured in the same run, and the ratio.
 
     scripts/bench system            # or: python tests/bench/bench_system.py [--quick]
+    python tests/bench/bench_system.py --split-only     # part 2 alone (and its costs)
 
 1. Lockstep: the 12 s Experiment II scenario (whatever of its graph exists) on the 1 ms simulated
    clock: real-time factor with the in-process bus, with and without recording, and recorded
@@ -486,9 +487,17 @@ def recorder_loss(rate, seconds):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument('--quick', action='store_true', help='short runs (a smoke test of the bench)')
+    ap.add_argument('--split-only', action='store_true',
+                    help='only part 2 (the split layout beside the one process, quiet and '
+                         'loaded) and its callback costs')
     a = ap.parse_args()
     print(f'bench_system on {os.cpu_count()} cores, load average at start '
           f'{os.getloadavg()[0]:.1f} (timings compare within this run)')
+    if a.split_only:
+        realtime(2.0 if a.quick else 6.0)
+        table()
+        where_time_goes()
+        return
     lockstep(3.0 if a.quick else 12.0, a.quick)
     realtime(2.0 if a.quick else 6.0)
     image_latency(2.0 if a.quick else 5.0)
