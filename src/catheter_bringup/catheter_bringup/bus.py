@@ -113,6 +113,10 @@ class LocalBus:
         #: a const shared message to its intra-process subscribers: they must not modify
         #: it); False: a fresh copy each
         self.share = True
+        #: subscribers get a copy of the published message made at publish
+        #: (`rclpy_adapter.message_copier`) instead of deserialising its bytes; on in the
+        #: workers (immediate), off in lockstep (whose bus path another change owns)
+        self.copy = immediate
         #: real time: per topic, the wall times (perf_counter s) of its publishes (None: off)
         self.times: Optional[Dict[str, array.array]] = None
         #: real time: topics whose publish also notes (now - header stamp), s, in `latency`
@@ -161,7 +165,7 @@ class LocalBus:
                 bus.counts[_topic] += 1
                 if bus.record is not None:
                     bus.record(_topic, data)
-                if bus.immediate and _topic in bus.subs and not isinstance(msg, bytes):
+                if bus.copy and _topic in bus.subs and not isinstance(msg, bytes):
                     # a copy for the subscribers instead of deserialising the bytes (a
                     # fifth of the cost; taken now: the publisher may refill its message)
                     copier = message_copier(type(msg))
