@@ -166,8 +166,8 @@ class LocalBus:
                 if bus.record is not None:
                     bus.record(_topic, data)
                 if bus.copy and _topic in bus.subs and not isinstance(msg, bytes):
-                    # a copy for the subscribers instead of deserialising the bytes (a
-                    # fifth of the cost; taken now: the publisher may refill its message)
+                    # a copy for the subscribers instead of deserialising the bytes (cheaper;
+                    # taken now: the publisher may refill its message before delivery)
                     copier = message_copier(type(msg))
                     bus.queue.append((_topic, data, copier(msg) if copier else None))
                 else:
