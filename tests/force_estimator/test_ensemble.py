@@ -115,6 +115,10 @@ def test_observability_weights_hand_checked():
     raw = 1.0 / (1.0 + (np.array([0.05, 0.002, 0.002, 0.01]) / 0.01) ** 2)
     assert np.allclose(w, raw / raw.mean(), rtol=1e-9)
     assert w[1] > w[3] > w[0] and np.isclose(w.mean(), 1.0)
+    # an unloaded sample keeps weight 1 (the prior: no force) however weak the table is there
+    w0 = observability_weights(np.r_[Y, [[0.0, 0.0]]], _axial_table(), 0.01)
+    raw0 = np.r_[raw, 1.0]
+    assert np.allclose(w0, raw0 / raw0.mean(), rtol=1e-9)
 
 
 @pytest.mark.parametrize('Y, std, match', [
@@ -126,7 +130,8 @@ def test_observability_weights_refuse_bad_input(Y, std, match):
         observability_weights(Y, _axial_table(), std)
 
 
-def test_fit_mlp_sample_weight_is_used_and_checked():
+@pytest.mark.parametrize('n_ensemble', [1, 2])
+def test_fit_mlp_sample_weight_is_used_and_checked(n_ensemble):
     X, Y = toy_data(120, seed=2)
     with pytest.raises(ValueError, match='sample_weight'):
         fit_mlp(X, Y, sample_weight=np.ones(5))
@@ -137,7 +142,7 @@ def test_fit_mlp_sample_weight_is_used_and_checked():
     Yb[60:] += 0.05                  # the second half disagrees by 50 mN
     w = np.r_[np.ones(60), np.full(60, 1e-6)]
     m, rep = fit_mlp(X, Yb, hidden_layer_sizes=(8,), n_init=1, max_iter=300,
-                     sample_weight=w)
+                     sample_weight=w, n_ensemble=n_ensemble)
     assert rep['hyper']['sample_weight'] == 'given'
     err_first = np.abs(m.predict_features(X) - Y).mean()
     err_second = np.abs(m.predict_features(X) - Yb).mean()

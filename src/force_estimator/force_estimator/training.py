@@ -265,7 +265,11 @@ def observability_weights(Y, table, std_n: float) -> np.ndarray:
     (force_estimator.uncertainty). A near-axial pull's shape hardly depends on the pull, so
     its target is noise the network cannot fit; with equal weights those residuals (tens of
     mN) dominate the squared loss and the fit of the directions the shape determines
-    suffers. Normalised to mean 1. Y: (n, 2) N; std_n > 0."""
+    suffers. An unloaded sample (f = 0) keeps weight 1: the training set's unloaded
+    catheters are the prior that a shape which does not determine the axial force means no
+    force (as the FAM inversion's weak force prior); down-weighted with the pulls, the MLP
+    read a straight catheter as a 49 mN pull. Normalised to mean 1. Y: (n, 2) N;
+    std_n > 0."""
     if not (np.isfinite(std_n) and std_n > 0):
         raise ValueError(f'std_n must be positive, got {std_n!r}')
     Y = np.asarray(Y, dtype=float)
@@ -273,6 +277,7 @@ def observability_weights(Y, table, std_n: float) -> np.ndarray:
         raise ValueError(f'Y must be finite with shape (n, 2), got {Y.shape}')
     weak = np.sqrt(np.linalg.eigvalsh(table.lookup(Y))[:, -1])
     w = 1.0 / (1.0 + (weak / std_n) ** 2)
+    w[(Y == 0.0).all(axis=1)] = 1.0
     return w / w.mean()
 
 
