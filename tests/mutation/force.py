@@ -87,4 +87,9 @@ MUTANTS = [
            '            members = [make(rs).fit(Z, T, sample_weight=w)',
            '            members = [make(rs).fit(Z, T)',
            'an ensemble ignores the sample weights'),
+    Mutant('E19', P + 'training.py',
+           '    w[(Y == 0.0).all(axis=1)] = 1.0',
+           '    pass',
+           'observability weights: the unloaded catheters are down-weighted with the pulls '
+           '(the MLP then read a straight catheter as a 49 mN pull)'),
 ]
