@@ -254,6 +254,8 @@ def build(out: str = DEFAULT_OUT, n_random: int = 2400, features: str = 'auto',
     table = build_table(Catheter(length=D.BLAZER_LENGTH, ei=D.BLAZER_EI))
     rep['table_time_s'] = time.perf_counter() - t
     obs_v = np.linalg.eigvalsh(table.lookup(Yv))[:, -1] < UNOBSERVABLE_STD ** 2
+    if not obs_v.any():             # a tiny recipe: choose on every held-out case
+        obs_v[:] = True
     cands = {}
     for name, hidden, alpha, iters, n_ens, w_std in MLP_CANDIDATES:
         t = time.perf_counter()
