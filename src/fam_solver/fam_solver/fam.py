@@ -91,12 +91,13 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
             initial = remap(initial[None], np.full((1, n), 1.0 / n),
                             (np.asarray(init_frac) / init_len)[None])[0]
     clothoid = arc_model == 'clothoid'
-    if arc_model != 'bezier' and not pfs:
+    bezier = arc_model == 'bezier'
+    if not pfs:
         out = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, follower, initial,
-                         spacing, clothoid)
+                         spacing, clothoid, bezier=bezier)
         if out is None and initial is not None:
             out = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, follower,
-                             spacing=spacing, clothoid=clothoid)
+                             spacing=spacing, clothoid=clothoid, bezier=bezier)
         if out is not None:
             phi, conv, it, res, tipc, stable, frac, rho = out
             return arc_shape(cat.length, phi, tip=tipc, tip_angle=float(phi.sum()),

@@ -1,0 +1,212 @@
+"""The thesis' Bezier arcs (``bezier``) on the fast path: the single-case Newton kernel for tip
+loads, with every quadrature of Eq. 23 replaced by power series in the arc angle. No rclpy.
+
+Arc i (length l, angle phi, end wrench M and Floc in its own frame) has the Eq. 23 residual
+r = (l/EI)^2 integral R dR/dphi dt (``bezier.BezierModel._local``). With m = M l/EI and
+f = Floc l^2/EI, and the unit-length arc's lever p3 - c(t) = (lx, ly) and curvature k,
+
+    R l/EI = m + fy lx - fx ly - k = sum_p a_p u_p,   a = (m, fy, -fx, -1), u = (1, lx, ly, k)
+    dR/dphi l/EI = sum_q b_q du_q/dphi,                b = (fy, -fx, -1),  q over (lx, ly, k)
+
+so r = sum_pq a_p b_q H_pq(phi) with the twelve integrals H_pq = integral u_p du_q/dphi dt of
+the (8-point Gauss-Legendre) quadrature, which depend on phi alone. Their derivatives
+dr/dm, dr/df and dr/dphi (the exact Jacobian's pieces, ``BezierModel.factors``) are the same
+bilinear forms in H and dH/dphi. H is analytic in phi (singularities at +-4.59i, where
+|c'(t)| vanishes for complex phi, and at the tan pole phi = 2 pi), so it is a power series:
+about 0 for |phi| <= _SPLIT, about +-_SIDE for _SPLIT < |phi| <= MAX_PHI. The coefficients are
+computed once at import from values of the u_p on circles in the complex phi plane (FFT;
+the curves written with real and imaginary parts separately, as analytic functions) and
+checked against the quadrature (tests: <= 1e-13). A Newton step is then one matrix product
+and some 40 elementwise operations on (N,) arrays, as for circular arcs. Arcs beyond MAX_PHI
+(one or two arcs turned by more than 4.9 rad) are left to the general path.
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import numpy as np
+from scipy.linalg.lapack import dgesv as _dgesv
+
+from .arcs import row_product
+from .bezier import unit_nodes
+from .linsolve import banded_solve
+
+_MAXR = np.maximum.reduce
+#: series about 0 up to this |phi|, about +-_SIDE beyond, up to MAX_PHI
+_SPLIT = 2.3
+_SIDE = 3.6
+MAX_PHI = 4.9
+#: FFT sampling radii (inside the radii of convergence, 4.59 about 0 and 2.68 about 3.6)
+_RHO = {0.0: 3.6, _SIDE: 2.2, -_SIDE: 2.2}
+_FFT = 512
+_K0 = 72                  # terms kept about 0 (enough for |phi| = _SPLIT: tail < 1e-17)
+_KS = 64                  # terms kept about +-_SIDE (|phi -+ _SIDE| <= 1.3)
+_COLS = 28                # H (12), dH/dphi (12), g = (gx, gy), g' (2)
+
+
+def _unit_funcs(z: np.ndarray, t: np.ndarray):
+    """u_p (4, P, Q) = 1, lever x, lever y, curvature of the unit-length Bezier arc at the nodes
+    t for (complex) angles z (P,), and g = (e^{iz} - 1)/(iz) as (gx, gy): the curves of
+    ``bezier.BezierModel._curves`` with x and y parts kept apart (analytic in z)."""
+    z = z[:, None]
+    u = 1.0 - t
+    b0 = (u ** 3, 3 * t * u ** 2, 3 * t ** 2 * u, t ** 3)
+    b1 = (-3 * u ** 2, 3 * u ** 2 - 6 * t * u, 6 * t * u - 3 * t ** 2, 3 * t ** 2)
+    b2 = (6 * u, -12 * u + 6 * t, 6 * u - 12 * t, 6 * t)
+    c, s = np.cos(z), np.sin(z)
+    lam = (4.0 / 3.0) * np.tan(0.25 * z) / z
+    gx, gy = s / z, (1.0 - c) / z
+    zero = 0.0 * z
+    px = (zero, lam, gx - lam * c, gx)
+    py = (zero, zero, gy - lam * s, gy)
+
+    def comb(p, b):
+        return sum(pk * bk for pk, bk in zip(p, b, strict=True))
+    cx, cy = comb(px, b0), comb(py, b0)
+    c1x, c1y, c2x, c2y = comb(px, b1), comb(py, b1), comb(px, b2), comb(py, b2)
+    sp2 = c1x * c1x + c1y * c1y
+    kap = (c1x * c2y - c1y * c2x) / (sp2 * np.sqrt(sp2))
+    return np.stack([np.ones_like(cx), gx - cx, gy - cy, kap]), gx[:, 0], gy[:, 0]
+
+
+def _series(center: float, rho: float, k: int) -> np.ndarray:
+    """(k, _COLS) Taylor coefficients about ``center`` of H (12), dH/dphi, g, g'."""
+    t, wq = unit_nodes()
+    z = center + rho * np.exp(2j * np.pi * np.arange(_FFT) / _FFT)
+    U, gx, gy = _unit_funcs(z, t)                        # (4, P, Q)
+    kk = np.arange(_FFT)
+    # d/dphi on the circle: the Taylor coefficients (FFT), times k, back (inverse FFT)
+    cu = np.fft.fft(U[1:], axis=1)
+    cu[:, _FFT // 2:] = 0.0
+    dU = np.fft.ifft(cu * kk[None, :, None], axis=1) / (z - center)[None, :, None]
+    H = np.einsum('ipq,jpq,q->ijp', U, dU, wq).reshape(12, _FFT)
+    vals = np.concatenate([H, [gx, gy]])
+    c = np.fft.fft(vals, axis=1)[:, :k + 1] / _FFT / rho ** np.arange(k + 1)
+    c = c.real.T                                         # (k + 1, 14): real functions
+    d = c[1:] * np.arange(1, k + 1)[:, None]             # derivative's coefficients
+    return np.concatenate([c[:k, :12], d[:, :12], c[:k, 12:], d[:, 12:]], axis=1)
+
+
+_COEF = {c: _series(c, r, _K0 if c == 0.0 else _KS) for c, r in _RHO.items()}
+_MAG = np.max(np.abs(_COEF[0.0]), axis=1)
+#: terms about 0 for a largest |phi|: k terms while every left-out coefficient x |phi|^j is
+#: below 1e-17 (the H are O(1)); _K0 terms up to _SPLIT
+_PHI_FOR_TERMS = [min([(1e-17 / max(float(_MAG[j]), 1e-300)) ** (1.0 / j)
+                       for j in range(k, _K0)] + [_SPLIT]) for k in range(1, _K0 + 1)]
+
+
+def _powers(x: np.ndarray, k: int) -> np.ndarray:
+    V = np.empty((x.size, k))
+    V[:, 0] = 1.0
+    V[:, 1:] = x[:, None]
+    np.multiply.accumulate(V[:, 1:], axis=1, out=V[:, 1:])
+    return V
+
+
+def arc_terms(phi: np.ndarray, pmax: float) -> Optional[np.ndarray]:
+    """(N, _COLS): H_pq (12, p-major over (1, lx, ly, k), q over (lx, ly, k)), dH/dphi,
+    gx, gy, gx', gy' of the unit arc at the angles phi; None when pmax > MAX_PHI."""
+    if pmax <= _SPLIT:
+        k = 1 + next(i for i, p in enumerate(_PHI_FOR_TERMS) if p >= pmax)
+        return row_product(_powers(phi, k), _COEF[0.0][:k])
+    if not pmax <= MAX_PHI:
+        return None
+    out = np.empty((phi.size, _COLS))
+    side = np.where(np.abs(phi) <= _SPLIT, 0.0, np.copysign(_SIDE, phi))
+    for c in (0.0, _SIDE, -_SIDE):
+        sel = side == c
+        if sel.any():
+            coef = _COEF[c]
+            out[sel] = _powers(phi[sel] - c, coef.shape[0]) @ coef
+    return out
+
+
+def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float,
+                      follower: bool, phi: np.ndarray, max_iter: int, step_limit: float = 0.3,
+                      rtol: float = 1e-12, patience: int = 1 << 30, quasi_above: float = 1e-2,
+                      dense: bool = True):
+    """Damped Newton on the Bezier residual (exact Jacobian) for one tip-loaded case; the
+    interface and the stopping rules of ``fast_newton.fast_tip_newton`` (``dense``: the dense
+    Jacobian, returned; else the O(N) banded solve). Returns phi, converged, iterations,
+    max|r|, tip (complex), J (or None), None (no clothoid rates)."""
+    acc = np.add.accumulate
+    lower = np.tri(n, n, -1, dtype=bool) if dense else None
+    best = (phi, math.inf, 0j)
+    hist = [math.inf] * 3
+    it = 0
+    J = None
+    lw = l * w
+    for it in range(max_iter + 1):
+        pmax = _MAXR(np.abs(phi))
+        T = arc_terms(phi, pmax)
+        if T is None:
+            break
+        th_end = acc(phi)
+        E = np.exp(1j * (th_end - phi))
+        lE = l * E
+        Tg = T[:, 24:26] @ (1.0, 1j)                    # g, g' (complex)
+        Tgp = T[:, 26:28] @ (1.0, 1j)
+        P = acc(lE * Tg)
+        rel = P[-1] - P
+        Ft = F * complex(math.cos(th_end[-1]), math.sin(th_end[-1])) if follower else F
+        cF = Ft.conjugate()
+        RF = rel * cF
+        Mend = m - RF.imag                               # end moments of the arcs
+        Floc = Ft * E.conjugate()
+        mh = Mend * w
+        f = Floc * lw
+        fx, fy = f.real, f.imag
+        H = T[:, :12].reshape(n, 4, 3)
+        Bq = H[:, :, 0] * fy[:, None] - H[:, :, 1] * fx[:, None] - H[:, :, 2]    # (n, 4)
+        r = mh * Bq[:, 0] + fy * Bq[:, 1] - fx * Bq[:, 2] - Bq[:, 3]
+        res = _MAXR(np.abs(r))
+        if not res < math.inf:
+            res = math.inf
+        if res < best[1]:
+            best = (phi, res, complex(P[-1]))
+        if res <= 1e-13 + rtol * pmax or it == max_iter or \
+                (it >= patience and res > quasi_above and res > 0.1 * hist[(it - 2) % 3]):
+            break
+        hist[it % 3] = res
+        Hd = T[:, 12:24].reshape(n, 4, 3)
+        Bd_ = Hd[:, :, 0] * fy[:, None] - Hd[:, :, 1] * fx[:, None] - Hd[:, :, 2]
+        gP = mh * Bd_[:, 0] + fy * Bd_[:, 1] - fx * Bd_[:, 2] - Bd_[:, 3]
+        Ap = mh[:, None] * H[:, 0] + fy[:, None] * H[:, 1] - fx[:, None] * H[:, 2] - H[:, 3]
+        gM = Bq[:, 0] * w                                # dr/dM
+        K = ((Bq[:, 1] + Ap[:, 0]) + 1j * (Bq[:, 2] + Ap[:, 1])) * lw   # dr = Im(conj K dFloc)
+        Mlow = -RF.real
+        Mcol = Mlow - (lE * Tgp * cF).imag
+        kK = (K.conjugate() * Floc).real
+        if not np.all(np.abs(gM) > 0):
+            break
+        ig = 1.0 / gM
+        if follower:     # the force turns with the tip (Mall = -Mlow; see BezierModel.factors)
+            A = 0.0
+            e = kK * ig - Mlow
+            Bd = (gP - 1.0 + kK) * ig
+        else:
+            A = Mlow - kK * ig
+            e = None
+            Bd = (gP - 1.0) * ig + Mlow
+        W = -gM
+        if dense:
+            D = np.where(lower, A if follower else A[:, None],
+                         Mcol if e is None else Mcol + e[:, None])
+            D.flat[::n + 1] = Bd
+            D *= -W[:, None]
+            D.flat[::n + 1] += 1.0
+            J = D
+            dx = _dgesv(D, r)[2]
+        else:
+            dx = banded_solve(W, (np.broadcast_to(A, (n,)), Bd, Mcol, e), r)
+        mx = _MAXR(np.abs(dx))
+        if not mx < math.inf:
+            break
+        if mx > step_limit:
+            dx *= step_limit / mx
+        phi = phi - dx
+    phi, res, tip = best
+    if not res < math.inf:
+        phi, tip = np.zeros(n), complex(float(np.sum(l)))
+    return phi, res <= 1e-13 + 1e-12 * _MAXR(np.abs(phi)), it, res, tip, J, None
