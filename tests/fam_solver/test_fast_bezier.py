@@ -205,3 +205,31 @@ def test_bezier_fast_path_against_the_rod_reference():
             eb = np.max(np.abs(solve_fam(THESIS, ld, n_arcs=n, arc_model='bezier').tip - ref.tip))
             ee = np.max(np.abs(solve_fam(THESIS, ld, n_arcs=n, arc_model='exact').tip - ref.tip))
             assert abs(eb - ee) <= 0.25 * ee + 1e-10 * THESIS.length, (ld, n, eb, ee)
+
+
+@pytest.mark.parametrize('follower', [False, True])
+@pytest.mark.parametrize('n, dense', [(4, True), (30, True), (30, False)])
+def test_newton_step_is_that_of_the_scaled_residual(follower, n, dense):
+    """The kernel's Newton step solves for r / s, s = -(dr/dM) EI/l, with its Jacobian: it
+    equals the step from central differences of r / s (the general path's residual and
+    dr/dM), dense and banded, dead and follower forces."""
+    F, m = (2.0 + 5.0j, 0.004) if not follower else (-1.0 + 4.0j, 0.004)
+    ld = Loads(tip_force=(F.real, F.imag), tip_moment=m, follower=follower)
+    sol = solve_fam(THESIS, ld, n_arcs=n, arc_model='bezier').arc_angles
+    rng = np.random.default_rng(n)
+    phi = sol + rng.normal(size=n) * 0.02 / np.sqrt(n)
+    prob = build_problem(THESIS, n, np.array([F]), follower, np.array([m]), [])
+    bz = BezierResidual(prob)
+    loads, mm = prob.loads(1.0)
+
+    def scaled(p):
+        r, state = bz.residual_state(p[None], loads, mm)
+        return r[0] / (-state[7][0] / prob.w)
+
+    h = 1e-6
+    Jfd = np.stack([(scaled(phi + h * e) - scaled(phi - h * e)) / (2 * h) for e in np.eye(n)], 1)
+    want = phi - np.linalg.solve(Jfd, scaled(phi))
+    l, w, _ = fast._equal_arcs(n, THESIS.length, THESIS.ei)
+    got = fast_bezier.bezier_tip_newton(n, l, w, F, m, follower, phi, 1, step_limit=np.inf,
+                                        rtol=-1.0, dense=dense)[0]
+    assert np.max(np.abs(got - want)) < 1e-6 * np.max(np.abs(want - phi))

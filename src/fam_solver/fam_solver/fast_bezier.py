@@ -190,6 +190,21 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
             e = None
             Bd = (gP - 1.0) * ig + Mlow
         W = -gM
+        # Newton on r / s, s = -dr/dM EI/l = -integral dR/dphi dt (l/EI) (= 1 to leading
+        # order): the same roots, but close to the circular arcs' phi - (l/EI) Mbar, so it
+        # converges like them from far away (r itself is a product, R times dR/dphi). Its
+        # Jacobian: J / s + (r / s^2) ds/dphi; ds_i/dphi_j through H(phi_i) (sig) and through
+        # the force in arc i's frame (rho: phi_j, j < i, turn a dead force; a follower force
+        # turns with phi_j, j >= i).
+        sc = -Bq[:, 0]
+        scaled = bool(np.all(sc > 0.1))
+        if scaled:
+            h = H[:, 0, 0] + 1j * H[:, 0, 1]
+            rho_ = (h.conjugate() * f).real
+            sig = fy * Hd[:, 0, 0] - fx * Hd[:, 0, 1] - Hd[:, 0, 2]
+            isc = 1.0 / sc
+            rt = r * isc
+            c = rt * isc
         if dense:
             D = np.where(lower, A if follower else A[:, None],
                          Mcol if e is None else Mcol + e[:, None])
@@ -197,7 +212,25 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
             D *= -W[:, None]
             D.flat[::n + 1] += 1.0
             J = D
-            dx = _dgesv(D, r)[2]
+            if scaled:
+                Jt = J * isc[:, None]
+                if follower:
+                    Jt += np.where(lower, 0.0, (c * rho_)[:, None])
+                else:
+                    Jt -= np.where(lower, (c * rho_)[:, None], 0.0)
+                Jt.flat[::n + 1] += c * sig
+                dx = _dgesv(Jt, rt)[2]
+            else:
+                dx = _dgesv(D, r)[2]
+        elif scaled:
+            u = rt / W
+            if follower:
+                e = e - u * rho_
+                Bd = Bd + (sc - 1.0) / W - u * (sig + rho_)
+            else:
+                A = A + u * rho_
+                Bd = Bd + (sc - 1.0) / W - u * sig
+            dx = banded_solve(W * isc, (np.broadcast_to(A, (n,)), Bd, Mcol, e), rt)
         else:
             dx = banded_solve(W, (np.broadcast_to(A, (n,)), Bd, Mcol, e), r)
         mx = _MAXR(np.abs(dx))
