@@ -22,6 +22,7 @@ and some 40 elementwise operations on (N,) arrays, as for circular arcs. Arcs be
 """
 from __future__ import annotations
 
+import bisect
 import math
 from typing import Optional
 
@@ -33,6 +34,7 @@ from .bezier import unit_nodes
 from .linsolve import banded_solve
 
 _MAXR = np.maximum.reduce
+_MINR = np.minimum.reduce
 #: series about 0 up to this |phi|, about +-_SIDE beyond, up to MAX_PHI
 _SPLIT = 2.3
 _SIDE = 3.6
@@ -42,7 +44,7 @@ _RHO = {0.0: 3.6, _SIDE: 2.2, -_SIDE: 2.2}
 _FFT = 512
 _K0 = 72                  # terms kept about 0 (enough for |phi| = _SPLIT: tail < 1e-17)
 _KS = 64                  # terms kept about +-_SIDE (|phi -+ _SIDE| <= 1.3)
-_COLS = 28                # H (12), dH/dphi (12), g = (gx, gy), g' (2)
+_COLS = 18                # complex: h (4), dh (4), H_k (4), dH_k (4), g, g'
 
 
 def _unit_funcs(z: np.ndarray, t: np.ndarray):
@@ -71,7 +73,7 @@ def _unit_funcs(z: np.ndarray, t: np.ndarray):
 
 
 def _series(center: float, rho: float, k: int) -> np.ndarray:
-    """(k, _COLS) Taylor coefficients about ``center`` of H (12), dH/dphi, g, g'."""
+    """(k, _COLS) complex Taylor coefficients about ``center``, the columns of ``arc_terms``."""
     t, wq = unit_nodes()
     z = center + rho * np.exp(2j * np.pi * np.arange(_FFT) / _FFT)
     U, gx, gy = _unit_funcs(z, t)                        # (4, P, Q)
@@ -80,15 +82,23 @@ def _series(center: float, rho: float, k: int) -> np.ndarray:
     cu = np.fft.fft(U[1:], axis=1)
     cu[:, _FFT // 2:] = 0.0
     dU = np.fft.ifft(cu * kk[None, :, None], axis=1) / (z - center)[None, :, None]
-    H = np.einsum('ipq,jpq,q->ijp', U, dU, wq).reshape(12, _FFT)
-    vals = np.concatenate([H, [gx, gy]])
+    H = np.einsum('ipq,jpq,q->ijp', U, dU, wq)          # (4, 3, P): H_pq
+    vals = np.concatenate([H.reshape(12, _FFT), [gx, gy]])
     c = np.fft.fft(vals, axis=1)[:, :k + 1] / _FFT / rho ** np.arange(k + 1)
     c = c.real.T                                         # (k + 1, 14): real functions
     d = c[1:] * np.arange(1, k + 1)[:, None]             # derivative's coefficients
-    return np.concatenate([c[:k, :12], d[:, :12], c[:k, 12:], d[:, 12:]], axis=1)
+    c = c[:k]
+    h, hd = c[:, :12].reshape(k, 4, 3), d[:, :12].reshape(k, 4, 3)
+    return np.concatenate([h[..., 0] + 1j * h[..., 1], hd[..., 0] + 1j * hd[..., 1],
+                           h[..., 2], hd[..., 2], c[:, 12:13] + 1j * c[:, 13:14],
+                           d[:, 12:13] + 1j * d[:, 13:14]], axis=1)
 
 
 _COEF = {c: _series(c, r, _K0 if c == 0.0 else _KS) for c, r in _RHO.items()}
+#: the three series for arcs beyond _SPLIT, padded to _K0 terms: (3, _K0, _COLS)
+_COEF3 = np.zeros((3, _K0, _COLS), dtype=complex)
+for _j, _c in enumerate((-_SIDE, 0.0, _SIDE)):
+    _COEF3[_j, :_COEF[_c].shape[0]] = _COEF[_c]
 _MAG = np.max(np.abs(_COEF[0.0]), axis=1)
 #: terms about 0 for a largest |phi|: k terms while every left-out coefficient x |phi|^j is
 #: below 1e-17 (the H are O(1)); _K0 terms up to _SPLIT
@@ -105,21 +115,18 @@ def _powers(x: np.ndarray, k: int) -> np.ndarray:
 
 
 def arc_terms(phi: np.ndarray, pmax: float) -> Optional[np.ndarray]:
-    """(N, _COLS): H_pq (12, p-major over (1, lx, ly, k), q over (lx, ly, k)), dH/dphi,
-    gx, gy, gx', gy' of the unit arc at the angles phi; None when pmax > MAX_PHI."""
+    """(N, _COLS) complex, per arc of the unit length at the angles phi: h_p = H_px + i H_py
+    (4, p over (1, lx, ly, k)), dh_p/dphi (4), H_pk (4), dH_pk/dphi (4), g, g' (H_pq =
+    integral u_p du_q/dphi dt); None when pmax > MAX_PHI."""
     if pmax <= _SPLIT:
-        k = 1 + next(i for i, p in enumerate(_PHI_FOR_TERMS) if p >= pmax)
+        k = 1 + bisect.bisect_left(_PHI_FOR_TERMS, pmax)
         return row_product(_powers(phi, k), _COEF[0.0][:k])
     if not pmax <= MAX_PHI:
         return None
-    out = np.empty((phi.size, _COLS))
-    side = np.where(np.abs(phi) <= _SPLIT, 0.0, np.copysign(_SIDE, phi))
-    for c in (0.0, _SIDE, -_SIDE):
-        sel = side == c
-        if sel.any():
-            coef = _COEF[c]
-            out[sel] = _powers(phi[sel] - c, coef.shape[0]) @ coef
-    return out
+    # few arcs: each its own series (about -_SIDE, 0 or _SIDE)
+    j = (phi > _SPLIT).astype(int) - (phi < -_SPLIT)
+    V = _powers(phi - j * _SIDE, _K0)
+    return np.matmul(V[:, None, :], _COEF3[j + 1])[:, 0]
 
 
 def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float,
@@ -137,6 +144,8 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
     it = 0
     J = None
     lw = l * w
+    a = np.empty((n, 1, 4))          # (m, fy, -fx, -1) per arc
+    a[:, 0, 3] = -1.0
     for it in range(max_iter + 1):
         pmax = _MAXR(np.abs(phi))
         T = arc_terms(phi, pmax)
@@ -145,21 +154,20 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
         th_end = acc(phi)
         E = np.exp(1j * (th_end - phi))
         lE = l * E
-        Tg = T[:, 24:26] @ (1.0, 1j)                    # g, g' (complex)
-        Tgp = T[:, 26:28] @ (1.0, 1j)
-        P = acc(lE * Tg)
+        P = acc(lE * T[:, 16])                           # arc end points (g = T[:, 16])
         rel = P[-1] - P
         Ft = F * complex(math.cos(th_end[-1]), math.sin(th_end[-1])) if follower else F
         cF = Ft.conjugate()
         RF = rel * cF
-        Mend = m - RF.imag                               # end moments of the arcs
-        Floc = Ft * E.conjugate()
-        mh = Mend * w
-        f = Floc * lw
+        f = (Ft * lw) * E.conjugate()                    # F l^2/EI in the arc frames
         fx, fy = f.real, f.imag
-        H = T[:, :12].reshape(n, 4, 3)
-        Bq = H[:, :, 0] * fy[:, None] - H[:, :, 1] * fx[:, None] - H[:, :, 2]    # (n, 4)
-        r = mh * Bq[:, 0] + fy * Bq[:, 1] - fx * Bq[:, 2] - Bq[:, 3]
+        a[:, 0, 0] = (m - RF.imag) * w                   # end moment M l/EI
+        a[:, 0, 1] = fy
+        np.negative(fx, out=a[:, 0, 2])
+        # B_p = sum_q b_q H_pq and its phi-derivative (n, 2, 4); r, dr/dphi = sum_p a_p B_p
+        BB = ((T[:, :8].conjugate() * f[:, None]).imag - T[:, 8:16].real).reshape(n, 2, 4)
+        RG = (BB * a).sum(2)
+        r = RG[:, 0]
         res = _MAXR(np.abs(r))
         if not res < math.inf:
             res = math.inf
@@ -169,39 +177,34 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
                 (it >= patience and res > quasi_above and res > 0.1 * hist[(it - 2) % 3]):
             break
         hist[it % 3] = res
-        Hd = T[:, 12:24].reshape(n, 4, 3)
-        Bd_ = Hd[:, :, 0] * fy[:, None] - Hd[:, :, 1] * fx[:, None] - Hd[:, :, 2]
-        gP = mh * Bd_[:, 0] + fy * Bd_[:, 1] - fx * Bd_[:, 2] - Bd_[:, 3]
-        Ap = mh[:, None] * H[:, 0] + fy[:, None] * H[:, 1] - fx[:, None] * H[:, 2] - H[:, 3]
-        gM = Bq[:, 0] * w                                # dr/dM
-        K = ((Bq[:, 1] + Ap[:, 0]) + 1j * (Bq[:, 2] + Ap[:, 1])) * lw   # dr = Im(conj K dFloc)
-        Mlow = -RF.real
-        Mcol = Mlow - (lE * Tgp * cF).imag
-        kK = (K.conjugate() * Floc).real
-        if not np.all(np.abs(gM) > 0):
+        sc = -BB[:, 0, 0]           # -dr/dM EI/l (1 to leading order)
+        W = sc * w                  # -dr/dM: the Jacobian's row weights (linsolve's w)
+        if not _MINR(np.abs(W)) > 0:
             break
-        ig = 1.0 / gM
+        ig = -1.0 / W
+        # dr = Im(conj K df), K = sum_q b_q (h_1q + i h_2q) + sum_p a_p (H_px + i H_py)
+        Kn = BB[:, 0, 1] + 1j * BB[:, 0, 2] + (a[:, 0] * T[:, :4]).sum(1)
+        kK = (Kn.conjugate() * f).real
+        Mlow = -RF.real
+        Mcol = Mlow - (lE * T[:, 17] * cF).imag       # g' = T[:, 17]
+        gP1 = RG[:, 1] - 1.0
         if follower:     # the force turns with the tip (Mall = -Mlow; see BezierModel.factors)
             A = 0.0
             e = kK * ig - Mlow
-            Bd = (gP - 1.0 + kK) * ig
+            Bd = (gP1 + kK) * ig
         else:
             A = Mlow - kK * ig
             e = None
-            Bd = (gP - 1.0) * ig + Mlow
-        W = -gM
-        # Newton on r / s, s = -dr/dM EI/l = -integral dR/dphi dt (l/EI) (= 1 to leading
-        # order): the same roots, but close to the circular arcs' phi - (l/EI) Mbar, so it
-        # converges like them from far away (r itself is a product, R times dR/dphi). Its
-        # Jacobian: J / s + (r / s^2) ds/dphi; ds_i/dphi_j through H(phi_i) (sig) and through
-        # the force in arc i's frame (rho: phi_j, j < i, turn a dead force; a follower force
-        # turns with phi_j, j >= i).
-        sc = -Bq[:, 0]
-        scaled = bool(np.all(sc > 0.1))
+            Bd = gP1 * ig + Mlow
+        # Newton on r / s, s = sc: the same roots, but close to the circular arcs'
+        # phi - (l/EI) Mbar, so it converges like them from far away (r itself is a product,
+        # R times dR/dphi). Its Jacobian: J / s + (r / s^2) ds/dphi; ds_i/dphi_j through
+        # H(phi_i) (sig) and through the force in arc i's frame (rho: phi_j, j < i, turn a
+        # dead force; a follower force turns with phi_j, j >= i).
+        scaled = _MINR(sc) > 0.1
         if scaled:
-            h = H[:, 0, 0] + 1j * H[:, 0, 1]
-            rho_ = (h.conjugate() * f).real
-            sig = fy * Hd[:, 0, 0] - fx * Hd[:, 0, 1] - Hd[:, 0, 2]
+            rho_ = (T[:, 0].conjugate() * f).real
+            sig = BB[:, 1, 0]
             isc = 1.0 / sc
             rt = r * isc
             c = rt * isc
