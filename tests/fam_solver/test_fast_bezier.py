@@ -5,6 +5,8 @@ and the fast-path solutions against the general path's and the rod reference. It
 counted, not timed (timing: ``scripts/bench fam``)."""
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import fam_solver.fam as fam_mod
 from fam_solver import Catheter, Loads, fast, fast_bezier, solve_elastica, solve_fam
@@ -235,3 +237,28 @@ def test_newton_step_is_that_of_the_scaled_residual(follower, n, dense):
     got = fast_bezier.bezier_tip_newton(n, l, w, F, m, follower, phi, 1, step_limit=np.inf,
                                         rtol=-1.0, dense=dense)[0]
     assert np.max(np.abs(got - want)) < 1e-6 * np.max(np.abs(want - phi))
+
+
+@given(fx=st.floats(-25, 25), fy=st.floats(-25, 25), m=st.floats(-6, 6),
+       follower=st.booleans(), n=st.sampled_from([1, 2, 3, 5, 12, 30, 70]))
+@settings(max_examples=40, deadline=None)
+def test_fuzz_bezier_finite_and_solved(fx, fy, m, follower, n):
+    """Random tip loads (F L^2/EI <= 35, |M| L/EI <= 6, dead or follower): finite numbers;
+    a converged Bezier answer solves the quadrature model's equations (an independent check of
+    the series kernel); where the general path from the circular-arc solution also finds a
+    stable equilibrium on the same branch, it is the same one."""
+    cat = Catheter(1.0, 1.0)
+    ld = Loads(tip_force=(fx, fy), tip_moment=m, follower=follower)
+    sh = solve_fam(cat, ld, n_arcs=n, arc_model='bezier')
+    assert np.all(np.isfinite(sh.arc_angles)) and np.all(np.isfinite(sh.tip))
+    if not sh.converged:
+        assert sh.warning
+        return
+    fol = follower and complex(fx, fy) != 0      # (without a tip force: ignored)
+    prob = build_problem(cat, n, np.array([complex(fx, fy)]), fol, np.array([m]), [])
+    loads, mm = prob.loads(1.0)
+    r = BezierResidual(prob).residual(sh.arc_angles[None], loads, mm)
+    assert np.max(np.abs(r)) <= 1e-12 * max(1.0, np.max(np.abs(sh.arc_angles)))
+    phi, conv, _ = _general(cat, ld, n, follower=fol)
+    if conv and sh.stable and abs(phi.sum() - sh.tip_angle) < 0.5:
+        assert np.max(np.abs(phi - sh.arc_angles)) < 1e-8
