@@ -262,3 +262,15 @@ def test_fuzz_bezier_finite_and_solved(fx, fy, m, follower, n):
     phi, conv, _ = _general(cat, ld, n, follower=fol)
     if conv and sh.stable and abs(phi.sum() - sh.tip_angle) < 0.5:
         assert np.max(np.abs(phi - sh.arc_angles)) < 1e-8
+
+
+def test_warm_start_is_used_for_bezier_arcs():
+    """The node warm-starts from the previous shape: for Bezier arcs the fast path takes it
+    (fewer iterations, the same equilibrium as a cold solve)."""
+    for n in (12, 40):
+        s0 = solve_fam(BLAZER, Loads(tip_force=(0.05, 0.2)), n_arcs=n, arc_model='bezier')
+        ld = Loads(tip_force=(0.05, 0.21))
+        warm = solve_fam(BLAZER, ld, n_arcs=n, arc_model='bezier', initial=s0)
+        cold = solve_fam(BLAZER, ld, n_arcs=n, arc_model='bezier')
+        assert warm.converged and np.max(np.abs(warm.arc_angles - cold.arc_angles)) < 1e-10
+        assert warm.iterations < cold.iterations

@@ -16,6 +16,7 @@ Where each idea lives:
 * ``mesh``       graded arc lengths (``spacing='graded'``);
 * ``fast``       the single-case fast path for tip loads (which equilibrium);
 * ``fast_newton`` its Newton kernel (1-D arrays, LAPACK directly);
+* ``fast_bezier`` the Bezier arcs' kernel on the fast path (the Eq. 23 integrals as series);
 * ``batch``      ``solve_fam_batch``, the general path vectorised over cases;
 * ``status``     outcome codes (``Status``) of ``Shape`` and ``BatchShape``.
 
@@ -62,9 +63,8 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
     finite iterate. ``shape.status`` (``Status``) tells converged / not converged /
     unstable / snap-through apart.
     initial: optional warm start (a previous Shape, or arc angles (N,) of EQUAL arcs); used
-    (exact or clothoid model, tip loads, N <= 64) when Newton from it converges to an equilibrium
-    whose
-    Jacobian eigenvalues all have positive real parts, else ignored (cold start).
+    (tip loads, N <= 64) when Newton from it converges to an equilibrium whose Jacobian
+    eigenvalues all have positive real parts, else ignored (cold start).
     """
     check_arguments(cat, n_arcs, arc_model, spacing)
     if not isinstance(loads, Loads):

@@ -1,11 +1,14 @@
-"""Fast path: one load case with tip loads only (force, moment; dead or follower), circular
-or clothoid arcs, any N -- which equilibrium, with the Newton kernel of ``fast_newton``.
+"""Fast path: one load case with tip loads only (force, moment; dead or follower), circular,
+clothoid or Bezier arcs, any N -- which equilibrium, with the Newton kernel of ``fast_newton``
+(Bezier arcs: ``fast_bezier``).
 
 * N <= FAST_DENSE_MAX_N (64): Newton from the rescaled small-deflection start (with a tip
   moment and axial tension: the stiffened one, ``_stiffened_linear``); accepted when it
   turned the way the small-deflection beam (or its stiffened version) turns and the branch
   check holds (``linsolve.energy_stable``). Otherwise: N > 12 restarts from the 12-arc
-  solution, N <= 12 applies the load by continuation on this path (``_continuation``).
+  solution; N <= 12: Bezier arcs restart from the circular-arc solution of the same N
+  (``_bezier_from_circular``), then (and for the other models) the load is applied by
+  continuation on this path (``_continuation``).
 * N > FAST_DENSE_MAX_N: Newton (O(N) banded solve) from the COARSE_N solution resampled onto
   the arcs; stability judged on the COARSE_N model, as ``globalise.stability`` does.
 * spacing='graded': a second Newton pass on the graded arcs (``mesh.fast_grade``).
@@ -169,8 +172,8 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
                initial: Optional[np.ndarray] = None, spacing: str = 'uniform',
                clothoid: bool = False, rtol: Optional[float] = None,
                bezier: bool = False) -> Optional[Tuple]:
-    """Whole single-case solve for tip loads (circular or clothoid arcs), or None when it is
-    not accepted (the caller then uses the general path).
+    """Whole single-case solve for tip loads (circular, clothoid or, with bezier=True, Bezier
+    arcs), or None when it is not accepted (the caller then uses the general path).
 
     rtol: Newton's relative tolerance (None: 1e-12; the first pass of graded arcs 1e-9); a
     coarse solution that only starts a finer model uses _START_RTOL.
