@@ -119,9 +119,13 @@ def test_dense_and_banded_sides_of_the_switch_agree(model):
 
 
 def test_bezier_solve_is_handed_the_circular_solution(monkeypatch):
-    """solve_fam starts the Bezier model from the circular-arc solution of the same N (the
-    wiring: the equilibrium itself is the same either way, see above)."""
+    """When the fast path refuses a Bezier case, solve_fam starts the general path's Bezier
+    Newton from the circular-arc solution of the same N (the wiring: the equilibrium itself is
+    the same either way, see above)."""
     import fam_solver.fam as fam_mod
+    orig_fast = fam_mod.fast_solve
+    monkeypatch.setattr(fam_mod, 'fast_solve', lambda *a, **kw: None if kw.get('bezier')
+                        else orig_fast(*a, **kw))
     seen = []
     orig = fam_mod.solve_cases
 

@@ -63,6 +63,23 @@ def _lambdas(phi):
     return lam, dlam, d2lam
 
 
+def _nodes(taus=()):
+    """Quadrature nodes and weights on [0, 1]: N_GAUSS-point Gauss-Legendre on each piece
+    between the point-load fractions ``taus`` inside the arc."""
+    edges = [0.0, *taus, 1.0]
+    xg, wg = _GAUSS
+    ts, ws = [], []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        ts.append(a + (b - a) * (xg + 1) / 2)
+        ws.append(wg * (b - a) / 2)
+    return np.concatenate(ts), np.concatenate(ws)
+
+
+def unit_nodes():
+    """Nodes and weights (Q,) of the quadrature of an arc without point loads inside."""
+    return _nodes()
+
+
 class BezierModel:
     """Residuals of the Bezier arc model for a given Problem (loads fixed per case)."""
 
@@ -73,14 +90,7 @@ class BezierModel:
         if cached is not None:
             self.t, self.wq, self.b0, self.b1, self.b2, self.bcat = cached
             return
-        edges = [0.0, *taus, 1.0]
-        xg, wg = _GAUSS
-        ts, ws = [], []
-        for a, b in zip(edges[:-1], edges[1:], strict=True):
-            ts.append(a + (b - a) * (xg + 1) / 2)
-            ws.append(wg * (b - a) / 2)
-        self.t = np.concatenate(ts)          # (Q,)
-        self.wq = np.concatenate(ws)
+        self.t, self.wq = _nodes(taus)       # (Q,)
         t = self.t
         u = 1 - t
         # Bernstein basis and derivatives, (Q, 4)

@@ -16,6 +16,7 @@ Where each idea lives:
 * ``mesh``       graded arc lengths (``spacing='graded'``);
 * ``fast``       the single-case fast path for tip loads (which equilibrium);
 * ``fast_newton`` its Newton kernel (1-D arrays, LAPACK directly);
+* ``fast_bezier`` the Bezier arcs' kernel on the fast path (the Eq. 23 integrals as series);
 * ``batch``      ``solve_fam_batch``, the general path vectorised over cases;
 * ``status``     outcome codes (``Status``) of ``Shape`` and ``BatchShape``.
 
@@ -62,9 +63,8 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
     finite iterate. ``shape.status`` (``Status``) tells converged / not converged /
     unstable / snap-through apart.
     initial: optional warm start (a previous Shape, or arc angles (N,) of EQUAL arcs); used
-    (exact or clothoid model, tip loads, N <= 64) when Newton from it converges to an equilibrium
-    whose
-    Jacobian eigenvalues all have positive real parts, else ignored (cold start).
+    (tip loads, N <= 64) when Newton from it converges to an equilibrium whose Jacobian
+    eigenvalues all have positive real parts, else ignored (cold start).
     """
     check_arguments(cat, n_arcs, arc_model, spacing)
     if not isinstance(loads, Loads):
@@ -91,12 +91,13 @@ def solve_fam(cat: Catheter, loads: Loads, n_arcs: int = 12, arc_model: str = DE
             initial = remap(initial[None], np.full((1, n), 1.0 / n),
                             (np.asarray(init_frac) / init_len)[None])[0]
     clothoid = arc_model == 'clothoid'
-    if arc_model != 'bezier' and not pfs:
+    bezier = arc_model == 'bezier'
+    if not pfs:
         out = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, follower, initial,
-                         spacing, clothoid)
+                         spacing, clothoid, bezier=bezier)
         if out is None and initial is not None:
             out = fast_solve(n, cat.length, cat.ei, tip, loads.tip_moment, follower,
-                             spacing=spacing, clothoid=clothoid)
+                             spacing=spacing, clothoid=clothoid, bezier=bezier)
         if out is not None:
             phi, conv, it, res, tipc, stable, frac, rho = out
             return arc_shape(cat.length, phi, tip=tipc, tip_angle=float(phi.sum()),

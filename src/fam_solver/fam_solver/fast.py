@@ -1,11 +1,14 @@
-"""Fast path: one load case with tip loads only (force, moment; dead or follower), circular
-or clothoid arcs, any N -- which equilibrium, with the Newton kernel of ``fast_newton``.
+"""Fast path: one load case with tip loads only (force, moment; dead or follower), circular,
+clothoid or Bezier arcs, any N -- which equilibrium, with the Newton kernel of ``fast_newton``
+(Bezier arcs: ``fast_bezier``).
 
 * N <= FAST_DENSE_MAX_N (64): Newton from the rescaled small-deflection start (with a tip
   moment and axial tension: the stiffened one, ``_stiffened_linear``); accepted when it
   turned the way the small-deflection beam (or its stiffened version) turns and the branch
   check holds (``linsolve.energy_stable``). Otherwise: N > 12 restarts from the 12-arc
-  solution, N <= 12 applies the load by continuation on this path (``_continuation``).
+  solution; N <= 12: Bezier arcs restart from the circular-arc solution of the same N
+  (``_bezier_from_circular``), then (and for the other models) the load is applied by
+  continuation on this path (``_continuation``).
 * N > FAST_DENSE_MAX_N: Newton (O(N) banded solve) from the COARSE_N solution resampled onto
   the arcs; stability judged on the COARSE_N model, as ``globalise.stability`` does.
 * spacing='graded': a second Newton pass on the graded arcs (``mesh.fast_grade``).
@@ -67,7 +70,8 @@ def _resample(phi: np.ndarray, n: int) -> np.ndarray:
 
 
 def _continuation(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
-                  clothoid: bool, lin: np.ndarray, max_iter: int):
+                  clothoid: bool, lin: np.ndarray, max_iter: int,
+                  bezier: bool = False):
     """Load the case from zero on the fast path (N <= FAST_DENSE_MAX_N): secant predictor (the
     small-deflection shape for the first step), at most 0.5 rad tip-angle change per step,
     the branch check after every step, as ``globalise.continuation`` does; None when the
@@ -88,7 +92,7 @@ def _continuation(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, fo
         p, c, it, res, tip, J, rho = fast_tip_newton(n, l, w, F * s_new, m * s_new, follower,
                                                      guess, max_iter,
                                                      rtol=1e-12 if last else _CONT_RTOL,
-                                                     clothoid=clothoid)
+                                                     clothoid=clothoid, bezier=bezier)
         total += it
         if last:
             c = res <= 1e-13 + 1e-12 * _MAXR(np.abs(p))
@@ -97,7 +101,7 @@ def _continuation(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, fo
         ok = c and abs(float(p.sum() - phi.sum())) <= 0.5
         if ok:
             Jc = J if J is not None else jacobian_at(p, l, w, F * s_new, m * s_new, follower,
-                                                      clothoid)
+                                                      clothoid, bezier)
             ok = Jc is None or energy_stable(Jc, w)
         if not ok:
             ds *= 0.5
@@ -123,10 +127,12 @@ def _linear_start(lin: np.ndarray, th_lin: float, F: complex, m: float, follower
 
 
 def _coarse_start(n: int, L: float, EI: float, F: complex, m: float, follower: bool,
-                  clothoid: bool, nc: int = COARSE_N) -> Optional[Tuple[np.ndarray, int, float]]:
+                  clothoid: bool, nc: int = COARSE_N,
+                  bezier: bool = False) -> Optional[Tuple[np.ndarray, int, float]]:
     """The solution on nc arcs (this path) resampled onto n equal arcs, its iterations and
     tip angle; None when the coarse model is not solved on this path."""
-    coarse = fast_solve(nc, L, EI, F, m, follower, clothoid=clothoid, rtol=_START_RTOL)
+    coarse = fast_solve(nc, L, EI, F, m, follower, clothoid=clothoid, rtol=_START_RTOL,
+                        bezier=bezier)
     if coarse is None:
         return None
     return _resample(coarse[0], n), coarse[2], float(coarse[0].sum())
@@ -135,7 +141,8 @@ def _coarse_start(n: int, L: float, EI: float, F: complex, m: float, follower: b
 def _accepted(phi: np.ndarray, conv: bool, res: float, tip: complex, rtol: float,
               th_c: Optional[float], warm: bool, dense: bool, th_lin: float, l: np.ndarray,
               w: np.ndarray, F: complex, m: float, follower: bool, clothoid: bool,
-              lin: np.ndarray, L: float, EI: float, J: Optional[np.ndarray]) -> bool:
+              lin: np.ndarray, L: float, EI: float, J: Optional[np.ndarray],
+              bezier: bool = False) -> bool:
     """Acceptance of a direct solution: converged (to rtol), finite; on the branch of the
     coarse solution it started from (tip angle within 0.5 rad), or else turned the way the
     small-deflection beam (or its stiffened version) turns, or hardly turned at all (other
@@ -152,19 +159,21 @@ def _accepted(phi: np.ndarray, conv: bool, res: float, tip: complex, rtol: float
         if abs(th - th_c) >= 0.5:
             return False
     elif not (warm or abs(th_lin) < 0.1 or abs(th) < 0.1 or (th > 0) == (th_lin > 0)
-              or (dense and _stiffened_sign(l, w, F, m, follower, clothoid, lin) == (th > 0))):
+              or (dense and _stiffened_sign(l, w, F, m, follower, clothoid, lin, bezier)
+                  == (th > 0))):
         return False
     if warm or (dense and abs(th_lin) > 0.3) or _compressed(F, th, follower):
         # N > FAST_DENSE_MAX_N: on the coarse model, whose solution had the check for large loads
-        return _stable_at(phi, J, w, None, L, EI, F, m, follower, clothoid)
+        return _stable_at(phi, J, w, None, L, EI, F, m, follower, clothoid, bezier)
     return True
 
 
 def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool,
                initial: Optional[np.ndarray] = None, spacing: str = 'uniform',
-               clothoid: bool = False, rtol: Optional[float] = None) -> Optional[Tuple]:
-    """Whole single-case solve for tip loads (circular or clothoid arcs), or None when it is
-    not accepted (the caller then uses the general path).
+               clothoid: bool = False, rtol: Optional[float] = None,
+               bezier: bool = False) -> Optional[Tuple]:
+    """Whole single-case solve for tip loads (circular, clothoid or, with bezier=True, Bezier
+    arcs), or None when it is not accepted (the caller then uses the general path).
 
     rtol: Newton's relative tolerance (None: 1e-12; the first pass of graded arcs 1e-9); a
     coarse solution that only starts a finer model uses _START_RTOL.
@@ -184,7 +193,7 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
     if initial is not None:
         phi0, it0 = initial, 0
     elif not dense:          # from the COARSE_N solution
-        start = _coarse_start(n, L, EI, F, m, follower, cl, COARSE_N)
+        start = _coarse_start(n, L, EI, F, m, follower, cl, COARSE_N, bezier)
         if start is None:
             return None
         phi0, it0, th_c = start
@@ -194,7 +203,7 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
             # axial tension with a tip moment: the tension stiffens the response to the
             # force more than to the moment, so phi_lin can point the wrong way and Newton
             # from it lands on a looped equilibrium; start from the stiffened response
-            stiff = _stiffened_linear(l, w, F, m, follower, cl, lin)
+            stiff = _stiffened_linear(l, w, F, m, follower, cl, lin, bezier)
             if stiff is not None:
                 base = stiff
         phi0, it0 = _linear_start(base, float(base.sum()), F, m, follower, L, EI), 0
@@ -203,35 +212,45 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
     if rtol is None:
         rtol = 1e-9 if graded else 1e-12
     phi, conv, it, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, phi0, mi,
-                                                      rtol=rtol, clothoid=cl,
+                                                      rtol=rtol, clothoid=cl, bezier=bezier,
                                                       patience=_PATIENCE if th_c is None else mi)
     stepped = it > 0
     it += it0
     direct = _accepted(phi, conv, res, tip, rtol, th_c, initial is not None, dense, th_lin,
-                       l, w, F, m, follower, cl, lin, L, EI, J)
+                       l, w, F, m, follower, cl, lin, L, EI, J, bezier)
     if not direct and initial is None and dense and n > _FALLBACK_N:
         # not the natural branch from this start: from the _FALLBACK_N solution instead
-        start = _coarse_start(n, L, EI, F, m, follower, cl, _FALLBACK_N)
+        start = _coarse_start(n, L, EI, F, m, follower, cl, _FALLBACK_N, bezier)
         if start is None:
             return None
         it += start[1]
         # the direct solution stands if it is on the coarse solution's branch ...
         direct = _accepted(phi, conv, res, tip, rtol, start[2], False, dense, th_lin,
-                           l, w, F, m, follower, cl, lin, L, EI, J)
+                           l, w, F, m, follower, cl, lin, L, EI, J, bezier)
         if not direct:      # ... else Newton from the coarse solution
             phi, conv, it2, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, start[0],
-                                                               mi, rtol=rtol, clothoid=cl)
+                                                               mi, rtol=rtol, clothoid=cl,
+                                                               bezier=bezier)
             it += it2
             stepped = it2 > 0
             direct = _accepted(phi, conv, res, tip, rtol, start[2], False, dense, th_lin,
-                               l, w, F, m, follower, cl, lin, L, EI, J)
+                               l, w, F, m, follower, cl, lin, L, EI, J, bezier)
     elif not direct and initial is None and dense:
-        # not the natural branch from this start: load from zero on the fast path
-        out = _continuation(n, l, w, F, m, follower, cl, lin, mi)
+        # not the natural branch from this start. Bezier arcs: from the circular-arc solution
+        # of the same N (few long Bezier arcs have equilibria near the small-deflection start
+        # that circular arcs do not have); else load from zero on the fast path
+        out = _bezier_from_circular(n, l, w, L, EI, F, m, follower, mi, lin, th_lin) \
+            if bezier else None
         if out is not None:
-            phi, it2, res, tip, rho = out
+            phi, it2, res, tip, J = out
             it += it2
-            J, stepped, direct = None, True, True
+            stepped, direct, rho = True, True, None
+        else:
+            out = _continuation(n, l, w, F, m, follower, cl, lin, mi, bezier)
+            if out is not None:
+                phi, it2, res, tip, rho = out
+                it += it2
+                J, stepped, direct = None, True, True
     if not direct:
         return None
     th = float(phi.sum())
@@ -240,7 +259,7 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
     if graded and not stepped and not res <= 1e-13 + 1e-12 * _MAXR(np.abs(phi)):
         # the loose first pass stopped without a Newton step (tiny loads): finish it
         phi, conv, it2, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, phi, mi,
-                                                           clothoid=cl)
+                                                           clothoid=cl, bezier=bezier)
         it += it2
         if not conv:
             return None
@@ -250,14 +269,14 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
         f, start = fast_grade(phi, F, follower)
         lg = L * f
         p2, c2, it2, r2, tip2, J2, rho2 = fast_tip_newton(n, lg, lg / EI, F, m, follower, start,
-                                                          mi, clothoid=cl)
+                                                          mi, clothoid=cl, bezier=bezier)
         it += it2
         if c2 and abs(float(p2.sum()) - th) < 0.5 and \
                 math.isfinite(tip2.real) and math.isfinite(tip2.imag):
             phi, res, tip, frac, rho, J, Jw = p2, r2, tip2, f, rho2, J2, lg / EI
         else:   # keep the equal arcs: finish their solution to the full tolerance
             phi, conv, it2, res, tip, J, rho = fast_tip_newton(n, l, w, F, m, follower, phi, mi,
-                                                               clothoid=cl)
+                                                               clothoid=cl, bezier=bezier)
             it += it2
             if not conv:
                 return None
@@ -265,9 +284,26 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
     if _compressed(F, th, follower):
         if not np.any(phi):
             return None      # straight under compression: the general path judges stability
-        if not _stable_at(phi, J, Jw, frac, L, EI, F, m, follower, cl):
+        if not _stable_at(phi, J, Jw, frac, L, EI, F, m, follower, cl, bezier):
             return None      # unstable: let the general path decide and flag it
     return phi, True, it, res, tip, True, frac, rho
+
+
+def _bezier_from_circular(n: int, l: np.ndarray, w: np.ndarray, L: float, EI: float, F: complex,
+                          m: float, follower: bool, max_iter: int, lin: np.ndarray,
+                          th_lin: float) -> Optional[Tuple]:
+    """Bezier arcs, N <= FAST_DENSE_MAX_N: Newton from the circular-arc solution of the same N,
+    accepted on its branch (tip angle within 0.5 rad, the branch check); phi, iterations (both
+    solves), residual, tip, Jacobian, or None."""
+    ex = fast_solve(n, L, EI, F, m, follower)
+    if ex is None:
+        return None
+    p, c, it, res, tip, J, _ = fast_tip_newton(n, l, w, F, m, follower, ex[0], max_iter,
+                                               bezier=True)
+    if not _accepted(p, c, res, tip, 1e-12, float(ex[0].sum()), False, True, th_lin, l, w, F,
+                     m, follower, False, lin, L, EI, J, True):
+        return None
+    return p, it + ex[2], res, tip, J
 
 
 def _compressed(F: complex, th: float, follower: bool) -> bool:
@@ -276,7 +312,7 @@ def _compressed(F: complex, th: float, follower: bool) -> bool:
 
 
 def _stiffened_sign(l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
-                    clothoid: bool, lin: np.ndarray) -> Optional[bool]:
+                    clothoid: bool, lin: np.ndarray, bezier: bool = False) -> Optional[bool]:
     """Sign (True: > 0) of the tip angle of the small-deflection solution WITH the geometric
     stiffness of the loads (one Newton step from the straight shape, J(0)^-1 phi_lin), or
     None when the straight shape is not stable (past buckling). An axial tension stiffens the
@@ -284,16 +320,17 @@ def _stiffened_sign(l: np.ndarray, w: np.ndarray, F: complex, m: float, follower
     turn against phi_lin; where phi_lin's sign disagrees with the direct solution, this sign
     may confirm it (how often, and that it never confirmed a solution load continuation does
     not reach: package README, design record)."""
-    stiff = _stiffened_linear(l, w, F, m, follower, clothoid, lin)
+    stiff = _stiffened_linear(l, w, F, m, follower, clothoid, lin, bezier)
     return None if stiff is None else float(np.sum(stiff)) > 0
 
 
 def _stiffened_linear(l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
-                      clothoid: bool, lin: np.ndarray) -> Optional[np.ndarray]:
+                      clothoid: bool, lin: np.ndarray, bezier: bool = False
+                      ) -> Optional[np.ndarray]:
     """The small-deflection solution WITH the geometric stiffness of the loads: one Newton
     step from the straight shape, J(0)^-1 phi_lin (N <= FAST_DENSE_MAX_N); None when the straight
     shape is not stable (past buckling)."""
-    J0 = jacobian_at(np.zeros(l.size), l, w, F, m, follower, clothoid)
+    J0 = jacobian_at(np.zeros(l.size), l, w, F, m, follower, clothoid, bezier)
     if J0 is None or not energy_stable(J0, w):
         return None
     return _dgesv(J0, lin)[2]
@@ -301,7 +338,7 @@ def _stiffened_linear(l: np.ndarray, w: np.ndarray, F: complex, m: float, follow
 
 def _stable_at(phi: np.ndarray, J: Optional[np.ndarray], Jw: np.ndarray,
                frac: Optional[np.ndarray], L: float, EI: float, F: complex, m: float,
-               follower: bool, clothoid: bool) -> bool:
+               follower: bool, clothoid: bool, bezier: bool = False) -> bool:
     """Branch / stability check at the solution phi (on arcs L * frac, None: equal arcs): on
     J (the last Newton step's Jacobian, row weights Jw) when given, else on the Jacobian at
     phi; beyond FAST_DENSE_MAX_N on the COARSE_N model with the same curvature."""
@@ -309,12 +346,12 @@ def _stable_at(phi: np.ndarray, J: Optional[np.ndarray], Jw: np.ndarray,
     if n > FAST_DENSE_MAX_N:
         lc, Jw, _ = _equal_arcs(COARSE_N, L, EI)
         pc = _resample(phi if frac is None else _to_equal(phi, frac), COARSE_N)
-        J = jacobian_at(pc, lc, Jw, F, m, follower, clothoid)
+        J = jacobian_at(pc, lc, Jw, F, m, follower, clothoid, bezier)
     elif J is None:
         lj = L / n if frac is None else L * frac
         lj = np.broadcast_to(lj, (n,))
         Jw = lj / EI
-        J = jacobian_at(phi, lj, Jw, F, m, follower, clothoid)
+        J = jacobian_at(phi, lj, Jw, F, m, follower, clothoid, bezier)
     return J is None or energy_stable(J, Jw)
 
 

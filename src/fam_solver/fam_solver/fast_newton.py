@@ -15,6 +15,7 @@ from scipy.linalg.lapack import dgesv as _dgesv
 
 from .arcs import row_product
 from .equations import RHO_MAX, clothoid_terms
+from .fast_bezier import bezier_tip_newton
 from .linsolve import banded_solve
 
 _MAXR = np.maximum.reduce
@@ -97,7 +98,7 @@ def _arc_values(phi: np.ndarray, pmax: float, V: np.ndarray, coef: np.ndarray) -
 
 def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, follower: bool,
                     phi: np.ndarray, max_iter: int, step_limit: float = 0.3, rtol: float = 1e-12,
-                    clothoid: bool = False, patience: int = 1 << 30):
+                    clothoid: bool = False, patience: int = 1 << 30, bezier: bool = False):
     """Damped Newton for one tip-loaded case. F complex (base or tip frame), m float.
     Stops at max|r| <= 1e-13 + rtol max|phi| (converged is judged with rtol = 1e-12).
     clothoid: clothoid arcs (as in evaluate; the Jacobian has the rates' derivatives once
@@ -108,8 +109,12 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
 
     Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
     Jacobian of the last Newton step (None if no step was taken or N > FAST_DENSE_MAX_N) and the
-    clothoid rates (N,) at phi (None for circular arcs)."""
+    clothoid rates (N,) at phi (None for circular arcs). bezier: the thesis' Bezier arcs
+    (``fast_bezier.bezier_tip_newton``, the same interface; clothoid is ignored)."""
     dense = n <= FAST_DENSE_MAX_N
+    if bezier:
+        return bezier_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit, rtol,
+                                 patience, QUASI_ABOVE, dense)
     lower = _fast_consts(n)[0] if dense else None
     cF0 = F.conjugate()
     acc = np.add.accumulate
@@ -208,8 +213,8 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
 
 
 def jacobian_at(phi: np.ndarray, l: np.ndarray, w: np.ndarray, F: complex, m: float,
-                 follower: bool, clothoid: bool) -> Optional[np.ndarray]:
+                 follower: bool, clothoid: bool, bezier: bool = False) -> Optional[np.ndarray]:
     """The dense Jacobian (N <= FAST_DENSE_MAX_N) at phi: the one a Newton step from phi uses."""
     J = fast_tip_newton(phi.size, l, w, F, m, follower, phi, 1, step_limit=math.inf, rtol=-1.0,
-                        clothoid=clothoid)[5]
+                        clothoid=clothoid, bezier=bezier)[5]
     return J
