@@ -40,6 +40,7 @@ from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
 from catheter_bringup.local_recording import merge_parts, part_path
+from catheter_bringup.lockstep_peer import VisionError, VisionPeer, vision_plan
 from catheter_bringup.part_pipe import PartPipe, RecorderPipe
 from catheter_bringup.node_start import available_instances, start_node
 from catheter_bringup.rclpy_adapter import detach_clock
@@ -48,7 +49,7 @@ from catheter_bringup.result import RunResult  # noqa: F401  (re-exported: part 
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
 from catheter_bringup.scenario import load_scenario, resolve_nodes, run_start_info, scenario_text
 from catheter_bringup.split_run import SplitRun, worker_dds_topics
-from catheter_bringup.stepping import Stepping
+from catheter_bringup.stepping import KEY_BEFORE, Stepping
 from catheter_bringup.worker import Workers
 from catheter_common import qos as Q
 from catheter_common import topics as T
@@ -163,6 +164,19 @@ class ScenarioRunner(Stepping, SplitRun):
         self.inject: Optional[Callable[[int, str], list]] = None
         #: the topics `inject` delivers (treated as published in this process)
         self.inject_topics = set()
+        #: lockstep: the vision chain's process (`catheter_bringup.lockstep_peer`), its nodes
+        self.peer: Optional[VisionPeer] = None
+        self.peer_nodes: List[str] = []
+        #: the run's node instances in start order (None: this process's); a lockstep
+        #: vision process is given the main process's, so both number the nodes alike
+        self.node_order: Optional[List[str]] = None
+        self._node_index: Dict[str, int] = {}
+        self._timer_key: Dict[int, tuple] = {}
+        #: the cascade being delivered, the step running and the last step completed
+        #: (`Stepping._drain_bus`, `_run_lockstep`)
+        self._key = KEY_BEFORE
+        self._step = 0
+        self._step_done = -1
 
     # ------------------------------------------------------------------ setup
     def setup(self, context: Optional[Context] = None):
@@ -186,6 +200,9 @@ class ScenarioRunner(Stepping, SplitRun):
         classes = available_instances(cands)
         chosen, missing = resolve_nodes(sc, set(classes), self.registry)
         wanted_all, _ = resolve_nodes(sc, None, self.registry)
+        self._node_index = {n: k for k, n in enumerate(self.node_order
+                                                        or [i.name for i in chosen])}
+        vision = vision_plan(sc, chosen, self.inject) if self.only is None else []
         #: topics a node of another process of the run consumes (a worker publishes only
         #: these on DDS in layout split)
         self._consumed_elsewhere = set()
@@ -218,6 +235,33 @@ class ScenarioRunner(Stepping, SplitRun):
             self._child_produces = {t for i in worker for t in i.spec.produces}
             wanted_all = [i for i in wanted_all if i.name not in self.child_nodes]
             self._child_inputs = {t for i in worker for t in i.spec.consumes}
+        elif vision:
+            # lockstep: the vision chain (a pure observer here) in a process of its own,
+            # pipelined behind this one; the recording merges both in one-process order
+            self.peer = self._start_peer(vision, chosen)
+            names = {i.name for i in vision}
+            chosen = [i for i in chosen if i.name not in names]
+            wanted_all = [i for i in wanted_all if i.name not in names]
+        try:
+            return self._setup_rest(sc, lockstep, chosen, wanted_all, classes, missing)
+        except BaseException:
+            if self.peer is not None:
+                self.peer.kill()
+                self.peer = None
+            raise
+
+    def _start_peer(self, vision, chosen) -> VisionPeer:
+        reg = None
+        if self.registry is not None:
+            reg = {k: {'executable': v.executable, 'module': v.module,
+                       'consumes': list(v.consumes), 'produces': list(v.produces),
+                       'kind': v.kind} for k, v in self.registry.items()}
+        plan = {'scenario': dict(self.scenario), 'registry': reg,
+                'order': [i.name for i in chosen], 'nodes': [i.name for i in vision],
+                'record': bool(self.bag)}
+        return VisionPeer(plan, self.log)
+
+    def _setup_rest(self, sc, lockstep, chosen, wanted_all, classes, missing):
         self.skipped = sorted({i.name for i in wanted_all} - {i.name for i in chosen})
         self.missing = missing
         self.start_errors = {}
@@ -276,6 +320,8 @@ class ScenarioRunner(Stepping, SplitRun):
                 self._drive_clock_of(node)
         if self.part_bag and self.bus is not None:
             self._record_part()
+        if self.peer is not None:
+            self._peer_ready()
         if self.bag:
             # real time: small chunks (a killed run loses less); lockstep: 1 MB
             chunk = REALTIME_CHUNK if not lockstep else 1 << 20
@@ -286,19 +332,42 @@ class ScenarioRunner(Stepping, SplitRun):
                 # written by a writer process (`part_pipe`): the run's loop hands over bytes,
                 # the exact-length walk, mcap and zstd run on the other core
                 self.recorder = RecorderPipe(self.bag, chunk_size=chunk)
-                self.sink = RecordingSink(self.runner_node, self.recorder,
+                # split lockstep: the vision peer keeps what this process records until
+                # the vision process has done the same steps, and writes both merged
+                self.sink = RecordingSink(self.runner_node, self.peer or self.recorder,
                                           exclude=sc['record']['exclude'],
                                           only=sc['record'].get('only') or None)
                 self.sink.now_ns = (lambda: self._now_ns) if lockstep else None
-                self.sink.buffered = lockstep
+                # lockstep on the bus: delivery order is publish order, nothing to sort
+                self.sink.buffered = lockstep and self.peer is None
+                if self.peer is not None:
+                    self.peer.attach(self, self.recorder, self.sink.received)
                 self._record_publishers()
             # what the run is, in the file before the first step: a run killed with SIGKILL
             # still says it (recover_bag carries it over; analyze reads it)
-            self.recorder.start(run_start_info(sc, self.nodes))
+            self.recorder.start(run_start_info(sc, list(self.nodes) + self.peer_nodes))
+        elif self.peer is not None:
+            self.peer.attach(self, None, None)
         self._track()
         if self.child_groups:
             self._start_children()
         return self
+
+    def _peer_ready(self) -> None:
+        """Take the vision process's start report: its nodes (and those left out), and
+        forward its inputs to it from the bus."""
+        ready = self.peer.wait_ready()
+        self.peer_nodes = list(ready['nodes'])
+        self.skipped = sorted(set(self.skipped) | set(ready['skipped']))
+        self.start_errors.update(ready['start_errors'])
+        self.fallbacks.update(ready['fallbacks'])
+        theirs = set(ready['publishes'])
+        ours = {s.topic_name for n in self.nodes.values() for s in n.subscriptions}
+        if theirs & ours:
+            raise VisionError(f'nodes of this process subscribe to {sorted(theirs & ours)}, '
+                              'which the lockstep vision process publishes: set '
+                              'lockstep_processes: 1')
+        self.bus.record = self.peer.forward
 
     def _drive_clock_of(self, node: Node):
         """Lockstep: the runner sets the node's sim time directly each step (what its /clock
@@ -311,6 +380,10 @@ class ScenarioRunner(Stepping, SplitRun):
 
     def _track(self):
         self._timers = [t for node in self.nodes.values() for t in node.timers]
+        idx = self._node_index
+        self._timer_key = {id(t): (idx.get(name, k), j)
+                           for k, (name, node) in enumerate(self.nodes.items())
+                           for j, t in enumerate(node.timers)}
         self._timer_owner = {id(t): name for name, node in self.nodes.items()
                              for t in node.timers}
         self._due = {}
@@ -376,6 +449,8 @@ class ScenarioRunner(Stepping, SplitRun):
     # ------------------------------------------------------------------ teardown
     def _finish(self, status, reason, sim, wall, steps) -> RunResult:
         self.child_reports, self.child_published, self.child_cost = {}, {}, {}
+        if self.peer is not None:
+            status, reason = self._stop_peer(status, reason)
         if self.children is not None:
             self._stop_children()
         if self.sink is not None:
@@ -406,7 +481,7 @@ class ScenarioRunner(Stepping, SplitRun):
                 'duration_s': self.scenario['duration'],
                 'sim_time_reached_s': round(sim, 6),
                 'steps': steps,
-                'nodes': sorted(self.nodes),
+                'nodes': sorted(set(self.nodes) | set(self.peer_nodes)),
                 'skipped_nodes': self.skipped,
                 'start_errors': self.start_errors,
                 'fallbacks': self.fallbacks,
@@ -424,10 +499,7 @@ class ScenarioRunner(Stepping, SplitRun):
         loop_s = getattr(self, 'realtime_info', {}).get('loop_s', wall)
         cost = self.bus.cost.summary(loop_s) if self.bus is not None else {}
         cost.update(self.child_cost)
-        if self.child_nodes:
-            res_nodes = sorted(set(self.nodes) | set(self.child_nodes))
-        else:
-            res_nodes = sorted(self.nodes)
+        res_nodes = sorted(set(self.nodes) | set(self.child_nodes) | set(self.peer_nodes))
         res = RunResult(self.scenario['name'], status, reason, self.bag, sim, wall, steps,
                         res_nodes, self.skipped, self.missing, published, recorded, cost,
                         received=dict(self.bus.received) if self.bus is not None else {},
@@ -436,7 +508,28 @@ class ScenarioRunner(Stepping, SplitRun):
         self.close()
         return res
 
+    def _stop_peer(self, status: str, reason: str):
+        """The end of the lockstep vision process: it runs the steps this process completed,
+        the rest of both recordings is merged; its report becomes the process 'vision' of
+        the result. A vision process that failed fails the run."""
+        peer, self.peer = self.peer, None
+        rep = peer.finish(self._step_done, status) or {}
+        self.child_published = dict(rep.get('published', {}))
+        self.child_cost = dict(rep.get('cost', {}))
+        self.child_reports['vision'] = {
+            'process': 'vision', 'mode': 'lockstep', 'status': rep.get('status', 'failed'),
+            'reason': peer.error or rep.get('reason', ''), 'nodes': peer.nodes,
+            'published': self.child_published, 'steps': rep.get('steps'),
+            'cpu_s': rep.get('cpu_s'), 'wall_s': rep.get('wall_s'),
+            'wait_at_end_s': round(peer.wait_s, 3)}
+        if peer.error is not None and status != 'failed':
+            status, reason = 'failed', f'vision process: {peer.error}'
+        return status, reason
+
     def close(self):
+        if self.peer is not None:
+            self.peer.kill()
+            self.peer = None
         if getattr(self, '_watchdog', None) is not None:
             self._watchdog.cancel()
         if self.children is not None:
