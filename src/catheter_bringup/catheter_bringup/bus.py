@@ -129,6 +129,10 @@ class LocalBus:
         self.external = set()
         self._pubs = set()
         self._subs = set()
+        #: per topic with a subscriber that takes messages (not raw): the snapshot function
+        #: of its type (`catheter_bringup.msg_copy`), or None (deserialised instead)
+        self.snap: Dict[str, Optional[Callable]] = {}
+        self._serialize, self._deserialize = serializer()
 
     def wrap_node(self, node, publishers: bool = True) -> None:
         if publishers:
@@ -136,7 +140,7 @@ class LocalBus:
         self.wrap_subscriptions(node)
 
     def wrap_publishers(self, node) -> None:
-        serialize_message = serializer()[0]
+        serialize_message = self._serialize
         for pub in list(node.publishers):
             if id(pub) in self._pubs:
                 continue
@@ -146,13 +150,20 @@ class LocalBus:
             orig = pub.publish
 
             def publish(msg, _orig=orig, _topic=topic, bus=self):
-                data = msg if isinstance(msg, bytes) else serialize_message(msg)
+                if isinstance(msg, bytes):
+                    data, snap = msg, None
+                else:
+                    data = serialize_message(msg)
+                    # what the in-process subscribers get: a snapshot now (the publisher
+                    # reuses its message object), cheaper than deserialising `data` later
+                    cp = bus.snap.get(_topic)
+                    snap = cp(msg) if cp is not None else None
                 if bus.dds or _topic in bus.dds_topics:
                     _orig(data)       # the bytes already serialised: not serialised twice
                 bus.counts[_topic] += 1
                 if bus.record is not None:
                     bus.record(_topic, data)
-                bus.queue.append((_topic, data))
+                bus.queue.append((_topic, data, snap))
                 if bus.times is not None:
                     bus.note_times(_topic, msg)
                 if bus.immediate and not bus._delivering:
@@ -194,6 +205,9 @@ class LocalBus:
             cb, with_info = take_callback(sub, _drop, raw=True)
             self.subs.setdefault(sub.topic_name, []).append(
                 (cb, raw, sub.msg_type, with_info, node.get_name()))
+            if not raw and self.snap.get(sub.topic_name) is None:
+                from catheter_bringup.msg_copy import copier
+                self.snap[sub.topic_name] = copier(sub.msg_type)
 
     def _count_external(self, sub, owner: str) -> None:
         """Count (and time) what DDS delivers to a subscription outside the bus."""
@@ -227,7 +241,8 @@ class LocalBus:
             self.cost.add(owner, clock() - t - (self.delivery_s - d0))
 
     def deliver_all(self) -> int:
-        deserialize_message = serializer()[1]
+        """Deliver every queued (topic, cdr bytes, snapshot or None) in order."""
+        deserialize_message = self._deserialize
         n = 0
         q = self.queue
         clock = time.perf_counter
@@ -237,14 +252,18 @@ class LocalBus:
         try:
             share = self.share
             while q:
-                topic, data = q.popleft()
+                topic, data, snap = q.popleft()
                 last_type = last = None
                 for cb, raw, msg_type, with_info, owner in self.subs.get(topic, ()):
                     t = clock()
                     if raw:
                         msg = data
                     elif share and msg_type is last_type:
-                        msg = last            # one deserialised message for every subscriber
+                        msg = last            # one message for every subscriber
+                    elif snap is not None and snap.__class__ is msg_type:
+                        msg = last = snap     # the publisher's snapshot (`msg_copy`)
+                        last_type = msg_type
+                        snap = None if not share else snap
                     else:
                         msg = last = deserialize_message(data, msg_type)
                         last_type = msg_type

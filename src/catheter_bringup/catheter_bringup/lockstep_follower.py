@@ -69,7 +69,7 @@ class Feed:
             if j > i:
                 q = self.bus.queue
                 for _k, topic, data in lst[i:j]:
-                    q.append((topic, data))
+                    q.append((topic, data, None))
                 self.pos[p] = j
                 self.active = True
                 try:

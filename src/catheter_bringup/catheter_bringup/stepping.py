@@ -161,7 +161,7 @@ class Stepping:
     def _inject(self, t_ns: int, phase: str):
         for topic, data in self.inject(t_ns, phase):
             self.bus.counts[topic] = self.bus.counts.get(topic, 0) + 1
-            self.bus.queue.append((topic, data))
+            self.bus.queue.append((topic, data, None))
 
     def _publish_clock(self, t_ns: int, msg: Clock):
         self._now_ns = t_ns
