@@ -10,9 +10,9 @@ then follows the main process step by step, behind it:
   and delivers each input between them at the place the one-process run delivered it
   (`Stepping._drain_bus` with a feed);
 - what its nodes publish (the recorded topics) goes to stdout with step and key, then a
-  watermark of the steps done; at the end a report (published per topic, callback cost,
-  CPU), or an error (a node raised, or published while taking an input: a cascade across
-  the processes, whose order in the recording could not be reproduced).
+  watermark of the steps done; at the end a report (status, published per topic, callback
+  cost, CPU): ``failed`` when a node raised, or published while taking an input (a
+  cascade across the processes, whose order in the recording could not be reproduced).
 
 Its life is its pipes: SIGINT, SIGTERM and SIGHUP are ignored (a Ctrl-C to the process
 group stops the main process, which ends this one after the steps it completed); the main
@@ -247,15 +247,13 @@ def main(argv=None) -> int:
     res = runner._finish(status, reason, sim, wall, follower.k + 1)
     try:
         follower.flush()
-        if status == 'failed':
-            return fail(reason)
         published = {t: n for t, n in res.published.items() if t not in follower.inputs}
         _write_all(wfd, frame(REPORT, body=json.dumps({
             'status': status, 'reason': reason, 'published': published, 'cost': res.cost,
             'steps': follower.k + 1, 'wall_s': wall, 'cpu_s': cpu}).encode()))
     except OSError:
         return 1                       # the main process is gone
-    return 0
+    return 1 if status == 'failed' else 0
 
 
 if __name__ == '__main__':

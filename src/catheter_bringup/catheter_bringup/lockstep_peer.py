@@ -291,6 +291,8 @@ class VisionPeer:
                 self._done = step
             elif kind == REPORT:
                 self.report = json.loads(body)
+                if self.report.get('status') == 'failed':
+                    self.error = self.report.get('reason') or 'failed'
             elif kind == ERROR:
                 self.error = json.loads(body).get('reason', '?')
 
@@ -324,8 +326,8 @@ class VisionPeer:
     def finish(self, last_step: int, status: str = 'complete') -> Optional[dict]:
         """End the vision process after step `last_step` (the last one the main process
         completed): it runs every step up to there, sends the rest and its report, and
-        exits; everything is merged into the recording. Returns its report (None if it
-        failed: `error` says why). A vision process that makes no progress for
+        exits; everything is merged into the recording. Returns its report (None if none
+        came); `error` says why it failed. A vision process that makes no progress for
         `STALL_TIMEOUT` s is killed."""
         t0 = time.perf_counter()
         if not self._eof:
@@ -334,7 +336,7 @@ class VisionPeer:
             self._out += frame(END, body=json.dumps({'last_step': last_step,
                                                      'status': status}).encode())
         last_progress = time.monotonic()
-        while self.report is None and self.error is None and not self._eof:
+        while self.report is None and not self._eof:
             ws = [self._wfd] if self._out else []
             r, w, _ = select.select([self._rfd], ws, [], 0.5)
             if w:

@@ -200,6 +200,12 @@ class ScenarioRunner(Stepping, SplitRun):
         classes = available_instances(cands)
         chosen, missing = resolve_nodes(sc, set(classes), self.registry)
         wanted_all, _ = resolve_nodes(sc, None, self.registry)
+        if self.node_order is not None and self.only is not None:
+            # a lockstep vision process: the main process resolved the graph (with nodes
+            # this process may not import); it starts those of its own
+            by_name = {i.name: i for i in cands}
+            wanted_all = [by_name[n] for n in self.node_order if n in by_name]
+            chosen = [i for i in wanted_all if i.name in classes]
         self._node_index = {n: k for k, n in enumerate(self.node_order
                                                         or [i.name for i in chosen])}
         vision = vision_plan(sc, chosen, self.inject) if self.only is None else []
