@@ -76,10 +76,13 @@ def _drop(*_args):
 
 
 class LocalBus:
-    """Lockstep transport between the runner's nodes: every publish is serialised once, counted
-    and queued; `deliver_all` hands each queued message, in publish order, to every in-process
-    subscription of its topic (raw subscriptions get the bytes, the others one deserialised
-    message, shared: subscribers must not modify what they receive, as in rclcpp's
+    """Lockstep transport between the runner's nodes: every publish is serialised once
+    (`catheter_bringup.cdr_encode` where it covers the type), counted and queued with a
+    snapshot of the message for the in-process subscribers (`catheter_bringup.msg_copy`:
+    the publishers reuse their message objects); `deliver_all` hands each queued message,
+    in publish order, to every in-process subscription of its topic (raw subscriptions get
+    the bytes, the others one message, shared: the snapshot, or the bytes deserialised where
+    no snapshot is made; subscribers must not modify what they receive, as in rclcpp's
     intra-process delivery). Deterministic and without DDS delivery latency. The nodes' own
     DDS subscriptions stay (subscription counts, "work only while subscribed" keep working)
     but what DDS delivers to them is dropped (cheaply: they are switched to raw, so nothing is
@@ -140,6 +143,7 @@ class LocalBus:
         self.wrap_subscriptions(node)
 
     def wrap_publishers(self, node) -> None:
+        from catheter_bringup.cdr_encode import encoder
         serialize_message = self._serialize
         for pub in list(node.publishers):
             if id(pub) in self._pubs:
@@ -148,12 +152,15 @@ class LocalBus:
             topic = pub.topic_name
             self.counts.setdefault(topic, 0)
             orig = pub.publish
+            # the type's own CDR encoder (`cdr_encode`), rclpy's serialiser for the rest
+            enc = encoder(pub.msg_type) or serialize_message
 
-            def publish(msg, _orig=orig, _topic=topic, bus=self):
+            def publish(msg, _orig=orig, _topic=topic, bus=self, _enc=enc,
+                        _type=pub.msg_type):
                 if isinstance(msg, bytes):
                     data, snap = msg, None
                 else:
-                    data = serialize_message(msg)
+                    data = _enc(msg) if msg.__class__ is _type else serialize_message(msg)
                     # what the in-process subscribers get: a snapshot now (the publisher
                     # reuses its message object), cheaper than deserialising `data` later
                     cp = bus.snap.get(_topic)
