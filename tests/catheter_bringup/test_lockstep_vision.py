@@ -2,6 +2,7 @@
 `lockstep_follower`): the recording is the one-process run's, message for message, log time
 for log time, in the same order; a failing vision node, a cascade across the processes, an
 interrupted run and a killed main process end cleanly and say what happened."""
+import json
 import os
 import pathlib
 import signal
@@ -145,8 +146,10 @@ def test_an_interrupted_split_run_records_every_step_it_ran(tmp_path, make_scena
     assert res.processes['vision']['status'] == 'complete'
 
 
-def test_the_vision_process_ends_when_the_main_process_is_killed(tmp_path, make_scenario,
-                                                                 test_registry, importable):
+def start_long_run(tmp_path, make_scenario):
+    """`run_scenario` on the sampler scenario for up to 600 s, in a session of its own (as a
+    terminal's foreground job); returns (process, bag, vision pid) once the vision process
+    has started and the run has gone on for a while."""
     import yaml
     sc = sampler_scenario(make_scenario)
     sc['duration'] = 600.0
@@ -156,21 +159,56 @@ def test_the_vision_process_ends_when_the_main_process_is_killed(tmp_path, make_
         'from nodes_for_tests import TalkerNode as NODE_CLASS  # noqa: F401\n')
     path = tmp_path / 'long.yaml'
     path.write_text(yaml.safe_dump({k: v for k, v in sc.items() if k != 'source'}))
-    env = dict(os.environ, PYTHONUNBUFFERED='1', PYTHONPATH=os.pathsep.join([str(tmp_path), str(HERE),
-                                                        os.environ.get('PYTHONPATH', '')]))
+    env = dict(os.environ, PYTHONUNBUFFERED='1', PYTHONPATH=os.pathsep.join(
+        [str(tmp_path), str(HERE), os.environ.get('PYTHONPATH', '')]))
+    bag = tmp_path / 'long.mcap'
     proc = subprocess.Popen([sys.executable, '-m', 'catheter_bringup.run_scenario', str(path),
-                             '--quiet', '--bag', str(tmp_path / 'long.mcap')],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                            env=env)
+                             '--quiet', '--bag', str(bag)], stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True, env=env,
+                            start_new_session=True)
+    pid = None
+    for line in proc.stdout:
+        if 'vision process (pid' in line:
+            pid = int(line.split('pid ')[1].split(')')[0])
+            break
+    assert pid is not None
+    t_end = time.monotonic() + 60
+    while time.monotonic() < t_end and not (bag.exists() and bag.stat().st_size > 50_000):
+        assert proc.poll() is None
+        time.sleep(0.2)
+    assert not gone(pid, timeout=0.1)
+    return proc, bag, pid
+
+
+def test_ctrl_c_stops_both_processes_and_records_everything(tmp_path, make_scenario,
+                                                            importable):
+    """SIGINT to the process group, as a terminal's Ctrl-C: the vision process ignores it and
+    ends after the steps the main process completed; nothing published is missing."""
+    from catheter_bringup.recorder import read_run_metadata
+    proc, bag, pid = start_long_run(tmp_path, make_scenario)
     try:
-        pid = None
-        for line in proc.stdout:
-            if 'vision process (pid' in line:
-                pid = int(line.split('pid ')[1].split(')')[0])
-                break
-        assert pid is not None
-        time.sleep(1.0)
-        assert not gone(pid, timeout=0.1)
+        os.killpg(proc.pid, signal.SIGINT)
+        code = proc.wait(timeout=120)
+        out = proc.stdout.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert code == 0 and 'interrupted (SIGINT (Ctrl-C))' in out, out
+    assert gone(pid, timeout=15.0)
+    meta = read_run_metadata(bag)
+    assert meta['status'] == 'interrupted' and meta['reason'] == 'SIGINT (Ctrl-C)'
+    published = json.loads(meta['published'])
+    counts = json.loads(meta['counts'])
+    for topic in ('/test/force', '/test/a', '/test/z', '/test/z_echo', '/test/m'):
+        assert counts[topic] == published[topic] > 0, topic
+    assert counts['/test/a'] == counts['/test/force']   # both processes up to the last step
+
+
+def test_the_vision_process_ends_when_the_main_process_is_killed(tmp_path, make_scenario,
+                                                                 importable):
+    proc, _bag, pid = start_long_run(tmp_path, make_scenario)
+    try:
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
         assert gone(pid, timeout=15.0)

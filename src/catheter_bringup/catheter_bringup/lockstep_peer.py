@@ -108,13 +108,17 @@ def parse_frames(buf: bytearray):
     n = len(buf)
     size = FRAME.size
     unpack = FRAME.unpack_from
-    while n - off >= size:
-        kind, step, p, node, tmr, tid, length = unpack(buf, off)
-        if n - off - size < length:
-            break
-        start = off + size
-        out.append((kind, step, (p, node, tmr), tid, bytes(buf[start:start + length])))
-        off = start + length
+    view = memoryview(buf)
+    try:
+        while n - off >= size:
+            kind, step, p, node, tmr, tid, length = unpack(buf, off)
+            if n - off - size < length:
+                break
+            start = off + size
+            out.append((kind, step, (p, node, tmr), tid, bytes(view[start:start + length])))
+            off = start + length
+    finally:
+        view.release()
     if off:
         del buf[:off]
     return out
