@@ -250,7 +250,8 @@ def main(argv=None) -> int:
         published = {t: n for t, n in res.published.items() if t not in follower.inputs}
         _write_all(wfd, frame(REPORT, body=json.dumps({
             'status': status, 'reason': reason, 'published': published, 'cost': res.cost,
-            'steps': follower.k + 1, 'wall_s': wall, 'cpu_s': cpu}).encode()))
+            'steps': follower.k + 1, 'wall_s': wall, 'cpu_s': cpu,
+            'cpu_total_s': time.process_time()}).encode()))
     except OSError:
         return 1                       # the main process is gone
     return 1 if status == 'failed' else 0

@@ -17,8 +17,13 @@ Layout split (real time): every node in a worker process (master, slave, vision;
 `catheter_bringup.scenario.PROCESSES`); each worker records its own nodes' messages into a
 part file and this process merges the parts into the bag (`local_recording`).
 
+Lockstep with the vision chain in a second process (the default when nothing else consumes
+it; ``lockstep_processes: 1`` keeps one): `lockstep_peer` (this side), `lockstep_follower`
+(the vision process); the recording is the one-process run's.
+
 The parts: `node_start` (building the node instances), `bus` (the in-process transport and
-the counters), `stepping` (the lockstep and real-time loops), `split_run` (the runner's side
+the counters; `msg_copy`, `cdr_encode`), `stepping` (the lockstep and real-time loops),
+`split_run` (the runner's side
 of the split layout: DDS topics, part recording, starting the workers), `worker` (the worker
 processes of multi-process real-time runs), `realtime` (scheduling, GC, real-time figures),
 `rclpy_adapter` (every rclpy internal all of these use).
@@ -40,7 +45,8 @@ from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
 from catheter_bringup.local_recording import merge_parts, part_path
-from catheter_bringup.lockstep_peer import VisionError, VisionPeer, vision_plan
+from catheter_bringup.lockstep_peer import VisionPeer, vision_plan
+from catheter_bringup.lockstep_split import LockstepSplit
 from catheter_bringup.part_pipe import PartPipe, RecorderPipe
 from catheter_bringup.node_start import available_instances, start_node
 from catheter_bringup.rclpy_adapter import detach_clock
@@ -86,7 +92,7 @@ def _record_stop_signals(runner) -> dict:
     return old
 
 
-class ScenarioRunner(Stepping, SplitRun):
+class ScenarioRunner(Stepping, SplitRun, LockstepSplit):
     """Runs one scenario. ``scenario``: a dict from `load_scenario` (or a name/path).
 
     >>> res = ScenarioRunner('smoke', bag='bags/smoke.mcap').run()
@@ -256,17 +262,6 @@ class ScenarioRunner(Stepping, SplitRun):
                 self.peer = None
             raise
 
-    def _start_peer(self, vision, chosen) -> VisionPeer:
-        reg = None
-        if self.registry is not None:
-            reg = {k: {'executable': v.executable, 'module': v.module,
-                       'consumes': list(v.consumes), 'produces': list(v.produces),
-                       'kind': v.kind} for k, v in self.registry.items()}
-        plan = {'scenario': dict(self.scenario), 'registry': reg,
-                'order': [i.name for i in chosen], 'nodes': [i.name for i in vision],
-                'record': bool(self.bag)}
-        return VisionPeer(plan, self.log)
-
     def _setup_rest(self, sc, lockstep, chosen, wanted_all, classes, missing):
         self.skipped = sorted({i.name for i in wanted_all} - {i.name for i in chosen})
         self.missing = missing
@@ -358,22 +353,6 @@ class ScenarioRunner(Stepping, SplitRun):
         if self.child_groups:
             self._start_children()
         return self
-
-    def _peer_ready(self) -> None:
-        """Take the vision process's start report: its nodes (and those left out), and
-        forward its inputs to it from the bus."""
-        ready = self.peer.wait_ready()
-        self.peer_nodes = list(ready['nodes'])
-        self.skipped = sorted(set(self.skipped) | set(ready['skipped']))
-        self.start_errors.update(ready['start_errors'])
-        self.fallbacks.update(ready['fallbacks'])
-        theirs = set(ready['publishes'])
-        ours = {s.topic_name for n in self.nodes.values() for s in n.subscriptions}
-        if theirs & ours:
-            raise VisionError(f'nodes of this process subscribe to {sorted(theirs & ours)}, '
-                              'which the lockstep vision process publishes: set '
-                              'lockstep_processes: 1')
-        self.bus.record = self.peer.forward
 
     def _drive_clock_of(self, node: Node):
         """Lockstep: the runner sets the node's sim time directly each step (what its /clock
@@ -513,24 +492,6 @@ class ScenarioRunner(Stepping, SplitRun):
                         realtime=dict(getattr(self, 'realtime_info', {})))
         self.close()
         return res
-
-    def _stop_peer(self, status: str, reason: str):
-        """The end of the lockstep vision process: it runs the steps this process completed,
-        the rest of both recordings is merged; its report becomes the process 'vision' of
-        the result. A vision process that failed fails the run."""
-        peer, self.peer = self.peer, None
-        rep = peer.finish(self._step_done, status) or {}
-        self.child_published = dict(rep.get('published', {}))
-        self.child_cost = dict(rep.get('cost', {}))
-        self.child_reports['vision'] = {
-            'process': 'vision', 'mode': 'lockstep', 'status': rep.get('status', 'failed'),
-            'reason': peer.error or rep.get('reason', ''), 'nodes': peer.nodes,
-            'published': self.child_published, 'steps': rep.get('steps'),
-            'cpu_s': rep.get('cpu_s'), 'wall_s': rep.get('wall_s'),
-            'wait_at_end_s': round(peer.wait_s, 3)}
-        if peer.error is not None and status != 'failed':
-            status, reason = 'failed', f'vision process: {peer.error}'
-        return status, reason
 
     def close(self):
         if self.peer is not None:
