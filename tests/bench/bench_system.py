@@ -290,9 +290,6 @@ WHERE = []
 def where_time_goes():
     """Where a 1 kHz period goes (quiet runs above): per node callback cost, the GC, the
     message work per publish (serialise, deserialise, construct) measured here."""
-    from geometry_msgs.msg import WrenchStamped
-    from rclpy.serialization import deserialize_message, serialize_message
-    from sensor_msgs.msg import JointState
     for r, how in zip(LOCK, ('vision chain in its own process', 'one process'), strict=False):
         print()
         print(f'lockstep (recorded run above, {how}): wall s inside each node\'s callbacks '
@@ -312,25 +309,42 @@ def where_time_goes():
             busy = c['total_s'] / c['share'] if c['share'] > 0 else duration   # its loop's time
             print(f"{node:28s} {layout:7s} {c['callbacks'] / busy:8.0f} {c['mean_ms']:8.3f} "
                   f"{c['p99_ms']:8.3f} {c['max_ms']:8.2f} {100 * c['share']:7.1f}")
+    per_message()
+
+
+def per_message():
+    """What a message costs the bus: rclpy's (de)serialisation against the bus's encoder and
+    snapshot, measured here, each alone."""
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import JointState
+    from catheter_bringup.cdr_encode import encoder
+    from catheter_bringup.msg_copy import copier
+    from catheter_interfaces.msg import ImpedanceModel, MasterCommand
     js = JointState(name=['insertion', 'rotation'], position=[0.01, 0.0],
                     velocity=[0.0, 0.0], effort=[0.0, 0.0])
     w = WrenchStamped()
-    print('per message (us): serialise / deserialise / construct')
-    for name, m in (('JointState', js), ('WrenchStamped', w)):
-        n = 5000
+    w.header.frame_id = 'catheter_base'
+    im = ImpedanceModel(status='ok', s_table=[0.1] * 20, f_table=[0.1] * 20,
+                        b_table=[0.1] * 20, c_table=[0.1] * 20)
+    print('per message (us): rclpy serialise / the bus\'s encoder (cdr_encode) / rclpy '
+          'deserialise / the bus\'s snapshot (msg_copy) / construct')
+
+    def per_call(fn, n=5000):
         t = time.perf_counter()
         for _ in range(n):
-            b = serialize_message(m)
-        ser = (time.perf_counter() - t) / n * 1e6
-        t = time.perf_counter()
-        for _ in range(n):
-            deserialize_message(b, type(m))
-        de = (time.perf_counter() - t) / n * 1e6
-        t = time.perf_counter()
-        for _ in range(n):
-            type(m)()
-        co = (time.perf_counter() - t) / n * 1e6
-        print(f'  {name:14s} {ser:6.1f} / {de:6.1f} / {co:6.1f}')
+            fn()
+        return (time.perf_counter() - t) / n * 1e6
+    for name, m in (('JointState', js), ('WrenchStamped', w), ('MasterCommand', MasterCommand()),
+                    ('ImpedanceModel', im)):
+        b = serialize_message(m)
+        enc, cp = encoder(type(m)), copier(type(m))
+        ser = per_call(lambda m=m: serialize_message(m))
+        en = per_call(lambda m=m, enc=enc: enc(m))
+        de = per_call(lambda m=m, b=b: deserialize_message(b, type(m)))
+        sn = per_call(lambda m=m, cp=cp: cp(m))
+        co = per_call(lambda m=m: type(m)())
+        print(f'  {name:14s} {ser:6.1f} / {en:6.1f} / {de:6.1f} / {sn:6.1f} / {co:6.1f}')
 
 
 def bare_timer(duration):

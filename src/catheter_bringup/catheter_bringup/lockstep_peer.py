@@ -156,9 +156,15 @@ class VisionPeer:
         with os.fdopen(fd, 'w') as f:
             json.dump(plan, f)
         self._stderr = tempfile.TemporaryFile(mode='w+b')
+        # a session of its own, hence (with kernel.sched_autogroup_enabled, most kernels'
+        # setting) a CPU share of its own: CFS shares the CPU between sessions first, so in
+        # the main process's session the two processes together got one share of a busy
+        # machine (measured: the split run slower than one process under load). Its life
+        # is its pipes, not the terminal's signals (`lockstep_follower`)
         self.proc = subprocess.Popen(
             [python, '-m', 'catheter_bringup.lockstep_follower', self._plan],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr)
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr,
+            start_new_session=True)
         self._wfd = self.proc.stdin.fileno()
         self._rfd = self.proc.stdout.fileno()
         set_pipe_size(self._wfd)
