@@ -235,3 +235,15 @@ def test_the_plan_keeps_one_process_when_it_must():
     with pytest.raises(ValueError, match='lockstep_processes'):
         from catheter_bringup.scenario import validate_scenario
         validate_scenario(dict(sc, lockstep_processes=3))
+
+
+def test_a_vision_process_that_cannot_start_is_reported(tmp_path):
+    """The process dies before its start report (here: not even Python): a VisionError that
+    says so, nothing left running."""
+    from catheter_bringup.lockstep_peer import VisionError, VisionPeer
+    plan = {'scenario': load_scenario('smoke'), 'registry': None, 'order': [], 'nodes': [],
+            'record': False}
+    peer = VisionPeer(plan, log=lambda *_: None, python='/bin/false')
+    with pytest.raises(VisionError, match='ended before it started'):
+        peer.wait_ready(timeout=30.0)
+    assert not peer.running
