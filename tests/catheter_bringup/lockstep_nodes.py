@@ -1,7 +1,8 @@
 """A node module of the lockstep vision-process tests (importable by the vision process):
 `SamplerNode` keeps the newest value of each input and publishes them every `period` s;
 with ``echo`` it republishes each message of its first input when it takes it (a cascade);
-with ``fail_at`` its timer raises once the clock passes it; ``tag`` goes into torque.y."""
+with ``fail_at`` its timer raises once the clock passes it; ``tag`` goes into torque.y; with
+``only_subscribed`` it publishes only while its topic has a subscriber."""
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
 
@@ -17,6 +18,7 @@ class SamplerNode(Node):
         self.fail_at = self.declare_parameter('fail_at', -1.0).value
         echo = self.declare_parameter('echo', '').value
         self.tag = self.declare_parameter('tag', 0.0).value
+        self.only_subscribed = self.declare_parameter('only_subscribed', False).value
         self.values = [0.0] * len(ins)
         self.taken = 0
         self.pub = self.create_publisher(WrenchStamped, out, QOS_FAST)
@@ -37,6 +39,8 @@ class SamplerNode(Node):
         now = self.get_clock().now()
         if 0 <= self.fail_at <= now.nanoseconds * 1e-9:
             raise RuntimeError(f'sampler failure at t={now.nanoseconds * 1e-9:.3f} s')
+        if self.only_subscribed and self.pub.get_subscription_count() == 0:
+            return
         m = WrenchStamped()
         m.header.stamp = now.to_msg()
         m.wrench.force.x = self.values[0]

@@ -105,6 +105,32 @@ def test_split_run_records_what_the_one_process_run_records(tmp_path, make_scena
     assert gone(vision_pid(logs))
 
 
+def test_a_publisher_that_works_only_while_subscribed_counts_the_vision_process(
+        tmp_path, make_scenario, test_registry, importable, monkeypatch):
+    """b_sampler (main process) publishes only while /test/b has a subscriber, and only
+    y_sampler (vision process) takes it; /test/b is not recorded. In one process y_sampler's
+    subscription counts from the start; so it must in two, whenever (here: never, no
+    discovery between processes) DDS matches it across the processes."""
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'OFF')
+    sc = sampler_scenario(make_scenario)
+    node = {'module': 'lockstep_nodes', 'executable': 'sampler'}
+    sc['nodes']['b_sampler'] = dict(node, kind='node', consumes=['/test/force'],
+                                    produces=['/test/b'],
+                                    params={'output': '/test/b', 'only_subscribed': True})
+    sc['nodes']['y_sampler'] = dict(node, kind='vision', consumes=['/test/b'],
+                                    produces=['/test/y'],
+                                    params={'output': '/test/y', 'inputs': ['/test/b']})
+    sc['outputs'] = list(sc['outputs']) + ['/test/y']
+    sc['record']['exclude'] = list(sc['record']['exclude']) + ['/test/b']
+    sc['duration'] = 0.2
+    one, _ = run(sc, tmp_path / 'one.mcap', test_registry, 1)
+    two, _ = run(sc, tmp_path / 'two.mcap', test_registry, 2)
+    assert one.status == two.status == 'complete', (one.reason, two.reason)
+    assert 'y_sampler' in two.processes['vision']['nodes']
+    assert one.published['/test/b'] == two.published['/test/b'] == 200
+    assert decoded(one.bag) == decoded(two.bag)
+
+
 def test_a_failing_vision_node_fails_the_run_and_closes_everything(
         tmp_path, make_scenario, test_registry, importable):
     sc = sampler_scenario(make_scenario, fail_at=0.2)

@@ -6,6 +6,7 @@ the vision process itself `lockstep_follower`."""
 from __future__ import annotations
 
 from catheter_bringup.lockstep_peer import VisionError, VisionPeer
+from catheter_bringup.rclpy_adapter import count_extra_subscriber
 
 
 class LockstepSplit:
@@ -37,6 +38,14 @@ class LockstepSplit:
                               'which the lockstep vision process publishes: set '
                               'lockstep_processes: 1')
         self.bus.record = self.peer.forward
+        # the vision process subscribes to its inputs, as its nodes did in one process: a
+        # publisher that works only while subscribed counts it from the first step (DDS
+        # would match it across the processes only some time into the run)
+        inputs = set(ready['inputs'])
+        for node in self.nodes.values():
+            for pub in node.publishers:
+                if pub.topic_name in inputs:
+                    count_extra_subscriber(pub)
 
     def _stop_peer(self, status: str, reason: str):
         """The end of the lockstep vision process: it runs the steps this process completed,
