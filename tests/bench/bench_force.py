@@ -23,6 +23,11 @@ Run: scripts/bench force   (or python tests/bench/bench_force.py [--n 100])
 Fresh held-out draws (issue 11, second round): `python tests/bench/bench_force.py --seed 100`
 draws new shapes and new style parameters (style rngs 100 + 100 k); fixed before that
 round's development and run once at its end: the figures that count.
+
+Fresh held-out draws of round four (issue 11: the models retrained on the current sensor),
+fixed before that round's first benchmark run and run once with the retrained models:
+`python tests/bench/bench_force.py --seed 4711` (shapes from seed 4711, style rngs
+4711 + 100 k; never drawn before).
 """
 from __future__ import annotations
 

@@ -2,6 +2,7 @@
 reference measured in the same run, and the ratio.
 
     scripts/bench system            # or: python tests/bench/bench_system.py [--quick]
+    python tests/bench/bench_system.py --split-only     # part 2 alone (and its costs)
 
 1. Lockstep: the 12 s Experiment II scenario (whatever of its graph exists) on the 1 ms simulated
    clock: real-time factor with the in-process bus and the vision chain in a process of its
@@ -319,7 +320,7 @@ def per_message():
     from rclpy.serialization import deserialize_message, serialize_message
     from sensor_msgs.msg import JointState
     from catheter_bringup.cdr_encode import encoder
-    from catheter_bringup.msg_copy import copier
+    from catheter_bringup.rclpy_adapter import message_copier as copier
     from catheter_interfaces.msg import ImpedanceModel, MasterCommand
     js = JointState(name=['insertion', 'rotation'], position=[0.01, 0.0],
                     velocity=[0.0, 0.0], effort=[0.0, 0.0])
@@ -328,7 +329,7 @@ def per_message():
     im = ImpedanceModel(status='ok', s_table=[0.1] * 20, f_table=[0.1] * 20,
                         b_table=[0.1] * 20, c_table=[0.1] * 20)
     print('per message (us): rclpy serialise / the bus\'s encoder (cdr_encode) / rclpy '
-          'deserialise / the bus\'s snapshot (msg_copy) / construct')
+          'deserialise / the bus\'s copy (rclpy_adapter.message_copier) / construct')
 
     def per_call(fn, n=5000):
         t = time.perf_counter()
@@ -534,9 +535,17 @@ def recorder_loss(rate, seconds):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument('--quick', action='store_true', help='short runs (a smoke test of the bench)')
+    ap.add_argument('--split-only', action='store_true',
+                    help='only part 2 (the split layout beside the one process, quiet and '
+                         'loaded) and its callback costs')
     a = ap.parse_args()
     print(f'bench_system on {os.cpu_count()} cores, load average at start '
           f'{os.getloadavg()[0]:.1f} (timings compare within this run)')
+    if a.split_only:
+        realtime(2.0 if a.quick else 6.0)
+        table()
+        where_time_goes()
+        return
     lockstep(3.0 if a.quick else 12.0, a.quick)
     realtime(2.0 if a.quick else 6.0)
     image_latency(2.0 if a.quick else 5.0)

@@ -11,7 +11,8 @@ prints per run: the CPU each worker process used while the loops ran (sampled fr
 /proc/<pid>/stat every 50 ms, between the runner's "go" and its stop, the first 0.5 s left
 out: works for any version of the code, whatever its reports hold), the master's force
 loop (rate, period p99), the slave's force stream, and the image -> tip force estimates
-(count, latency p99) from the worker reports. The machine is shared: compare rows of the
+(count, latency p99) from the worker reports; `slave` is /slave/force, `imp` and `js` the
+period p99 of /slave/impedance and /slave/joint_state. The machine is shared: compare rows of the
 same session, alternating, not absolute figures.
 """
 from __future__ import annotations
@@ -163,7 +164,7 @@ def main(argv=None) -> int:
         print(f'  this = {ROOT}, other = {a.against}')
     print(f"{'code':6s} {'load':>5s} {'master %':>8s} {'slave %':>8s} {'vision %':>8s} "
           f"{'rendered Hz':>11s} {'p99 ms':>7s} {'slave Hz':>8s} {'p99 ms':>7s} "
-          f"{'estimates':>9s} {'lat p99 ms':>10s}")
+          f"{'imp p99':>7s} {'js p99':>7s} {'estimates':>9s} {'lat p99 ms':>10s}")
     for _ in range(a.rounds):
         for name, root in roots:
             load = os.getloadavg()[0]
@@ -171,12 +172,14 @@ def main(argv=None) -> int:
             c, s = res['cpu'], res['streams']
             rf = s.get('/master/rendered_force', {})
             sf = s.get('/slave/force', {})
+            si, sj = s.get('/slave/impedance', {}), s.get('/slave/joint_state', {})
             lt = res['latency'].get('/catheter/tip_wrench') or {'n': 0, 'p99_ms': float('nan')}
             print(f"{name:6s} {load:5.1f} {100 * c.get('master', float('nan')):8.0f} "
                   f"{100 * c.get('slave', float('nan')):8.0f} "
                   f"{100 * c.get('vision', float('nan')):8.0f} "
                   f"{rf.get('rate_hz', float('nan')):11.1f} {rf.get('p99_ms', float('nan')):7.3f} "
                   f"{sf.get('rate_hz', float('nan')):8.1f} {sf.get('p99_ms', float('nan')):7.3f} "
+                  f"{si.get('p99_ms', float('nan')):7.3f} {sj.get('p99_ms', float('nan')):7.3f} "
                   f"{lt['n']:9d} {lt['p99_ms']:10.1f}", flush=True)
     return 0
 

@@ -72,6 +72,35 @@ def test_padding_and_alignment_after_strings_and_empty_sequences():
         assert repr(deserialize_message(b, JointState)) == repr(js)
 
 
+def test_values_not_of_their_fields_exact_type_are_left_to_rclpy():
+    """An int in a double field (field checks off), an int in a bool field, a numpy float, a
+    list where the setter keeps an array: the encoder says None (rclpy's serialiser decides
+    what they become, as it always did); the same message with canonical values encodes."""
+    import array
+    import numpy as np
+    from geometry_msgs.msg import WrenchStamped
+    from catheter_interfaces.msg import ImpedanceModel
+    enc = encoder(WrenchStamped)
+    w = WrenchStamped(check_fields=False)
+    assert enc(w) is not None
+    for bad in (3, np.float64(0.5), True):
+        w._wrench._force._y = bad
+        assert enc(w) is None, bad
+    w._wrench._force._y = 0.5
+    w._header._stamp._sec = np.int32(2)
+    assert enc(w) is None
+    im = ImpedanceModel(check_fields=False)
+    enc_im = encoder(ImpedanceModel)
+    assert enc_im(im) is not None
+    im._valid = 1
+    assert enc_im(im) is None
+    im._valid = True
+    im._s_table = [1.0]
+    assert enc_im(im) is None
+    im._s_table = array.array('d', [1.0])
+    assert enc_im(im) is not None
+
+
 def test_bad_input_names_the_argument():
     with pytest.raises(ValueError, match='cls'):
         encoder('geometry_msgs/msg/WrenchStamped')

@@ -168,6 +168,91 @@ def test_immediate_bus_delivers_inside_publish_in_order(ros):
     assert order[-1] == 'ext'
 
 
+@pytest.mark.ros
+def test_immediate_bus_delivers_a_callbacks_publishes_when_it_returns(ros):
+    """Worker processes: a timer (or a DDS delivery) run through `LocalBus.timed` publishes
+    back to back; its subscribers run after it returns, in publish order (as lockstep
+    delivers after a timer), before `timed` returns; its cost is its own work only. A
+    publish made during that delivery is delivered by the same loop; an exception in the
+    callback still delivers what it published and propagates."""
+    import time
+    from std_msgs.msg import String
+    from catheter_bringup.bus import LocalBus
+    from catheter_common.qos import QOS_DEFAULT
+    a, b = ros.node('hold_a'), ros.node('hold_b')
+    pub_s, pub_f = (a.create_publisher(String, f'hold/{t}', QOS_DEFAULT) for t in 'sf')
+    pub_u = b.create_publisher(String, 'hold/u', QOS_DEFAULT)
+    order = []
+
+    def on_s(msg):
+        time.sleep(0.002)                    # the subscriber's work (the identifier)
+        order.append('s:' + msg.data)
+        pub_u.publish(String(data='u'))
+    b.create_subscription(String, 'hold/s', on_s, QOS_DEFAULT)
+    b.create_subscription(String, 'hold/f', lambda m: order.append('f:' + m.data), QOS_DEFAULT)
+    a.create_subscription(String, 'hold/u', lambda m: order.append('u'), QOS_DEFAULT)
+    bus = LocalBus(immediate=True)
+    for n in (a, b):
+        bus.wrap_publishers(n)
+    for n in (a, b):
+        bus.wrap_subscriptions(n)
+    sent = []
+
+    def tick():
+        pub_s.publish(String(data='1'))
+        sent.append(time.perf_counter())
+        order.append('tick: state sent')
+        pub_f.publish(String(data='2'))
+        sent.append(time.perf_counter())
+        order.append('tick: force sent')
+        return 'ret'
+    assert bus.timed('hold_a', tick) == 'ret'
+    assert order == ['tick: state sent', 'tick: force sent', 's:1', 'f:2', 'u']
+    assert sent[1] - sent[0] < 0.002         # the force went out before the state's work
+    assert bus.cost.samples['hold_a'][0] < 0.002 and bus.cost.samples['hold_b'][0] >= 0.002
+    assert not bus.queue and bus.counts['/hold/u'] == 1
+    # outside a timed callback: delivered inside publish(), as before
+    order.clear()
+    pub_f.publish(String(data='3'))
+    assert order == ['f:3']
+
+    def failing():
+        pub_f.publish(String(data='4'))
+        raise RuntimeError('node failed')
+    order.clear()
+    with pytest.raises(RuntimeError, match='node failed'):
+        bus.timed('hold_a', failing)
+    assert order == ['f:4'] and not bus._holding
+    # a second run through timed holds again (the flag was cleared)
+    order.clear()
+    bus.timed('hold_a', tick)
+    assert order[:2] == ['tick: state sent', 'tick: force sent']
+
+
+@pytest.mark.ros
+def test_align_timers_puts_timers_of_one_period_on_one_grid(ros):
+    """Timers created at different phases fall due together after `align_timers`; a canceled
+    timer stays canceled, a destroyed one is skipped."""
+    import time
+    node = ros.node('align')
+    timers = []
+    for _ in range(3):
+        timers.append(node.create_timer(0.01, lambda: None))
+        time.sleep(0.0033)
+    canceled = node.create_timer(0.01, lambda: None)
+    canceled.cancel()
+    gone = node.create_timer(0.01, lambda: None)
+    node.destroy_timer(gone)
+
+    def spread_ns():
+        due = [t.time_until_next_call() for t in timers]
+        return max(due) - min(due)
+    assert spread_ns() > 5_000_000                # 3.3 ms apart, twice
+    assert R.align_timers(timers + [canceled, gone]) == 3
+    assert spread_ns() < 1_000_000               # microseconds apart (a loaded machine: < 1 ms)
+    assert canceled.is_canceled()
+
+
 def test_nice_applies_to_every_thread_falls_back_and_refuses_bad_values(monkeypatch):
     with pytest.raises(ValueError, match='nice'):
         R.set_nice(-21)

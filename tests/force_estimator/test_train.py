@@ -23,7 +23,7 @@ def test_build_small_recipe(tmp_path):
     svr = load_estimator(str(tmp_path / 'blazer-svr.npz'))
     mlp = load_estimator(str(tmp_path / 'blazer-mlp.npz'))
     assert svr.kind == 'svr' and mlp.kind == 'mlp'
-    assert mlp.header['chosen'] in ('thesis-10', 'large-64x64')
+    assert mlp.header['chosen'] in ('thesis-10', 'weighted-64x64-x4')
     F = np.array([[0.0, 0.07], [-0.05, 0.12], [0.03, -0.09]])
     ds = D.make_dataset(F, test_frac=0.0, progress=False)
     for est in (svr, mlp):

@@ -12,8 +12,8 @@ import collections
 import time
 from typing import Callable, Dict, List, Optional
 
-from catheter_bringup.rclpy_adapter import (intercept_publish, serializer, take_callback,
-                                            wrap_callback)
+from catheter_bringup.rclpy_adapter import (intercept_publish, message_copier, serializer,
+                                            take_callback, wrap_callback)
 
 
 class PublishCounter:
@@ -76,28 +76,36 @@ def _drop(*_args):
 
 
 class LocalBus:
-    """Lockstep transport between the runner's nodes: every publish is serialised once
-    (`catheter_bringup.cdr_encode` where it covers the type), counted and queued with a
-    snapshot of the message for the in-process subscribers (`catheter_bringup.msg_copy`:
-    the publishers reuse their message objects); `deliver_all` hands each queued message,
-    in publish order, to every in-process subscription of its topic (raw subscriptions get
-    the bytes, the others one message, shared: the snapshot, or the bytes deserialised where
-    no snapshot is made; subscribers must not modify what they receive, as in rclcpp's
-    intra-process delivery). Deterministic and without DDS delivery latency. The nodes' own
+    """Lockstep transport between the runner's nodes: every publish is serialised once (by the
+    type's generated encoder, `catheter_bringup.cdr_encode`, where it covers the type),
+    counted and queued; `deliver_all` hands each queued message, in publish order, to every
+    in-process subscription of its topic (raw subscriptions get the bytes, the others one
+    message, shared: subscribers must not modify what they receive, as in rclcpp's
+    intra-process delivery; the message is a copy of the published one made at publish,
+    `rclpy_adapter.message_copier`, equal to the deserialised bytes, or the bytes
+    deserialised where the copier refuses it). Deterministic and without DDS delivery
+    latency. The nodes' own
     DDS subscriptions stay (subscription counts, "work only while subscribed" keep working)
     but what DDS delivers to them is dropped (cheaply: they are switched to raw, so nothing is
     deserialised for them). With ``dds=True`` every message is also published on DDS, for
     tools outside the process.
 
-    ``immediate=True`` (real time driven by an executor): a publish delivers at once, in the
-    publisher's callback (a publish made by a subscriber during delivery is queued and
-    delivered by the same loop, in order). What DDS delivers to subscriptions outside the bus
-    is counted per topic in ``received``."""
+    ``immediate=True`` (real time driven by an executor): what a callback run through `timed`
+    (a timer, or a delivery from DDS) publishes is delivered as soon as it returns, in publish
+    order, before the executor runs anything else: its publishes go out back to back, not
+    each after its subscribers' work (the slave's force waited for the identifier's update of
+    the joint state published before it), and the subscribers see the messages in the order
+    lockstep delivers them (after the timer). A publish outside such a callback delivers at
+    once, in the publisher's call; a publish made by a subscriber during delivery is queued
+    and delivered by the same loop, in order. What DDS delivers to subscriptions outside the
+    bus is counted per topic in ``received``."""
 
     def __init__(self, dds: bool = False, immediate: bool = False):
         self.queue = collections.deque()
         self.immediate = immediate
         self._delivering = False
+        #: immediate: inside a callback run by `timed` (its publishes wait until it returns)
+        self._holding = False
         #: s spent delivering in total (callers subtract it from a timer's own time)
         self.delivery_s = 0.0
         #: per topic: messages DDS delivered to this process's subscriptions outside the bus
@@ -107,6 +115,12 @@ class LocalBus:
         #: a const shared message to its intra-process subscribers: they must not modify
         #: it); False: a fresh copy each
         self.share = True
+        #: subscribers get a copy of the published message made at publish
+        #: (`rclpy_adapter.message_copier`) instead of deserialising its bytes (lockstep and
+        #: the workers alike; False: deserialised, the reference of the tests)
+        self.copy = True
+        #: topics with a subscriber in this process that takes messages (not raw bytes)
+        self.msg_topics = set()
         #: real time: per topic, the wall times (perf_counter s) of its publishes (None: off)
         self.times: Optional[Dict[str, array.array]] = None
         #: real time: topics whose publish also notes (now - header stamp), s, in `latency`
@@ -132,10 +146,6 @@ class LocalBus:
         self.external = set()
         self._pubs = set()
         self._subs = set()
-        #: per topic with a subscriber that takes messages (not raw): the snapshot function
-        #: of its type (`catheter_bringup.msg_copy`), or None (deserialised instead)
-        self.snap: Dict[str, Optional[Callable]] = {}
-        self._serialize, self._deserialize = serializer()
 
     def wrap_node(self, node, publishers: bool = True) -> None:
         if publishers:
@@ -144,7 +154,7 @@ class LocalBus:
 
     def wrap_publishers(self, node) -> None:
         from catheter_bringup.cdr_encode import encoder
-        serialize_message = self._serialize
+        serialize_message = serializer()[0]
         for pub in list(node.publishers):
             if id(pub) in self._pubs:
                 continue
@@ -153,27 +163,32 @@ class LocalBus:
             self.counts.setdefault(topic, 0)
             orig = pub.publish
             # the type's own CDR encoder (`cdr_encode`), rclpy's serialiser for the rest
-            enc = encoder(pub.msg_type) or serialize_message
+            enc = encoder(pub.msg_type) or (lambda _m: None)
 
             def publish(msg, _orig=orig, _topic=topic, bus=self, _enc=enc,
                         _type=pub.msg_type):
                 if isinstance(msg, bytes):
-                    data, snap = msg, None
+                    data = msg
                 else:
-                    data = _enc(msg) if msg.__class__ is _type else serialize_message(msg)
-                    # what the in-process subscribers get: a snapshot now (the publisher
-                    # reuses its message object), cheaper than deserialising `data` later
-                    cp = bus.snap.get(_topic)
-                    snap = cp(msg) if cp is not None else None
+                    # None: a value the encoder leaves to rclpy (not its field's exact type)
+                    data = _enc(msg) if msg.__class__ is _type else None
+                    if data is None:
+                        data = serialize_message(msg)
                 if bus.dds or _topic in bus.dds_topics:
                     _orig(data)       # the bytes already serialised: not serialised twice
                 bus.counts[_topic] += 1
                 if bus.record is not None:
                     bus.record(_topic, data)
-                bus.queue.append((_topic, data, snap))
+                if bus.copy and _topic in bus.msg_topics and not isinstance(msg, bytes):
+                    # a copy for the subscribers instead of deserialising the bytes (cheaper;
+                    # taken now: the publisher may refill its message before delivery)
+                    copier = message_copier(type(msg))
+                    bus.queue.append((_topic, data, copier(msg) if copier else None))
+                else:
+                    bus.queue.append((_topic, data))
                 if bus.times is not None:
                     bus.note_times(_topic, msg)
-                if bus.immediate and not bus._delivering:
+                if bus.immediate and not (bus._delivering or bus._holding):
                     bus.deliver_all()
 
             intercept_publish(pub, publish)
@@ -212,9 +227,8 @@ class LocalBus:
             cb, with_info = take_callback(sub, _drop, raw=True)
             self.subs.setdefault(sub.topic_name, []).append(
                 (cb, raw, sub.msg_type, with_info, node.get_name()))
-            if not raw and self.snap.get(sub.topic_name) is None:
-                from catheter_bringup.msg_copy import copier
-                self.snap[sub.topic_name] = copier(sub.msg_type)
+            if not raw:
+                self.msg_topics.add(sub.topic_name)
 
     def _count_external(self, sub, owner: str) -> None:
         """Count (and time) what DDS delivers to a subscription outside the bus."""
@@ -238,18 +252,25 @@ class LocalBus:
 
     def timed(self, owner: str, fn, *args):
         """Call fn(*args), adding its wall time minus the deliveries it caused to `owner`'s
-        cost (a timer's own work, not its subscribers')."""
+        cost (a timer's own work, not its subscribers'). Immediate: what fn publishes is
+        delivered when it returns (see the class docstring)."""
         clock = time.perf_counter
+        hold = self.immediate and not (self._holding or self._delivering)
         d0 = self.delivery_s
         t = clock()
+        if hold:
+            self._holding = True
         try:
             return fn(*args)
         finally:
             self.cost.add(owner, clock() - t - (self.delivery_s - d0))
+            if hold:
+                self._holding = False
+                if self.queue:
+                    self.deliver_all()
 
     def deliver_all(self) -> int:
-        """Deliver every queued (topic, cdr bytes, snapshot or None) in order."""
-        deserialize_message = self._deserialize
+        deserialize_message = serializer()[1]
         n = 0
         q = self.queue
         clock = time.perf_counter
@@ -259,18 +280,21 @@ class LocalBus:
         try:
             share = self.share
             while q:
-                topic, data, snap = q.popleft()
+                item = q.popleft()
+                topic, data = item[0], item[1]
+                # the publisher's message copied at publish (`message_copier`)
+                copied = item[2] if len(item) > 2 else None
                 last_type = last = None
                 for cb, raw, msg_type, with_info, owner in self.subs.get(topic, ()):
                     t = clock()
                     if raw:
                         msg = data
                     elif share and msg_type is last_type:
-                        msg = last            # one message for every subscriber
-                    elif snap is not None and snap.__class__ is msg_type:
-                        msg = last = snap     # the publisher's snapshot (`msg_copy`)
+                        msg = last            # one deserialised message for every subscriber
+                    elif copied is not None and type(copied) is msg_type:
+                        msg = last = copied   # (share off: the others deserialise)
                         last_type = msg_type
-                        snap = None if not share else snap
+                        copied = None
                     else:
                         msg = last = deserialize_message(data, msg_type)
                         last_type = msg_type

@@ -2,9 +2,10 @@
 
 The local bus serialises every publish (for the recording, and for DDS when another process
 takes the topic). ``rclpy.serialization.serialize_message`` converts the message through
-every field's Python property and nested message object: 7-19 us per message of the 1 kHz
-loop, a quarter of the lockstep main process's time after the deserialisation went
-(`catheter_bringup.msg_copy`). `encoder` builds, per message class, a function that reads
+every field's Python property and nested message object, the largest cost of a lockstep
+step once the subscribers got copies instead of deserialised bytes
+(`catheter_bringup.rclpy_adapter.message_copier`; figures: the package README, "Benchmark",
+round 5 of the lockstep). `encoder` builds, per message class, a function that reads
 the slots directly and packs runs of fixed-size fields with one precompiled ``struct``
 each: the bytes of plain little-endian CDR (encapsulation ``00 01 00 00``; every primitive
 aligned to its size, at most 8, from the end of that header; strings as uint32 length with
@@ -29,6 +30,10 @@ from typing import Callable, Dict, List, Optional, Tuple
 _FMT = {'boolean': ('?', 1), 'octet': ('c', 1), 'int8': ('b', 1), 'uint8': ('B', 1),
         'int16': ('h', 2), 'uint16': ('H', 2), 'int32': ('i', 4), 'uint32': ('I', 4),
         'int64': ('q', 8), 'uint64': ('Q', 8), 'double': ('d', 8)}
+#: the exact Python type a field's value must have to be encoded here (anything else, e.g.
+#: an int left in a double field with field checks off, goes to rclpy's serialiser, whose
+#: conversion of it is what DDS and the recording have always carried)
+_PY = {'boolean': 'bool', 'octet': 'bytes', 'double': 'float'}
 _CACHE: Dict[type, Optional[Callable]] = {}
 HEADER = b'\x00\x01\x00\x00'
 _ZEROS = bytes(8)
@@ -51,6 +56,16 @@ class _Gen:
     def name(self, prefix: str) -> str:
         self.n += 1
         return f'{prefix}{self.n}'
+
+    def value(self, expr: str, cls: Optional[str], indent: str) -> str:
+        """A local holding `expr`; with `cls`, the encoder returns None unless the value's
+        class is exactly `cls`."""
+        v = self.name('_v')
+        self.lines.append(f'{indent}{v} = {expr}')
+        if cls is not None:
+            self.lines.append(f'{indent}if {v}.__class__ is not {cls}:')
+            self.lines.append(f'{indent}    return None')
+        return v
 
     def prim(self, code: str, size: int, expr: str, indent: str) -> None:
         if size > self.mod:
@@ -97,12 +112,12 @@ def _emit(g: _Gen, slot, expr: str, indent: str, depth: int) -> bool:
         if slot.typename not in _FMT:
             return False
         code, size = _FMT[slot.typename]
-        g.prim(code, size, expr, indent)
+        g.prim(code, size, g.value(expr, _PY.get(slot.typename, 'int'), indent), indent)
         return True
     if isinstance(slot, d.AbstractString) and not isinstance(slot, d.AbstractWString):
         v = g.name('_t')
         g.flush(indent)
-        g.lines.append(f'{indent}{v} = {expr}.encode()')
+        g.lines.append(f'{indent}{v} = {g.value(expr, "str", indent)}.encode()')
         g.prim('I', 4, f'len({v}) + 1', indent)
         g.unknown(indent)
         g.lines.append(f"{indent}b += {v}")
@@ -112,21 +127,23 @@ def _emit(g: _Gen, slot, expr: str, indent: str, depth: int) -> bool:
         return _emit_struct(g, _message_class(slot), expr, indent, depth + 1)
     if isinstance(slot, d.AbstractSequence) and not isinstance(slot, d.Array):
         vt = slot.value_type
-        seq = g.name('_q')
         g.flush(indent)
-        g.lines.append(f'{indent}{seq} = {expr}')
+        double = isinstance(vt, d.BasicType) and vt.typename == 'double'
+        seq = g.value(expr, '_array' if double else 'list', indent)
+        g.env['_array'] = array.array
+        if double:
+            g.lines.append(f"{indent}if {seq}.typecode != 'd':")
+            g.lines.append(f'{indent}    return None')
         g.prim('I', 4, f'len({seq})', indent)
-        if isinstance(vt, d.BasicType) and vt.typename == 'double':
+        if double:
             g.flush(indent)
             g.lines.append(f'{indent}if {seq}:')
             g.lines.append(f'{indent}    b += _Z[:(4 - len(b)) % 8]')
             if sys.byteorder == 'little':    # array('d') holds little-endian doubles
-                g.lines.append(f"{indent}    b += {seq}.tobytes() if {seq}.__class__ is _array "
-                               f"else _pack('<%dd' % len({seq}), *{seq})")
+                g.lines.append(f'{indent}    b += {seq}.tobytes()')
             else:
                 g.lines.append(f"{indent}    b += _pack('<%dd' % len({seq}), *{seq})")
             g.env['_pack'] = struct.pack
-            g.env['_array'] = array.array
             g.mod, g.val = 4, 0            # empty: after the count; else after doubles
             return True
         if (isinstance(vt, d.AbstractString) and not isinstance(vt, d.AbstractWString)) \
@@ -149,8 +166,9 @@ def _emit_struct(g: _Gen, cls, expr: str, indent: str, depth: int) -> bool:
     fields = _fields(cls)
     if fields is None:
         return False
-    v = g.name('_m')
-    g.lines.append(f'{indent}{v} = {expr}')
+    cname = g.name('_C')
+    g.env[cname] = cls
+    v = g.value(expr, cname, indent)
     for f, slot in fields:
         if not _emit(g, slot, f'{v}._{f}', indent, depth):
             return False
@@ -158,8 +176,11 @@ def _emit_struct(g: _Gen, cls, expr: str, indent: str, depth: int) -> bool:
 
 
 def encoder(cls) -> Optional[Callable]:
-    """The CDR encoder of the ROS message class `cls` (``encode(msg) -> bytes``), or None
-    when a field's type is not covered (see the module docstring)."""
+    """The CDR encoder of the ROS message class `cls`, or None when a field's type is not
+    covered (see the module docstring). ``encode(msg)`` returns the bytes, or None when a
+    value is not of its field's exact Python type (an int in a double field, a list where
+    the generated setter keeps an array): rclpy's serialiser is the one that decides what
+    those become."""
     if not isinstance(cls, type) or not hasattr(cls, 'SLOT_TYPES'):
         raise ValueError(f'cls must be a generated ROS message class, got {cls!r}')
     if cls in _CACHE:

@@ -35,9 +35,9 @@ from mcap.writer import CompressionType, Writer
 from catheter_bringup.cdr import cdr_end, message_class
 
 #: zstd level of the chunks. mcap's writer compresses with ``zstandard.compress`` (level 3);
-#: level 1 gave the same size (0.655 against 0.650 of the raw bytes) for 3.5x less CPU on
-#: a 2 s Experiment II recording (its 800x800 frames: 0.02 against 0.07 CPU s per simulated
-#: s), in the writer process that shares the two cores with the run's processes
+#: level 1 compresses an Experiment II recording (its 800x800 frames) about as well for a
+#: fraction of the CPU, in the writer process that shares the two cores with the run's
+#: processes (figures: the package README, "Benchmark")
 ZSTD_LEVEL = 1
 
 

@@ -22,7 +22,7 @@ it; ``lockstep_processes: 1`` keeps one): `lockstep_peer` (this side), `lockstep
 (the vision process); the recording is the one-process run's.
 
 The parts: `node_start` (building the node instances), `bus` (the in-process transport and
-the counters; `msg_copy`, `cdr_encode`), `stepping` (the lockstep and real-time loops),
+the counters; `cdr_encode`), `stepping` (the lockstep and real-time loops),
 `split_run` (the runner's side
 of the split layout: DDS topics, part recording, starting the workers), `worker` (the worker
 processes of multi-process real-time runs), `realtime` (scheduling, GC, real-time figures),

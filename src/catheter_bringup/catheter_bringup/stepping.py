@@ -341,6 +341,8 @@ class Stepping:
         start = time.time_ns()             # the nodes' clock in real time: the system clock
         end = start + int(sc['duration'] * 1e9)
         self._sim_reached = 0.0
+        from catheter_bringup.realtime import align_timers
+        align_timers(self._timers)         # one wake-up per period for a process's 1 kHz timers
         self._time_timers()
         next_scan = start + 200_000_000
         never = never_done()

@@ -16,9 +16,11 @@ Recipe (deterministic, seeded; a few minutes on a shared 2-core machine):
    sensor refuses are dropped. 15 % of the cases are held out for calibration; the rest is
    mirrored (y -> -y, fy -> -fy). Axial pulls stay in: they are unobservable, the models
    learn their conditional mean and the covariance says so.
-3. SVR (RBF, C = 100, epsilon and gamma by validation) -> ``blazer-svr``; the thesis MLP
-   (10 ReLU) and a larger MLP (64, 64; L2 1e-3, 2000 L-BFGS iterations): whichever does
-   better on the held-out cases -> ``blazer-mlp``.
+3. SVR (RBF, C = 100, epsilon and gamma by validation) -> ``blazer-svr``; the MLP
+   candidates `MLP_CANDIDATES` (the thesis MLP, 10 ReLU; the average of 4 MLPs (64, 64),
+   L2 0.1, 2000 L-BFGS iterations, the squared error of each sample weighted by how well
+   the shape determines its force, training.observability_weights): whichever does better
+   on the held-out cases whose force the shape determines -> ``blazer-mlp``.
 4. Calibration on the held-out 15 % (force_estimator.training.calibrate): the domain check
    (reference = the training inputs, threshold from the held-out inputs), the observability
    table of the catheter (force_estimator.uncertainty.build_table), the model's own error
@@ -39,7 +41,7 @@ import time
 import numpy as np
 
 from force_estimator import dataset as D
-from force_estimator.training import calibrate, fit_mlp, fit_svr
+from force_estimator.training import calibrate, fit_mlp, fit_svr, observability_weights
 
 DEFAULT_OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'models')
 #: pixel-like noise of the centreline points for --features noise, m
@@ -52,6 +54,15 @@ POINT_NOISE = 5e-5
 N_ZERO = 300
 #: fraction of the cases held out for calibration
 VAL_FRAC = 0.15
+#: the MLP candidates: (name, hidden layers, L2 alpha, L-BFGS iterations, networks averaged
+#: into one (training.merge_mlps), weight std in N of training.observability_weights or None
+#: for equal weights); the one with the smallest held-out MAE over the cases whose force the
+#: shape determines is shipped. Tuned on the held-out 15 % of a training set drawn like the
+#: recipe's (issue 11, round four; the table in the README): the MLP with the FAM fallback
+#: erred 7.19 mN there with equal weights and L2 1e-3 (the earlier large-64x64), 5.35 mN
+#: with these weights, 5.26 mN as the average of 4, the SVR 5.81 mN
+MLP_CANDIDATES = (('thesis-10', (10,), 1e-4, 1000, 1, None),
+                  ('weighted-64x64-x4', (64, 64), 0.1, 2000, 4, 0.01))
 #: FAM inversions run on held-out frames to report the covariance calibration
 N_FAM_CHECK = 120
 
@@ -232,28 +243,38 @@ def build(out: str = DEFAULT_OUT, n_random: int = 2400, features: str = 'auto',
     rep['svr'] = dict(rs['hyper'], fit_time_s=time.perf_counter() - t,
                       n_sv=int(svr.arrays['sv'].shape[0]))
     say(f'SVR: {rep["svr"]}')
+    # the observability table: the MLP's sample weights, the choice among its candidates
+    # (held-out cases whose force the shape determines: the others go to the FAM fallback)
+    # and the calibration
+    from fam_solver import Catheter
+
+    from force_estimator.estimate import UNOBSERVABLE_STD
+    from force_estimator.uncertainty import SHAPE_NOISE, build_table
+    t = time.perf_counter()
+    table = build_table(Catheter(length=D.BLAZER_LENGTH, ei=D.BLAZER_EI))
+    rep['table_time_s'] = time.perf_counter() - t
+    obs_v = np.linalg.eigvalsh(table.lookup(Yv))[:, -1] < UNOBSERVABLE_STD ** 2
+    if not obs_v.any():             # a tiny recipe: choose on every held-out case
+        obs_v[:] = True
     cands = {}
-    for name, hidden, alpha, iters in (('thesis-10', (10,), 1e-4, 1000),
-                                       ('large-64x64', (64, 64), 1e-3, 2000)):
+    for name, hidden, alpha, iters, n_ens, w_std in MLP_CANDIDATES:
         t = time.perf_counter()
+        w = observability_weights(Y, table, w_std) if w_std else None
         m, r = fit_mlp(X, Y, hidden_layer_sizes=hidden, alpha=alpha, seed=seed,
-                       extra_header=extra, n_init=3 if hidden == (10,) else 1, max_iter=iters)
-        cands[name] = (m, dict(r['hyper'], fit_time_s=time.perf_counter() - t,
-                               heldout_mae_n=_vec_mae(m, Xv, Yv)))
+                       extra_header=extra, n_init=3 if n_ens == 1 else 1, max_iter=iters,
+                       n_ensemble=n_ens, sample_weight=w)
+        cands[name] = (m, dict(r['hyper'], weight_std_n=w_std,
+                               fit_time_s=time.perf_counter() - t,
+                               heldout_mae_n=_vec_mae(m, Xv, Yv),
+                               heldout_mae_observable_n=_vec_mae(m, Xv[obs_v], Yv[obs_v])))
         say(f'MLP {name}: {cands[name][1]}')
-    win = min(cands, key=lambda c: cands[c][1]['heldout_mae_n'])
+    win = min(cands, key=lambda c: cands[c][1]['heldout_mae_observable_n'])
     mlp = cands[win][0]
     mlp.header['candidates'] = {c: v[1] for c, v in cands.items()}
     mlp.header['chosen'] = win
     rep['mlp'] = dict(chosen=win, candidates={c: v[1] for c, v in cands.items()})
 
     # 4. calibration on the held-out cases
-    from fam_solver import Catheter
-
-    from force_estimator.uncertainty import SHAPE_NOISE, build_table
-    t = time.perf_counter()
-    table = build_table(Catheter(length=D.BLAZER_LENGTH, ei=D.BLAZER_EI))
-    rep['table_time_s'] = time.perf_counter() - t
     for name, m in (('svr', svr), ('mlp', mlp)):
         m.header['uncertainty'] = dict(shape_noise_m=SHAPE_NOISE, table='FAM Jacobian, 24 arcs, '
                                        '24 points, see force_estimator.uncertainty')

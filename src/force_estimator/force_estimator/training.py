@@ -10,7 +10,10 @@ that scale instead, so it carries no weight rather than amplifying camera noise.
   part of the training set (mean absolute error in N), then refitted on all of it.
 * MLP (thesis section 2.3.2.1): one hidden layer of 10 ReLU units, L-BFGS; several
   initialisations, the best on validation wins. A larger MLP is available through
-  `hidden_layer_sizes`.
+  `hidden_layer_sizes`; `n_ensemble` > 1 trains that many networks from different
+  initialisations and stores their average as ONE ReLU network (`merge_mlps`: the members
+  side by side, block-diagonal hidden weights, the output layer divided by their number),
+  so the model file's format and its forward pass are those of a single MLP.
 
 scikit-learn is imported only here, never by the inference path.
 """
@@ -167,19 +170,63 @@ def mlp_arrays(mlp) -> Dict[str, np.ndarray]:
     return out
 
 
+def merge_mlps(mlps: Sequence) -> Dict[str, np.ndarray]:
+    """The average of K fitted MLPRegressors of one architecture (ReLU hidden layers, identity
+    output, the same input and target scaling) as the arrays of ONE ReLU network: the first
+    layer's units side by side, the hidden layers block-diagonal (member k's units see only
+    member k's), the output layer stacked and divided by K, the output bias averaged. Its
+    output equals the members' mean exactly (up to round-off)."""
+    if len(mlps) == 0:
+        raise ValueError('mlps must hold at least one fitted network')
+    parts = [mlp_arrays(m) for m in mlps]
+    n_layers = len(parts[0]) // 2
+    if any(len(p) != 2 * n_layers or any(p[f'W{i}'].shape != parts[0][f'W{i}'].shape
+                                         for i in range(n_layers)) for p in parts):
+        raise ValueError('mlps must share one architecture')
+    k = len(parts)
+    out = {}
+    for i in range(n_layers):
+        Ws = [p[f'W{i}'] for p in parts]
+        bs = [p[f'b{i}'] for p in parts]
+        if i == 0:
+            W = np.concatenate(Ws, axis=1)
+        elif i < n_layers - 1:
+            W = np.zeros((sum(w.shape[0] for w in Ws), sum(w.shape[1] for w in Ws)))
+            r = c = 0
+            for w in Ws:
+                W[r:r + w.shape[0], c:c + w.shape[1]] = w
+                r, c = r + w.shape[0], c + w.shape[1]
+        else:
+            W = np.concatenate(Ws, axis=0) / k
+        out[f'W{i}'] = W
+        out[f'b{i}'] = np.mean(bs, axis=0) if i == n_layers - 1 else np.concatenate(bs)
+    return out
+
+
 def fit_mlp(X, Y, hidden_layer_sizes: Tuple[int, ...] = (10,), alpha: float = 1e-4,
             n_init: int = 5, max_iter: int = 5000, val_frac: float = 0.2, seed: int = 0,
-            extra_header: Optional[dict] = None) -> Tuple[ForceModel, dict]:
-    """Train an MLP (ReLU, L-BFGS) on standardised data; best of `n_init` seeds on validation.
+            extra_header: Optional[dict] = None, n_ensemble: int = 1,
+            sample_weight=None) -> Tuple[ForceModel, dict]:
+    """Train an MLP (ReLU, L-BFGS) on standardised data.
 
-    The winning initialisation is refitted on all training data. Returns (model, report).
+    n_ensemble == 1: the best of `n_init` seeds on validation (the held-out `val_frac` of
+    X), refitted on all training data. n_ensemble > 1: that many networks (seeds seed,
+    seed + 1, ...) fitted on all training data and stored as their average, one network
+    (`merge_mlps`); n_init is then unused. sample_weight: (n,) >= 0 weights of the squared
+    error per sample (None: all 1; see `observability_weights`). Returns (model, report).
     """
     import warnings
 
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.neural_network import MLPRegressor
+    if int(n_ensemble) != n_ensemble or n_ensemble < 1:
+        raise ValueError(f'n_ensemble must be an integer >= 1, got {n_ensemble!r}')
     t0 = time.perf_counter()
     X, Y, sc, Z, T, tr, va = _standardised(X, Y, val_frac, seed)
+    w = np.ones(len(X)) if sample_weight is None else np.asarray(sample_weight, dtype=float)
+    if w.shape != (len(X),) or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
+        raise ValueError(f'sample_weight must be (n,) = ({len(X)},) finite, >= 0 and not all '
+                         f'0, got shape {w.shape}')
 
     def make(rs):
         return MLPRegressor(hidden_layer_sizes=tuple(hidden_layer_sizes), activation='relu',
@@ -187,21 +234,51 @@ def fit_mlp(X, Y, hidden_layer_sizes: Tuple[int, ...] = (10,), alpha: float = 1e
     best, table = None, []
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', ConvergenceWarning)
-        for rs in range(seed, seed + n_init):
-            m = make(rs).fit(Z[tr], T[tr])
-            mae = float(np.abs((m.predict(Z[va]) - T[va]) * sc['y_scale']).mean())
-            table.append((rs, mae))
-            if best is None or mae < best[0]:
-                best = (mae, rs)
-        mlp = make(best[1]).fit(Z, T)
+        if n_ensemble > 1:
+            members = [make(rs).fit(Z, T, sample_weight=w)
+                       for rs in range(seed, seed + int(n_ensemble))]
+            arrays, mlp, best = merge_mlps(members), members, (None, seed)
+        else:
+            for rs in range(seed, seed + n_init):
+                m = make(rs).fit(Z[tr], T[tr], sample_weight=w[tr])
+                mae = float(np.average(np.abs((m.predict(Z[va]) - T[va]) * sc['y_scale'])
+                                       .mean(axis=1), weights=w[va]))
+                table.append((rs, mae))
+                if best is None or mae < best[0]:
+                    best = (mae, rs)
+            mlp = make(best[1]).fit(Z, T, sample_weight=w)
+            arrays = mlp_arrays(mlp)
     fit_time = time.perf_counter() - t0
     hyper = dict(hidden_layer_sizes=list(hidden_layer_sizes), activation='relu',
-                 solver='lbfgs', alpha=alpha, random_state=best[1], val_mae_n=best[0])
-    model = ForceModel('mlp', {**sc, **mlp_arrays(mlp)},
-                       _header('mlp', X, Y, hyper, extra_header))
+                 solver='lbfgs', alpha=alpha, max_iter=max_iter, random_state=best[1],
+                 val_mae_n=best[0], n_ensemble=int(n_ensemble),
+                 sample_weight='uniform' if sample_weight is None else 'given')
+    model = ForceModel('mlp', {**sc, **arrays}, _header('mlp', X, Y, hyper, extra_header))
     model.header['fit_time_s'] = fit_time
     model.sklearn = mlp
     return model, dict(hyper=hyper, table=table, fit_time_s=fit_time)
+
+
+def observability_weights(Y, table, std_n: float) -> np.ndarray:
+    """Per-sample weights of the squared error for the MLP: 1 / (1 + (s / std_n)^2), where s
+    (N) is the std of the weakest direction of the observability table at the sample's force
+    (force_estimator.uncertainty). A near-axial pull's shape hardly depends on the pull, so
+    its target is noise the network cannot fit; with equal weights those residuals (tens of
+    mN) dominate the squared loss and the fit of the directions the shape determines
+    suffers. An unloaded sample (f = 0) keeps weight 1: the training set's unloaded
+    catheters are the prior that a shape which does not determine the axial force means no
+    force (as the FAM inversion's weak force prior); down-weighted with the pulls, the MLP
+    read a straight catheter as a 49 mN pull. Normalised to mean 1. Y: (n, 2) N;
+    std_n > 0."""
+    if not (np.isfinite(std_n) and std_n > 0):
+        raise ValueError(f'std_n must be positive, got {std_n!r}')
+    Y = np.asarray(Y, dtype=float)
+    if Y.ndim != 2 or Y.shape[1] != N_TARGETS or not np.isfinite(Y).all():
+        raise ValueError(f'Y must be finite with shape (n, 2), got {Y.shape}')
+    weak = np.sqrt(np.linalg.eigvalsh(table.lookup(Y))[:, -1])
+    w = 1.0 / (1.0 + (weak / std_n) ** 2)
+    w[(Y == 0.0).all(axis=1)] = 1.0
+    return w / w.mean()
 
 
 def calibrate(model: ForceModel, X_train, X_val, Y_val, table=None, seed: int = 0,
@@ -263,6 +340,8 @@ def sklearn_predict(model: ForceModel, X) -> np.ndarray:
     Z = (np.asarray(X, dtype=float) - a['x_mean']) / a['x_scale']
     if model.kind == 'svr':
         T = np.stack([m.predict(Z) for m in model.sklearn], axis=1)
+    elif isinstance(model.sklearn, (list, tuple)):       # an ensemble: the members' mean
+        T = np.mean([m.predict(Z).reshape(-1, N_TARGETS) for m in model.sklearn], axis=0)
     else:
         T = model.sklearn.predict(Z).reshape(-1, N_TARGETS)
     return T * a['y_scale'] + a['y_mean']
