@@ -5,10 +5,13 @@ reference measured in the same run, and the ratio.
     python tests/bench/bench_system.py --split-only     # part 2 alone (and its costs)
 
 1. Lockstep: the 12 s Experiment II scenario (whatever of its graph exists) on the 1 ms simulated
-   clock: real-time factor with the in-process bus, with and without recording, and recorded
-   without the vision chain (its image outputs left out, so camera, shape and estimator do
-   not run); reference: the same graph in lockstep through DDS (waiting for delivery each
-   step), 1.5 s. After the table: each node's callback time per simulated second.
+   clock: real-time factor with the in-process bus and the vision chain in a process of its
+   own (the default) against the one-process run (``lockstep_processes: 1``) of the same
+   session, with and without recording; the CPU each process used per simulated second;
+   recorded without the vision chain (its image outputs left out, so camera, shape and
+   estimator do not run); reference: the same graph in lockstep through DDS (waiting for
+   delivery each step), 1.5 s. After the table: each node's callback time per simulated
+   second (both recorded runs).
 2. Real time, the split layout (master / slave / vision processes over DDS, each recording
    its own nodes' messages, merged into the bag by the runner) beside the one-process layout
    (reference), on the machine as it is ("quiet") and with a busy-loop process occupying one
@@ -69,36 +72,63 @@ def table():
         print(f'{a:<{w}} {b:>16} {c:>16} {d:>7}')
 
 
-def lockstep(duration, quick):
+def _lockstep_run(duration, bag=None, **fields):
+    """One lockstep Experiment II run; returns (RunResult, CPU s per simulated s of this
+    process, of the vision process's loop, of the recording's writer process)."""
+    import resource
     from catheter_bringup.runner import ScenarioRunner
     from catheter_bringup.scenario import load_scenario
+    sc = load_scenario('experiment_ii')
+    sc['duration'] = duration
+    sc.update(fields)
+    r = ScenarioRunner(sc, bag=bag, record=bag is not None, progress=False,
+                       log=lambda *_: None)
+    r.setup()
+    ch0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    c0 = time.process_time()
+    res = r.run()
+    cpu = time.process_time() - c0
+    ch = resource.getrusage(resource.RUSAGE_CHILDREN)
+    children = ch.ru_utime + ch.ru_stime - ch0.ru_utime - ch0.ru_stime
+    vis = res.processes.get('vision', {})
+    writer = children - (vis.get('cpu_total_s') or 0.0)
+    return res, cpu / duration, (vis.get('cpu_s') or 0.0) / duration, writer / duration
+
+
+def lockstep(duration, quick):
+    """Lockstep rows: the default (the vision chain in a process of its own,
+    `catheter_bringup.lockstep_peer`) against the one-process run (``lockstep_processes:
+    1``) in the same session, recorded and not; without the vision chain; through DDS."""
     with tempfile.TemporaryDirectory() as tmp:
-        sc = load_scenario('experiment_ii')
-        sc['duration'] = duration
-        r = ScenarioRunner(sc, bag=f'{tmp}/a.mcap', progress=False, log=lambda *_: None).run()
+        r, c_main, c_vis, c_wr = _lockstep_run(duration, f'{tmp}/a.mcap')
+        r1, c1_main, _c, c1_wr = _lockstep_run(duration, f'{tmp}/b.mcap', lockstep_processes=1)
         nodes = ', '.join(r.nodes)
-        row(f'lockstep {duration:g} s Exp. II, recorded: real-time factor', r.realtime_factor,
-            1.0, 'x', fmt='{:.2f}')
-        row('  messages recorded / lost', sum(r.recorded.values()), None, '', ratio=float('nan'),
-            fmt='{:.0f}')
-        ROWS[-1] = (ROWS[-1][0], f'{sum(r.recorded.values())} / {sum(r.lost.values())}', '', '')
+        row(f'lockstep {duration:g} s Exp. II, recorded: real-time factor (vision process '
+            'vs one process)', r.realtime_factor, r1.realtime_factor, 'x', fmt='{:.2f}')
+        row(f'lockstep {duration:g} s Exp. II, recorded, one process: real-time factor',
+            r1.realtime_factor, 1.0, 'x', fmt='{:.2f}')
+        ROWS.append(('  messages recorded / lost (vision process; one process)',
+                     f'{sum(r.recorded.values())} / {sum(r.lost.values())}',
+                     f'{sum(r1.recorded.values())} / {sum(r1.lost.values())}', ''))
+        ROWS.append(('  CPU s per simulated s: main / vision loop / writer',
+                     f'{c_main:.2f} / {c_vis:.2f} / {c_wr:.2f}', f'{c1_main:.2f} / - / '
+                     f'{c1_wr:.2f}', ''))
+        vis = r.processes.get('vision', {})
+        note('  vision process: wait for it at the end of the run',
+             f"{vis.get('wait_at_end_s', float('nan')):.2f} s")
         LOCK.append(r)
-        sc = load_scenario('experiment_ii')
-        sc['duration'] = duration
-        sc['outputs'] = [t for t in sc['outputs'] if t not in VISION_OUTPUTS]
-        rv = ScenarioRunner(sc, bag=f'{tmp}/nv.mcap', progress=False, log=lambda *_: None).run()
+        LOCK.append(r1)
+        rv, *_ = _lockstep_run(duration, f'{tmp}/nv.mcap', outputs=[
+            t for t in _vision_free_outputs()])
         row(f'lockstep {duration:g} s Exp. II without the vision chain (outputs: no image '
             'topics), recorded', rv.realtime_factor, r.realtime_factor, 'x', fmt='{:.2f}')
         note('    its nodes', ', '.join(rv.nodes))
-        sc = load_scenario('experiment_ii')
-        sc['duration'] = duration
-        r2 = ScenarioRunner(sc, record=False, progress=False, log=lambda *_: None).run()
-        row(f'lockstep {duration:g} s Exp. II, not recorded: real-time factor',
-            r2.realtime_factor, 1.0, 'x', fmt='{:.2f}')
-        sc = load_scenario('experiment_ii')
-        sc['duration'] = 1.5 if not quick else 0.5
-        sc['lockstep_transport'] = 'dds'
-        r3 = ScenarioRunner(sc, record=False, progress=False, log=lambda *_: None).run()
+        r2, *_ = _lockstep_run(duration)
+        r21, *_ = _lockstep_run(duration, lockstep_processes=1)
+        row(f'lockstep {duration:g} s Exp. II, not recorded: real-time factor (vision '
+            'process vs one process)', r2.realtime_factor, r21.realtime_factor, 'x',
+            fmt='{:.2f}')
+        r3, *_ = _lockstep_run(1.5 if not quick else 0.5, lockstep_transport='dds')
         row('lockstep via DDS (reference transport): real-time factor', r3.realtime_factor,
             r2.realtime_factor, 'x', fmt='{:.2f}')
         note('  nodes in the lockstep graph', nodes)
@@ -106,10 +136,15 @@ def lockstep(duration, quick):
             note('  not available (not measured)', ', '.join(r.skipped))
 
 
+def _vision_free_outputs():
+    from catheter_bringup.scenario import load_scenario
+    return [t for t in load_scenario('experiment_ii')['outputs'] if t not in VISION_OUTPUTS]
+
+
 #: the outputs of Experiment II that only the vision chain (camera, shape, estimator) makes
 VISION_OUTPUTS = {'/catheter/tip_wrench', '/catheter/tip_force', '/catheter/control_points',
                   '/camera/tip_force_truth'}
-#: the recorded lockstep run (for "where the time goes")
+#: the recorded lockstep runs, vision process and one process (for "where the time goes")
 LOCK = []
 
 
@@ -256,14 +291,10 @@ WHERE = []
 def where_time_goes():
     """Where a 1 kHz period goes (quiet runs above): per node callback cost, the GC, the
     message work per publish (serialise, deserialise, construct) measured here."""
-    from geometry_msgs.msg import WrenchStamped
-    from rclpy.serialization import deserialize_message, serialize_message
-    from sensor_msgs.msg import JointState
-    if LOCK:
-        r = LOCK[0]
+    for r, how in zip(LOCK, ('vision chain in its own process', 'one process'), strict=False):
         print()
-        print(f'lockstep (recorded run above): wall s inside each node\'s callbacks per '
-              f'simulated s (the run: {r.wall_time / r.sim_time:.2f} s per simulated s)')
+        print(f'lockstep (recorded run above, {how}): wall s inside each node\'s callbacks '
+              f'per simulated s (the run: {r.wall_time / r.sim_time:.2f} s per simulated s)')
         for node, c in sorted(r.cost.items(), key=lambda kv: -kv[1]['total_s']):
             print(f"  {node:28s} {c['total_s'] / r.sim_time:6.3f}")
     if not WHERE:
@@ -279,25 +310,42 @@ def where_time_goes():
             busy = c['total_s'] / c['share'] if c['share'] > 0 else duration   # its loop's time
             print(f"{node:28s} {layout:7s} {c['callbacks'] / busy:8.0f} {c['mean_ms']:8.3f} "
                   f"{c['p99_ms']:8.3f} {c['max_ms']:8.2f} {100 * c['share']:7.1f}")
+    per_message()
+
+
+def per_message():
+    """What a message costs the bus: rclpy's (de)serialisation against the bus's encoder and
+    snapshot, measured here, each alone."""
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import JointState
+    from catheter_bringup.cdr_encode import encoder
+    from catheter_bringup.rclpy_adapter import message_copier as copier
+    from catheter_interfaces.msg import ImpedanceModel, MasterCommand
     js = JointState(name=['insertion', 'rotation'], position=[0.01, 0.0],
                     velocity=[0.0, 0.0], effort=[0.0, 0.0])
     w = WrenchStamped()
-    print('per message (us): serialise / deserialise / construct')
-    for name, m in (('JointState', js), ('WrenchStamped', w)):
-        n = 5000
+    w.header.frame_id = 'catheter_base'
+    im = ImpedanceModel(status='ok', s_table=[0.1] * 20, f_table=[0.1] * 20,
+                        b_table=[0.1] * 20, c_table=[0.1] * 20)
+    print('per message (us): rclpy serialise / the bus\'s encoder (cdr_encode) / rclpy '
+          'deserialise / the bus\'s copy (rclpy_adapter.message_copier) / construct')
+
+    def per_call(fn, n=5000):
         t = time.perf_counter()
         for _ in range(n):
-            b = serialize_message(m)
-        ser = (time.perf_counter() - t) / n * 1e6
-        t = time.perf_counter()
-        for _ in range(n):
-            deserialize_message(b, type(m))
-        de = (time.perf_counter() - t) / n * 1e6
-        t = time.perf_counter()
-        for _ in range(n):
-            type(m)()
-        co = (time.perf_counter() - t) / n * 1e6
-        print(f'  {name:14s} {ser:6.1f} / {de:6.1f} / {co:6.1f}')
+            fn()
+        return (time.perf_counter() - t) / n * 1e6
+    for name, m in (('JointState', js), ('WrenchStamped', w), ('MasterCommand', MasterCommand()),
+                    ('ImpedanceModel', im)):
+        b = serialize_message(m)
+        enc, cp = encoder(type(m)), copier(type(m))
+        ser = per_call(lambda m=m: serialize_message(m))
+        en = per_call(lambda m=m, enc=enc: enc(m))
+        de = per_call(lambda m=m, b=b: deserialize_message(b, type(m)))
+        sn = per_call(lambda m=m, cp=cp: cp(m))
+        co = per_call(lambda m=m: type(m)())
+        print(f'  {name:14s} {ser:6.1f} / {en:6.1f} / {de:6.1f} / {sn:6.1f} / {co:6.1f}')
 
 
 def bare_timer(duration):

@@ -66,20 +66,36 @@ def test_main_command_writes_metrics_and_plots(tmp_path, capsys):
     assert (tmp_path / 'smoke_errors.png').exists()
 
 
+def _in_file_order(path):
+    """Every message as written: (topic, log time, decoded); /diagnostics in its place,
+    without its timing values."""
+    return [(m.channel.topic, m.log_time_ns,
+             '' if m.channel.topic == '/diagnostics' else repr(m.ros_msg))
+            for m in read_ros2_messages(str(path), log_time_order=False)]
+
+
 def test_full_default_graph_with_image_pipeline_is_deterministic(tmp_path):
+    """The lockstep regression check of the default scenario: the run with the vision chain
+    in a process of its own (the default, `lockstep_peer`) records what the one-process
+    run records: the same messages, log times and order (1.05 s: the first /diagnostics
+    of every node, at 1 s, included)."""
     pytest.importorskip('sim_slave.camera_node')
     pytest.importorskip('catheter_shape.shape_node')
     pytest.importorskip('force_estimator.force_estimator_node')
     runs = []
-    for k in range(2):
+    for processes in (1, 2):
         sc = load_scenario('experiment_ii')
-        sc['duration'] = 0.5
-        res = ScenarioRunner(sc, bag=str(tmp_path / f'{k}.mcap'), progress=False,
+        sc['duration'] = 1.05
+        sc['lockstep_processes'] = processes
+        res = ScenarioRunner(sc, bag=str(tmp_path / f'{processes}.mcap'), progress=False,
                              log=lambda *_: None).run()
         assert res.status == 'complete', res.reason
         assert {'camera_node', 'shape_node', 'force_estimator_node'} <= set(res.nodes)
-        runs.append(_decoded(res.bag))
-    assert sum(1 for t, _, _ in runs[0] if t == '/catheter/tip_wrench') >= 10
+        assert ('vision' in res.processes) == (processes == 2)
+        assert res.lost == {}
+        runs.append(_in_file_order(res.bag))
+    assert sum(1 for t, _, _ in runs[0] if t == '/catheter/tip_wrench') >= 25
+    assert sum(1 for t, _, _ in runs[0] if t == '/diagnostics') == 8
     assert runs[0] == runs[1]
 
 

@@ -76,13 +76,15 @@ def _drop(*_args):
 
 
 class LocalBus:
-    """Lockstep transport between the runner's nodes: every publish is serialised once, counted
-    and queued; `deliver_all` hands each queued message, in publish order, to every in-process
-    subscription of its topic (raw subscriptions get the bytes, the others one deserialised
+    """Lockstep transport between the runner's nodes: every publish is serialised once (by the
+    type's generated encoder, `catheter_bringup.cdr_encode`, where it covers the type),
+    counted and queued; `deliver_all` hands each queued message, in publish order, to every
+    in-process subscription of its topic (raw subscriptions get the bytes, the others one
     message, shared: subscribers must not modify what they receive, as in rclcpp's
-    intra-process delivery; in immediate mode the message is a copy of the published one made
-    at publish, `rclpy_adapter.message_copier`, equal to the deserialised bytes).
-    Deterministic and without DDS delivery latency. The nodes' own
+    intra-process delivery; the message is a copy of the published one made at publish,
+    `rclpy_adapter.message_copier`, equal to the deserialised bytes, or the bytes
+    deserialised where the copier refuses it). Deterministic and without DDS delivery
+    latency. The nodes' own
     DDS subscriptions stay (subscription counts, "work only while subscribed" keep working)
     but what DDS delivers to them is dropped (cheaply: they are switched to raw, so nothing is
     deserialised for them). With ``dds=True`` every message is also published on DDS, for
@@ -114,9 +116,11 @@ class LocalBus:
         #: it); False: a fresh copy each
         self.share = True
         #: subscribers get a copy of the published message made at publish
-        #: (`rclpy_adapter.message_copier`) instead of deserialising its bytes; on in the
-        #: workers (immediate), off in lockstep (whose bus path another change owns)
-        self.copy = immediate
+        #: (`rclpy_adapter.message_copier`) instead of deserialising its bytes (lockstep and
+        #: the workers alike; False: deserialised, the reference of the tests)
+        self.copy = True
+        #: topics with a subscriber in this process that takes messages (not raw bytes)
+        self.msg_topics = set()
         #: real time: per topic, the wall times (perf_counter s) of its publishes (None: off)
         self.times: Optional[Dict[str, array.array]] = None
         #: real time: topics whose publish also notes (now - header stamp), s, in `latency`
@@ -149,6 +153,7 @@ class LocalBus:
         self.wrap_subscriptions(node)
 
     def wrap_publishers(self, node) -> None:
+        from catheter_bringup.cdr_encode import encoder
         serialize_message = serializer()[0]
         for pub in list(node.publishers):
             if id(pub) in self._pubs:
@@ -157,15 +162,24 @@ class LocalBus:
             topic = pub.topic_name
             self.counts.setdefault(topic, 0)
             orig = pub.publish
+            # the type's own CDR encoder (`cdr_encode`), rclpy's serialiser for the rest
+            enc = encoder(pub.msg_type) or (lambda _m: None)
 
-            def publish(msg, _orig=orig, _topic=topic, bus=self):
-                data = msg if isinstance(msg, bytes) else serialize_message(msg)
+            def publish(msg, _orig=orig, _topic=topic, bus=self, _enc=enc,
+                        _type=pub.msg_type):
+                if isinstance(msg, bytes):
+                    data = msg
+                else:
+                    # None: a value the encoder leaves to rclpy (not its field's exact type)
+                    data = _enc(msg) if msg.__class__ is _type else None
+                    if data is None:
+                        data = serialize_message(msg)
                 if bus.dds or _topic in bus.dds_topics:
                     _orig(data)       # the bytes already serialised: not serialised twice
                 bus.counts[_topic] += 1
                 if bus.record is not None:
                     bus.record(_topic, data)
-                if bus.copy and _topic in bus.subs and not isinstance(msg, bytes):
+                if bus.copy and _topic in bus.msg_topics and not isinstance(msg, bytes):
                     # a copy for the subscribers instead of deserialising the bytes (cheaper;
                     # taken now: the publisher may refill its message before delivery)
                     copier = message_copier(type(msg))
@@ -213,6 +227,8 @@ class LocalBus:
             cb, with_info = take_callback(sub, _drop, raw=True)
             self.subs.setdefault(sub.topic_name, []).append(
                 (cb, raw, sub.msg_type, with_info, node.get_name()))
+            if not raw:
+                self.msg_topics.add(sub.topic_name)
 
     def _count_external(self, sub, owner: str) -> None:
         """Count (and time) what DDS delivers to a subscription outside the bus."""
@@ -266,7 +282,7 @@ class LocalBus:
             while q:
                 item = q.popleft()
                 topic, data = item[0], item[1]
-                # immediate: the publisher's message copied at publish (`message_copier`)
+                # the publisher's message copied at publish (`message_copier`)
                 copied = item[2] if len(item) > 2 else None
                 last_type = last = None
                 for cb, raw, msg_type, with_info, owner in self.subs.get(topic, ()):

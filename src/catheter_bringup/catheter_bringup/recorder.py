@@ -11,7 +11,7 @@ Layout of the file (what `ros2 bag`, `rosbags` and `mcap_ros2` expect):
   recorder cuts every payload at its end, so raw-subscription bytes and serialize_message
   bytes are recorded alike), with the offered QoS as rosbag2 writes it
   (``offered_qos_profiles`` YAML, version 9 field names) in its metadata;
-- zstd compressed chunks, a summary with statistics and indexes;
+- zstd compressed chunks (level `ZSTD_LEVEL`), a summary with statistics and indexes;
 - a metadata record ``catheter_run_start`` written when the run starts (`McapRecorder.start`:
   the scenario, mode, seed ... so a killed run's file still says what it was; see
   `catheter_bringup.bagfile.recover`), and ``catheter_run`` written at close: ``status``
@@ -29,9 +29,44 @@ import re
 import threading
 from typing import Dict, List, Mapping, Optional
 
+import mcap.writer
 from mcap.writer import CompressionType, Writer
 
 from catheter_bringup.cdr import cdr_end, message_class
+
+#: zstd level of the chunks. mcap's writer compresses with ``zstandard.compress`` (level 3);
+#: level 1 compresses an Experiment II recording (its 800x800 frames) about as well for a
+#: fraction of the CPU, in the writer process that shares the two cores with the run's
+#: processes (figures: the package README, "Benchmark")
+ZSTD_LEVEL = 1
+
+
+class _Zstd:
+    """``mcap.writer``'s view of the zstandard module: its ``compress`` at `ZSTD_LEVEL`,
+    the rest the module's own."""
+
+    def __init__(self, module, level: int):
+        self._module = module
+        self.level = level
+        self.compress = module.ZstdCompressor(level=level).compress
+
+    def __getattr__(self, name):
+        return getattr(self._module, name)
+
+
+def _use_zstd_level(level: int = ZSTD_LEVEL) -> None:
+    """Make mcap's writer compress chunks at `level` (process-wide: every recording here is
+    this module's). Relies on: mcap.writer calling its module global ``zstandard.compress``
+    (tests/catheter_bringup/test_recorder.py pins it)."""
+    z = getattr(mcap.writer, 'zstandard', None)
+    if z is None:
+        return                       # mcap without zstandard: it refuses zstd itself
+    if isinstance(z, _Zstd):
+        z = z._module
+    mcap.writer.zstandard = _Zstd(z, level)
+
+
+_use_zstd_level()
 
 SEPARATOR = '=' * 80
 BUILTIN_TYPES = {

@@ -17,8 +17,13 @@ Layout split (real time): every node in a worker process (master, slave, vision;
 `catheter_bringup.scenario.PROCESSES`); each worker records its own nodes' messages into a
 part file and this process merges the parts into the bag (`local_recording`).
 
+Lockstep with the vision chain in a second process (the default when nothing else consumes
+it; ``lockstep_processes: 1`` keeps one): `lockstep_peer` (this side), `lockstep_follower`
+(the vision process); the recording is the one-process run's.
+
 The parts: `node_start` (building the node instances), `bus` (the in-process transport and
-the counters), `stepping` (the lockstep and real-time loops), `split_run` (the runner's side
+the counters; `cdr_encode`), `stepping` (the lockstep and real-time loops),
+`split_run` (the runner's side
 of the split layout: DDS topics, part recording, starting the workers), `worker` (the worker
 processes of multi-process real-time runs), `realtime` (scheduling, GC, real-time figures),
 `rclpy_adapter` (every rclpy internal all of these use).
@@ -40,6 +45,8 @@ from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
 from catheter_bringup.local_recording import merge_parts, part_path
+from catheter_bringup.lockstep_peer import VisionPeer, vision_plan
+from catheter_bringup.lockstep_split import LockstepSplit
 from catheter_bringup.part_pipe import PartPipe, RecorderPipe
 from catheter_bringup.node_start import available_instances, start_node
 from catheter_bringup.rclpy_adapter import detach_clock
@@ -48,7 +55,7 @@ from catheter_bringup.result import RunResult  # noqa: F401  (re-exported: part 
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
 from catheter_bringup.scenario import load_scenario, resolve_nodes, run_start_info, scenario_text
 from catheter_bringup.split_run import SplitRun, worker_dds_topics
-from catheter_bringup.stepping import Stepping
+from catheter_bringup.stepping import KEY_BEFORE, Stepping
 from catheter_bringup.worker import Workers
 from catheter_common import qos as Q
 from catheter_common import topics as T
@@ -85,7 +92,7 @@ def _record_stop_signals(runner) -> dict:
     return old
 
 
-class ScenarioRunner(Stepping, SplitRun):
+class ScenarioRunner(Stepping, SplitRun, LockstepSplit):
     """Runs one scenario. ``scenario``: a dict from `load_scenario` (or a name/path).
 
     >>> res = ScenarioRunner('smoke', bag='bags/smoke.mcap').run()
@@ -163,6 +170,19 @@ class ScenarioRunner(Stepping, SplitRun):
         self.inject: Optional[Callable[[int, str], list]] = None
         #: the topics `inject` delivers (treated as published in this process)
         self.inject_topics = set()
+        #: lockstep: the vision chain's process (`catheter_bringup.lockstep_peer`), its nodes
+        self.peer: Optional[VisionPeer] = None
+        self.peer_nodes: List[str] = []
+        #: the run's node instances in start order (None: this process's); a lockstep
+        #: vision process is given the main process's, so both number the nodes alike
+        self.node_order: Optional[List[str]] = None
+        self._node_index: Dict[str, int] = {}
+        self._timer_key: Dict[int, tuple] = {}
+        #: the cascade being delivered, the step running and the last step completed
+        #: (`Stepping._drain_bus`, `_run_lockstep`)
+        self._key = KEY_BEFORE
+        self._step = 0
+        self._step_done = -1
 
     # ------------------------------------------------------------------ setup
     def setup(self, context: Optional[Context] = None):
@@ -186,6 +206,15 @@ class ScenarioRunner(Stepping, SplitRun):
         classes = available_instances(cands)
         chosen, missing = resolve_nodes(sc, set(classes), self.registry)
         wanted_all, _ = resolve_nodes(sc, None, self.registry)
+        if self.node_order is not None and self.only is not None:
+            # a lockstep vision process: the main process resolved the graph (with nodes
+            # this process may not import); it starts those of its own
+            by_name = {i.name: i for i in cands}
+            wanted_all = [by_name[n] for n in self.node_order if n in by_name]
+            chosen = [i for i in wanted_all if i.name in classes]
+        self._node_index = {n: k for k, n in enumerate(self.node_order
+                                                        or [i.name for i in chosen])}
+        vision = vision_plan(sc, chosen, self.inject) if self.only is None else []
         #: topics a node of another process of the run consumes (a worker publishes only
         #: these on DDS in layout split)
         self._consumed_elsewhere = set()
@@ -218,6 +247,22 @@ class ScenarioRunner(Stepping, SplitRun):
             self._child_produces = {t for i in worker for t in i.spec.produces}
             wanted_all = [i for i in wanted_all if i.name not in self.child_nodes]
             self._child_inputs = {t for i in worker for t in i.spec.consumes}
+        elif vision:
+            # lockstep: the vision chain (a pure observer here) in a process of its own,
+            # pipelined behind this one; the recording merges both in one-process order
+            self.peer = self._start_peer(vision, chosen)
+            names = {i.name for i in vision}
+            chosen = [i for i in chosen if i.name not in names]
+            wanted_all = [i for i in wanted_all if i.name not in names]
+        try:
+            return self._setup_rest(sc, lockstep, chosen, wanted_all, classes, missing)
+        except BaseException:
+            if self.peer is not None:
+                self.peer.kill()
+                self.peer = None
+            raise
+
+    def _setup_rest(self, sc, lockstep, chosen, wanted_all, classes, missing):
         self.skipped = sorted({i.name for i in wanted_all} - {i.name for i in chosen})
         self.missing = missing
         self.start_errors = {}
@@ -276,6 +321,8 @@ class ScenarioRunner(Stepping, SplitRun):
                 self._drive_clock_of(node)
         if self.part_bag and self.bus is not None:
             self._record_part()
+        if self.peer is not None:
+            self._peer_ready()
         if self.bag:
             # real time: small chunks (a killed run loses less); lockstep: 1 MB
             chunk = REALTIME_CHUNK if not lockstep else 1 << 20
@@ -286,15 +333,22 @@ class ScenarioRunner(Stepping, SplitRun):
                 # written by a writer process (`part_pipe`): the run's loop hands over bytes,
                 # the exact-length walk, mcap and zstd run on the other core
                 self.recorder = RecorderPipe(self.bag, chunk_size=chunk)
-                self.sink = RecordingSink(self.runner_node, self.recorder,
+                # split lockstep: the vision peer keeps what this process records until
+                # the vision process has done the same steps, and writes both merged
+                self.sink = RecordingSink(self.runner_node, self.peer or self.recorder,
                                           exclude=sc['record']['exclude'],
                                           only=sc['record'].get('only') or None)
                 self.sink.now_ns = (lambda: self._now_ns) if lockstep else None
-                self.sink.buffered = lockstep
+                # lockstep on the bus: delivery order is publish order, nothing to sort
+                self.sink.buffered = lockstep and self.peer is None
+                if self.peer is not None:
+                    self.peer.attach(self, self.recorder, self.sink.received)
                 self._record_publishers()
             # what the run is, in the file before the first step: a run killed with SIGKILL
             # still says it (recover_bag carries it over; analyze reads it)
-            self.recorder.start(run_start_info(sc, self.nodes))
+            self.recorder.start(run_start_info(sc, list(self.nodes) + self.peer_nodes))
+        elif self.peer is not None:
+            self.peer.attach(self, None, None)
         self._track()
         if self.child_groups:
             self._start_children()
@@ -311,6 +365,10 @@ class ScenarioRunner(Stepping, SplitRun):
 
     def _track(self):
         self._timers = [t for node in self.nodes.values() for t in node.timers]
+        idx = self._node_index
+        self._timer_key = {id(t): (idx.get(name, k), j)
+                           for k, (name, node) in enumerate(self.nodes.items())
+                           for j, t in enumerate(node.timers)}
         self._timer_owner = {id(t): name for name, node in self.nodes.items()
                              for t in node.timers}
         self._due = {}
@@ -376,6 +434,8 @@ class ScenarioRunner(Stepping, SplitRun):
     # ------------------------------------------------------------------ teardown
     def _finish(self, status, reason, sim, wall, steps) -> RunResult:
         self.child_reports, self.child_published, self.child_cost = {}, {}, {}
+        if self.peer is not None:
+            status, reason = self._stop_peer(status, reason)
         if self.children is not None:
             self._stop_children()
         if self.sink is not None:
@@ -406,7 +466,7 @@ class ScenarioRunner(Stepping, SplitRun):
                 'duration_s': self.scenario['duration'],
                 'sim_time_reached_s': round(sim, 6),
                 'steps': steps,
-                'nodes': sorted(self.nodes),
+                'nodes': sorted(set(self.nodes) | set(self.peer_nodes)),
                 'skipped_nodes': self.skipped,
                 'start_errors': self.start_errors,
                 'fallbacks': self.fallbacks,
@@ -424,10 +484,7 @@ class ScenarioRunner(Stepping, SplitRun):
         loop_s = getattr(self, 'realtime_info', {}).get('loop_s', wall)
         cost = self.bus.cost.summary(loop_s) if self.bus is not None else {}
         cost.update(self.child_cost)
-        if self.child_nodes:
-            res_nodes = sorted(set(self.nodes) | set(self.child_nodes))
-        else:
-            res_nodes = sorted(self.nodes)
+        res_nodes = sorted(set(self.nodes) | set(self.child_nodes) | set(self.peer_nodes))
         res = RunResult(self.scenario['name'], status, reason, self.bag, sim, wall, steps,
                         res_nodes, self.skipped, self.missing, published, recorded, cost,
                         received=dict(self.bus.received) if self.bus is not None else {},
@@ -437,6 +494,9 @@ class ScenarioRunner(Stepping, SplitRun):
         return res
 
     def close(self):
+        if self.peer is not None:
+            self.peer.kill()
+            self.peer = None
         if getattr(self, '_watchdog', None) is not None:
             self._watchdog.cancel()
         if self.children is not None:

@@ -21,6 +21,9 @@ A scenario file::
                               # run_scenario --dds)
     strict: false             # a node that fails to start fails the run (else it is left out)
     realtime_processes: 2     # real time: 2 = the image pipeline in a worker process, 1 = none
+    lockstep_processes: 2     # lockstep: 2 = the vision chain in a process of its own when
+                              # nothing of the rest consumes it (same recording, in
+                              # parallel; `lockstep_peer`), 1 = everything in one process
     layout: one               # one | split (real time only: master, slave, vision processes
                               # talking over DDS, each records its own nodes' messages and
                               # the runner merges them into the bag; see PROCESSES)
@@ -252,6 +255,7 @@ def validate_scenario(data: Mapping) -> dict:
         if not isinstance(s[key], bool):
             raise ValueError(f'scenario.{key} must be true or false, got {s[key]!r}')
     s['realtime_processes'] = _num(s, 'realtime_processes', 2, 1, 2)
+    s['lockstep_processes'] = _num(s, 'lockstep_processes', 2, 1, 2)
     s.setdefault('layout', 'one')
     if s['layout'] not in LAYOUTS:
         raise ValueError(f'scenario.layout must be one of {LAYOUTS}, got {s["layout"]!r}')

@@ -8,6 +8,7 @@ import time
 
 from rosgraph_msgs.msg import Clock
 
+from catheter_bringup.lockstep_peer import PASS_SPIN
 from catheter_bringup.rclpy_adapter import (fire_timer, never_done, set_time, spin_for,
                                             spin_ready, timer_due_in_ns, timer_ready,
                                             wrap_timer_callback)
@@ -25,6 +26,10 @@ EXTERNAL_SPIN_NS = 10_000_000
 EVENTS_SLICE_S = 0.05
 #: ns, the least time to the next due timer for a DDS poll to start (a poll takes ~0.7 ms)
 SPIN_SLACK_NS = 800_000
+#: cascade keys (pass, node index, timer index) of what a drain delivers before its first
+#: timer and in its executor spin (`Stepping._drain_bus`)
+KEY_BEFORE = (0, 0, 0)
+KEY_SPIN = (PASS_SPIN, 0, 0)
 
 
 class Stepping:
@@ -45,29 +50,45 @@ class Stepping:
             self.sink.flush()
         return n
 
-    def _drain_bus(self, max_callbacks: int) -> int:
+    def _drain_bus(self, max_callbacks: int, feed=None) -> int:
         """Lockstep drain: run every ready timer (nodes in start order, timers in creation
         order) and deliver what they publish, until no timer is ready and the bus is empty.
         Timers are called directly (rclpy's Python wait-set construction costs ~0.5 ms per
-        wait); the executor is spun now and then for anything else (services, guards)."""
+        wait); the executor is spun now and then for anything else (services, guards).
+
+        ``self._key`` is the key of the cascade being delivered: (pass, node index, timer
+        index) of the timer that started it (pass 1, 2, ...; 0 before the first timer,
+        `PASS_SPIN` in the executor spin), which orders the recordings of a lockstep run
+        split across processes (`catheter_bringup.lockstep_peer`). ``feed(pass, key)``
+        (the vision process of such a run) delivers the main process's messages of that
+        pass whose key is below ``key`` (None: all, returning whether later passes have
+        any) at their place between this process's timers."""
         bus = self.bus
         n = 0
         progress = True
+        self._key = KEY_BEFORE
+        if feed is not None:
+            feed(0, None)
         bus.deliver_all()
         # lockstep: time only moves between steps, so each timer's next due time is cached
         # and only timers due now are asked (refreshed on every rescan)
         cache = self.scenario['mode'] == 'lockstep'
         due = self._due
         now = self._now_ns
+        tkey = self._timer_key
+        p = 1
         while progress and n < max_callbacks:
             progress = False
             for tmr in self._timers:
+                if feed is not None:
+                    feed(p, tkey[id(tmr)])
                 if cache and due.get(id(tmr), 0) > now:
                     continue
                 ready = timer_ready(tmr)
                 if ready is None:            # destroyed
                     continue
                 if ready:
+                    self._key = (p,) + tkey[id(tmr)]
                     t0 = time.perf_counter()
                     fire_timer(tmr)
                     bus.cost.add(self._timer_owner.get(id(tmr), '?'),
@@ -78,6 +99,12 @@ class Stepping:
                 if cache:
                     left = timer_due_in_ns(tmr)
                     due[id(tmr)] = now + left if left is not None else 2 ** 62
+            if feed is not None and feed(p, None):
+                progress = True              # the main process's cascades of a later pass
+            p += 1
+        self._key = KEY_SPIN
+        if feed is not None:
+            feed(PASS_SPIN, None)
         self._steps_since_spin += 1
         # lockstep: every 100 steps; real time: every 1000 (one poll builds an rclpy wait set,
         # ~0.6 ms: every 100th 1 kHz period late by that was the p99 period), and not at all
@@ -100,16 +127,25 @@ class Stepping:
         n_steps = int(round(sc['duration'] / sc['step']))
         msg = Clock()
         self._sim_reached = 0.0
+        peer = self.peer                   # the vision process of a split lockstep run
+        self._step = 0
         self._publish_clock(0, msg)
         self.drain()
+        self._step_done = 0
+        if peer is not None:
+            peer.step_done(0)
         last_bar = 0
         for k in range(1, n_steps + 1):
+            self._step = k
             self._publish_clock(k * dt_ns, msg)
             if self.inject is not None:
                 self._inject(k * dt_ns, 'pre')
                 self.drain()
                 self._inject(k * dt_ns, 'post')
             self.drain()
+            self._step_done = k
+            if peer is not None:
+                peer.step_done(k)
             self._sim_reached = k * dt_ns * 1e-9
             if k % 64 == 0:
                 self._rescan()
@@ -125,7 +161,7 @@ class Stepping:
     def _inject(self, t_ns: int, phase: str):
         for topic, data in self.inject(t_ns, phase):
             self.bus.counts[topic] = self.bus.counts.get(topic, 0) + 1
-            self.bus.queue.append((topic, data))
+            self.bus.queue.append((topic, data, None))
 
     def _publish_clock(self, t_ns: int, msg: Clock):
         self._now_ns = t_ns
