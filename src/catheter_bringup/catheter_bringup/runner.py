@@ -26,7 +26,8 @@ the counters; `cdr_encode`), `stepping` (the lockstep and real-time loops),
 `split_run` (the runner's side
 of the split layout: DDS topics, part recording, starting the workers), `worker` (the worker
 processes of multi-process real-time runs), `realtime` (scheduling, GC, real-time figures),
-`rclpy_adapter` (every rclpy internal all of these use).
+`rclpy_adapter` (every rclpy internal all of these use), `run_teardown` (the end of a run: the
+recording closed, the result, everything released).
 """
 from __future__ import annotations
 
@@ -44,7 +45,7 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.bus import DeliveryTracker, LocalBus, PublishCounter
-from catheter_bringup.local_recording import merge_parts, part_path
+from catheter_bringup.local_recording import part_path
 from catheter_bringup.lockstep_peer import VisionPeer, vision_plan
 from catheter_bringup.lockstep_split import LockstepSplit
 from catheter_bringup.part_pipe import PartPipe, RecorderPipe
@@ -52,8 +53,9 @@ from catheter_bringup.node_start import available_instances, start_node
 from catheter_bringup.rclpy_adapter import detach_clock
 from catheter_bringup.recorder import McapRecorder
 from catheter_bringup.result import RunResult  # noqa: F401  (re-exported: part of the API)
+from catheter_bringup.run_teardown import RunTeardown
 from catheter_bringup.ros_recording import RecordingSink, type_name_of
-from catheter_bringup.scenario import load_scenario, resolve_nodes, run_start_info, scenario_text
+from catheter_bringup.scenario import load_scenario, resolve_nodes, run_start_info
 from catheter_bringup.split_run import SplitRun, worker_dds_topics
 from catheter_bringup.stepping import KEY_BEFORE, Stepping
 from catheter_bringup.worker import Workers
@@ -92,7 +94,7 @@ def _record_stop_signals(runner) -> dict:
     return old
 
 
-class ScenarioRunner(Stepping, SplitRun, LockstepSplit):
+class ScenarioRunner(Stepping, SplitRun, LockstepSplit, RunTeardown):
     """Runs one scenario. ``scenario``: a dict from `load_scenario` (or a name/path).
 
     >>> res = ScenarioRunner('smoke', bag='bags/smoke.mcap').run()
@@ -430,104 +432,6 @@ class ScenarioRunner(Stepping, SplitRun, LockstepSplit):
         if self.stop_requested:
             return 'stop requested'
         return 'KeyboardInterrupt'
-
-    # ------------------------------------------------------------------ teardown
-    def _finish(self, status, reason, sim, wall, steps) -> RunResult:
-        self.child_reports, self.child_published, self.child_cost = {}, {}, {}
-        if self.peer is not None:
-            status, reason = self._stop_peer(status, reason)
-        if self.children is not None:
-            self._stop_children()
-        if self.sink is not None:
-            self.sink.flush()
-        recorded = dict(self.sink.received) if self.sink else {}
-        if self.part is not None:
-            self.bus.record = None
-            self.part.close(status, reason)
-            recorded = self.part.counts
-        if self.parts and self.recorder is not None:
-            self.part_info = merge_parts(self.recorder, self.parts)
-            recorded = dict(self.recorder.counts)
-        published = dict(self.counter.counts)
-        for t, n in self.child_published.items():
-            published[t] = published.get(t, 0) + n
-        for name, node in self.nodes.items():
-            close = getattr(node, 'close', None)
-            if callable(close):
-                try:
-                    close()
-                except Exception as exc:  # noqa: BLE001 - keep shutting down
-                    self.log(f'[run] error closing {name}: {exc!r}')
-        if self.recorder is not None:
-            self.recorder.close(status, reason, extra={
-                'scenario': self.scenario['name'],
-                'mode': self.scenario['mode'],
-                'seed': self.scenario['seed'],
-                'duration_s': self.scenario['duration'],
-                'sim_time_reached_s': round(sim, 6),
-                'steps': steps,
-                'nodes': sorted(set(self.nodes) | set(self.peer_nodes)),
-                'skipped_nodes': self.skipped,
-                'start_errors': self.start_errors,
-                'fallbacks': self.fallbacks,
-                'published': published,
-                **({'parts': self.part_info} if self.parts else {}),
-                'scenario_yaml': scenario_text(self.scenario),
-            })
-        if isinstance(self.recorder, RecorderPipe) and self.sink is not None:
-            # what the writer process wrote (a writer that died is not hidden: `lost` shows it)
-            written = self.recorder.counts
-            recorded = {t: written.get(t, 0) for t in recorded}
-            if self.recorder.errors:
-                self.log(f'[run] the recording writer reported {self.recorder.errors} errors')
-        # shares of the time the loop ran (a worker's wall time includes its wait for go)
-        loop_s = getattr(self, 'realtime_info', {}).get('loop_s', wall)
-        cost = self.bus.cost.summary(loop_s) if self.bus is not None else {}
-        cost.update(self.child_cost)
-        res_nodes = sorted(set(self.nodes) | set(self.child_nodes) | set(self.peer_nodes))
-        res = RunResult(self.scenario['name'], status, reason, self.bag, sim, wall, steps,
-                        res_nodes, self.skipped, self.missing, published, recorded, cost,
-                        received=dict(self.bus.received) if self.bus is not None else {},
-                        processes=self.child_reports,
-                        realtime=dict(getattr(self, 'realtime_info', {})))
-        self.close()
-        return res
-
-    def close(self):
-        if self.peer is not None:
-            self.peer.kill()
-            self.peer = None
-        if getattr(self, '_watchdog', None) is not None:
-            self._watchdog.cancel()
-        if self.children is not None:
-            self.children.stop(lambda: time.sleep(0.01))
-            self.children = None
-        for sig, handler in self._old_handlers.items():
-            signal.signal(sig, handler)
-        self._old_handlers = {}
-        if self.part is not None and not self.part.closed:
-            self.part.close('interrupted', 'closed before the run finished')
-        if self.recorder is not None and not self.recorder.closed:
-            self.recorder.close('interrupted', 'closed before the run finished')
-        if self.executor is not None:
-            for n in list(self.nodes.values()) + [self.runner_node]:
-                try:
-                    self.executor.remove_node(n)
-                except Exception:  # noqa: BLE001
-                    pass
-        for n in list(self.nodes.values()) + ([self.runner_node] if self.runner_node else []):
-            try:
-                n.destroy_node()
-            except Exception:  # noqa: BLE001
-                pass
-        self.nodes = {}
-        self.runner_node = None
-        if self.executor is not None:
-            self.executor.shutdown()
-            self.executor = None
-        if self.context is not None and self._own_context:
-            rclpy.try_shutdown(context=self.context)
-        self.context = None
 
 
 def run_scenario(scenario, **kwargs) -> RunResult:
