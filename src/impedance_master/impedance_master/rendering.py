@@ -41,7 +41,7 @@ from catheter_common.checks import nonneg, positive
 from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
 from impedance_master.impedance import FrictionState, Impedance, steady_states
 from impedance_master.safety import ERROR, OK, WARN, RendererStatus, SafeOutput, check_number
-from impedance_master.support import Support
+from impedance_master.support import DepthSlope, Support
 
 ANCHORING = ('none', 'full', 'residual', 'local')
 #: m, default reach in depth of the 'local' anchor correction (see ImaRenderer)
@@ -52,6 +52,12 @@ SUPPORT_HALF = 3.0
 SUPPORT_WIDTH = 0.003
 #: m, depth step of the slope with which a model is extended beyond its data (support)
 SLOPE_STEP = 0.005
+#: m, path length over which the measured force's slope in depth is taken (`DepthSlope`)
+SLOPE_LENGTH = 0.005
+#: N/m, the steepest measured slope a model is extended with: above the steepest wall or
+#: friction growth of the drawn vessels (about 40 N/m at 10 mm/s); a steeper rise is a local
+#: bump (a stenosis: up to 230 N/m over half a millimetre), not to be extended
+MAX_SLOPE = 50.0
 #: s, smallest time constant of the take-over from the fallback to the model's force
 RECOVER_TIME = 0.05
 
@@ -152,7 +158,8 @@ class ImaRenderer(_Rendered):
                  state_box: Optional[Tuple[float, float, float, float]] = None,
                  anchoring: str = 'local', anchor_length: Optional[float] = None,
                  support_half: Optional[float] = SUPPORT_HALF,
-                 support_width: float = SUPPORT_WIDTH):
+                 support_width: float = SUPPORT_WIDTH,
+                 slope_length: Optional[float] = SLOPE_LENGTH, max_slope: float = MAX_SLOPE):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -182,8 +189,12 @@ class ImaRenderer(_Rendered):
         self.anchor_length = float(anchor_length) if anchor_length == math.inf else \
             positive('anchor_length', anchor_length)
         self.support: Optional[Support] = None
+        self.depth_slope: Optional[DepthSlope] = None
+        self.max_slope = positive('max_slope', max_slope)
         if support_half is not None and anchoring == 'local':
             self.support = Support(lo, hi, support_width, support_half)
+            if slope_length is not None:
+                self.depth_slope = DepthSlope(positive('slope_length', slope_length))
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
         self._bump = 0.0
@@ -288,6 +299,7 @@ class ImaRenderer(_Rendered):
                 ext = fs * max(0.0, x) / xs
             else:
                 slope = (fs - m.force(xs - SLOPE_STEP, xd, xdd, za)) / SLOPE_STEP
+                slope = self._measured_slope(slope, fs >= 0.0)
                 slope = max(0.0, slope) if fs >= 0.0 else min(0.0, slope)
                 ext = fs + slope * (x - xs)
             hold += (1.0 - c) * (ext - hold)
@@ -296,6 +308,21 @@ class ImaRenderer(_Rendered):
         g *= max(0.0, 1.0 - 0.5 * abs(z[0] - self._za))
         g = 1.0 - (1.0 - (1.0 - c) ** 2) * (1.0 - g)
         return hold + flip + self._rho * g
+
+    def _measured_slope(self, slope: float, pushing: bool) -> float:
+        """The steeper of the model's slope at the edge of its data and the measured
+        force's slope over the last millimetres the slave moved through (`DepthSlope`,
+        in the direction the force resists: inserting if `pushing`), at most max_slope:
+        the model's tables flatten toward their priors at the edge of the data (a
+        wall's rise was rendered at a third of its slope), the measurements do not."""
+        if self.depth_slope is None:
+            return slope
+        b = self.depth_slope.slope(1.0 if pushing else -1.0)
+        if b is None:
+            return slope
+        if pushing:
+            return max(slope, min(b, self.max_slope))
+        return min(slope, max(b, -self.max_slope))
 
     def _switch(self, x: float, xd: float, xdd: float) -> None:
         new = self._pending
@@ -323,6 +350,8 @@ class ImaRenderer(_Rendered):
             self._za2 = a.z2
             if self.support is not None:
                 self.support.add(a.x, a.xd)
+                if self.depth_slope is not None:
+                    self.depth_slope.add(a.x, a.xd, a.f, a.z1)
             if self.anchoring in ('full', 'local'):
                 self._rho = a.f - new.force(a.x, a.xd, a.xdd, (a.z1, a.z2))
             else:
