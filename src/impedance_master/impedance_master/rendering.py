@@ -64,10 +64,8 @@ RECOVER_TIME = 0.05
 
 def _same(a: Impedance, b: Optional[Impedance]) -> bool:
     """True if b is the same model as a (same object or same values)."""
-    if b is None:
-        return False
-    if a is b:
-        return True
+    if b is None or a is b:
+        return b is not None
     return (a.m == b.m and a.c == b.c and a.k == b.k and a.offset == b.offset
             and a.valid == b.valid and a.sigma == b.sigma and a.S == b.S and a.F == b.F
             and a.B == b.B and a.C == b.C and a.x0 == b.x0 and a.dx == b.dx
@@ -145,6 +143,11 @@ class ImaRenderer(_Rendered):
             miss is kept with weight (1 - c)^2 (toward the anchored baseline: the latest
             measured force plus the model's change).
         support_width: m, reach in depth of one anchor's support (triangular kernel).
+        slope_length: m, with the support weighing: deeper than the data the model is
+            extended with the steeper of its own slope and the MEASURED force's slope
+            over the last `slope_length` of the slave's path (`support.DepthSlope`;
+            fourth round of issue 12), at most `max_slope` N/m. None: the model's slope
+            (the third round).
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
     (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
     `n_bad_input`, `n_clamped`, `energy` (J, observer), `n_passivity` (steps with added
@@ -310,11 +313,9 @@ class ImaRenderer(_Rendered):
         return hold + flip + self._rho * g
 
     def _measured_slope(self, slope: float, pushing: bool) -> float:
-        """The steeper of the model's slope at the edge of its data and the measured
-        force's slope over the last millimetres the slave moved through (`DepthSlope`,
-        in the direction the force resists: inserting if `pushing`), at most max_slope:
-        the model's tables flatten toward their priors at the edge of the data (a
-        wall's rise was rendered at a third of its slope), the measurements do not."""
+        """The steeper of the model's slope at the edge of its data (its tables flatten
+        toward their priors there) and the measured one (`DepthSlope`, inserting if
+        `pushing`), at most max_slope."""
         if self.depth_slope is None:
             return slope
         b = self.depth_slope.slope(1.0 if pushing else -1.0)
