@@ -15,6 +15,10 @@ know the force HERE, or do its tables there only repeat its priors (smoothness, 
 static force's pull to 0) beyond the data. `nearest_any(x)`: the depth nearest x with at
 least n_half anchors (the edge of the data to extend the model from). Counts only grow.
 
+`DepthSlope` (fourth round): the slope of the anchors' MEASURED force over depth along the
+slave's latest few millimetres of path, per direction: how steeply the force rose where
+the data end (the model's tables flatten there toward their priors).
+
 No rclpy, no numpy: O(kernel) per anchor, O(1) per query (a bisection for `nearest`).
 """
 from __future__ import annotations
