@@ -36,7 +36,10 @@ every other vessel x operator x seed, cold start.
   Seen during the fourth round's development.
 * Third fresh held-out worlds (`drawn_cases(FRESH3_SEEDS)`, seeds 300-304, the same
   families and operators, 90 worlds): defined and committed before the fourth round's
-  design work, run once after its design was final: the fourth round's blind figure.
+  design work, run once after its design was final: the fourth round's blind figure. The
+  fourth round's renderer setting (`ImaRenderer` measured slope beyond the data,
+  `slope_length` 5 mm) was developed on the seeds 200-204 and checked on 100-104 and on
+  the tuning family's Experiment II.
 """
 from __future__ import annotations
 
