@@ -15,13 +15,16 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
 * ``fresh2``: the third round's held-out worlds (`drawn_cases(FRESH2_SEEDS)`, seeds
   200-204, the same families and operators, 90 worlds), committed before the third
   round's design work and run once, after its design was final. Not part of ``all``
-  (run it explicitly: ``--section fresh2``).
+  (run it explicitly: ``--section fresh2``). Seen during the fourth round's development.
+* ``fresh3``: the fourth round's held-out worlds (`drawn_cases(FRESH3_SEEDS)`, seeds
+  300-304, the same families and operators, 90 worlds), committed before the fourth
+  round's design work and run once, after its design was final. Not part of ``all``.
 
 Tables per section: every case (MAE normal / outage / max, N); per vessel and per operator;
 the count of cases where the default beats DFR (normal MAE < DFR's, outage MAE < DFR's /
 2, max < DFR's) and where its mean error ('all' intervals) is no worse than the anchored
 baseline's; the averages over cases with the ratios to DFR.
-Options: --section dev|fresh|fresh2|all (default all = dev and fresh), --quick (one
+Options: --section dev|fresh|fresh2|fresh3|all (default all = dev and fresh), --quick (one
 seed), --jobs N (cases run in N processes; default 1).
 """
 from __future__ import annotations
@@ -40,8 +43,8 @@ for pkg in ('impedance_master', 'sim_slave', 'catheter_common'):
         sys.path.insert(0, p)
 
 from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS,  # noqa: E402
-                                             FRESH_SEEDS, MODES, TUNING, beats_dfr, cases,
-                                             drawn_cases, run_case)
+                                             FRESH3_SEEDS, FRESH_SEEDS, MODES, TUNING,
+                                             beats_dfr, cases, drawn_cases, run_case)
 
 LABEL = {'ima': 'IMA default', 'ima_thesis': 'IMA thesis', 'dfr': 'DFR',
          'anchored': 'anchored'}
@@ -116,12 +119,12 @@ def report(title, todo, results, counted):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--section', choices=('dev', 'fresh', 'fresh2', 'all'), default='all')
+    ap.add_argument('--section', choices=('dev', 'fresh', 'fresh2', 'fresh3', 'all'), default='all')
     ap.add_argument('--quick', action='store_true', help='one seed per section')
     ap.add_argument('--jobs', type=int, default=1, help='processes (cases in parallel)')
     ap.add_argument('--draw-seeds', default=None,
                     help='comma-separated seeds: the randomised section on these seeds '
-                         'instead of the fresh ones (development draws, never 200-204)')
+                         'instead of the fresh ones (development draws, never 300-304)')
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     if a.section in ('dev', 'all'):
@@ -139,8 +142,8 @@ def main(argv=None):
         title = 'fresh held-out worlds'
         if a.draw_seeds:
             seeds = [int(s) for s in a.draw_seeds.split(',')]
-            if set(seeds) & set(FRESH2_SEEDS):
-                ap.error('--draw-seeds must not name the held-out seeds 200-204')
+            if set(seeds) & set(FRESH3_SEEDS):
+                ap.error('--draw-seeds must not name the held-out seeds 300-304')
             title = f'development draws (seeds {seeds})'
         todo = drawn_cases(seeds)
         print(f'\n# bench_ima_general, {title}: {len(todo)} randomised draws '
@@ -148,17 +151,21 @@ def main(argv=None):
               f'seeds {seeds}, cold start, Experiment II timing')
         report(title, todo, run_all(todo, a.jobs), lambda c: True)
         print(f'(fresh worlds: {time.perf_counter() - t1:.0f} s)')
-    if a.section == 'fresh2':
+    for name, all_seeds, title, note in (
+            ('fresh2', FRESH2_SEEDS, 'second fresh held-out worlds',
+             "held out from the third round's design work (seen in the fourth's)"),
+            ('fresh3', FRESH3_SEEDS, 'third fresh held-out worlds',
+             "held out from the fourth round's design work")):
+        if a.section != name:
+            continue
         t2 = time.perf_counter()
-        seeds = list(FRESH2_SEEDS)[:1 if a.quick else None]
-        title = 'second fresh held-out worlds'
+        seeds = list(all_seeds)[:1 if a.quick else None]
         todo = drawn_cases(seeds)
         print(f'\n# bench_ima_general, {title}: {len(todo)} randomised draws '
               f'(sim_slave.vessels.draw_vessel) of every vessel family x every operator x '
-              f'seeds {seeds}, cold start, Experiment II timing; held out from the third '
-              f'round\'s design work')
+              f'seeds {seeds}, cold start, Experiment II timing; {note}')
         report(title, todo, run_all(todo, a.jobs), lambda c: True)
-        print(f'(second fresh worlds: {time.perf_counter() - t2:.0f} s)')
+        print(f'({title}: {time.perf_counter() - t2:.0f} s)')
     print(f'\n(total {time.perf_counter() - t0:.0f} s)', flush=True)
 
 

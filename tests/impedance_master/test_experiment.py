@@ -75,7 +75,9 @@ def test_first_model_extrapolates_friction_growing_with_length(monkeypatch):
     master is at 52 mm. Friction, breakaway and drag vanish at zero inserted length (prior
     `origin_weight`): the friction's growth with length is anchored and the rendered
     force is not extrapolated flat. Measured: normal max 0.155 N with the prior, 0.233 N
-    without it (seed 1)."""
+    without it (seed 1, first round); with the third round's renderer 0.167 / 0.193 N;
+    with the fourth round's (the measured slope also extends the rise beyond the data)
+    0.156 / 0.175 N."""
     import impedance_master.experiment as experiment
     from impedance_master.identification import HistoryIdentifier
     cfg = ExperimentConfig(experiment='II', mode='ima', seed=1, delay=1.0)
@@ -84,7 +86,7 @@ def test_first_model_extrapolates_friction_growing_with_length(monkeypatch):
                         lambda window, rate: HistoryIdentifier(window=window, rate=rate,
                                                                origin_weight=0.0))
     without = run_experiment(cfg).metrics['normal']['max']
-    assert with_prior < 0.18 < without
+    assert with_prior < 0.165 < without
 
 
 def test_compliant_hand_and_lossy_link_stay_finite_and_bounded():

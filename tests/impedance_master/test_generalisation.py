@@ -7,8 +7,8 @@ import random
 
 import pytest
 
-from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FRESH_SEEDS,
-                                             drawn_cases)
+from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS,
+                                             FRESH_SEEDS, drawn_cases)
 from impedance_master.operator import OPERATORS
 from sim_slave.vessels import DRAW_RULES, VESSELS, draw_vessel, make_vessel, vessel_spec
 
@@ -77,3 +77,12 @@ def test_second_fresh_set_is_new_worlds_disjoint_from_every_seen_seed():
     assert len(todo) == 90
     seen = {c[3] for c in drawn_cases(FRESH_SEEDS)}
     assert not {c[3] for c in todo} & seen               # no world of the first draw again
+
+
+def test_third_fresh_set_is_new_worlds_disjoint_from_every_seen_seed():
+    assert not set(FRESH3_SEEDS) & (set(FRESH_SEEDS) | set(FRESH2_SEEDS)
+                                    | set(DEVELOPMENT_SEEDS))
+    todo = drawn_cases(FRESH3_SEEDS)
+    assert len(todo) == 90
+    seen = {c[3] for c in drawn_cases(FRESH_SEEDS) + drawn_cases(FRESH2_SEEDS)}
+    assert not {c[3] for c in todo} & seen

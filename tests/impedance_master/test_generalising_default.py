@@ -1,12 +1,13 @@
-"""Issue 12's second and third rounds: the renderer's 'local' anchor correction and its
-weighing by the data support, the default (hand-checked values)."""
+"""Issue 12's second to fourth rounds: the renderer's 'local' anchor correction, its
+weighing by the data support and the measured slope beyond the data, the default
+(hand-checked values)."""
 import math
 
 import pytest
 
 from impedance_master import ImaRenderer, Impedance
 from impedance_master.impedance import steady_states
-from impedance_master.rendering import LOCAL_ANCHOR_LENGTH, SUPPORT_HALF
+from impedance_master.rendering import LOCAL_ANCHOR_LENGTH, MAX_SLOPE, SUPPORT_HALF
 
 
 def _anchored_model(miss=0.1, x=0.03, xd=0.01):
@@ -114,3 +115,53 @@ def test_beyond_the_data_the_model_is_extended_not_its_prior_guess():
     assert ima.support.anywhere(0.005) == 0.0
     want = imp.force(xs, 0.01, 0.0) * 0.005 / xs + 0.02
     assert ima.desired_force(0.005, 0.01, 0.0) == pytest.approx(want)
+
+
+# ------------------------------------------- fourth round: the measured slope beyond the data
+
+def _learned_rising(rise, k=0.0, lo=0.02, hi=0.04, xd=0.01, **kw):
+    """A renderer fed models (k x + 0.05 + 2 x') whose anchors' measured force rises
+    `rise` N/m faster with depth than the model's (a wall the tables flatten)."""
+    ima = ImaRenderer(blend_time=0.0, max_rate=1e9, **kw)
+    imp = None
+    for x in [lo + 0.0005 * i for i in range(int(round((hi - lo) / 0.0005)) + 1)]:
+        base = Impedance(0.0, 2.0, k, 0.05)
+        z1, z2 = steady_states(xd, base.v_s, base.beta)
+        f = base.force(x, xd, 0.0) + rise * (x - lo)
+        imp = Impedance(0.0, 2.0, k, 0.05, anchor=(x, xd, 0.0, z1, z2, f, 0.0))
+        assert ima.set_impedance(imp)
+        ima.desired_force(x, xd, 0.0)
+    return ima, imp
+
+
+def test_beyond_the_data_a_flat_model_is_extended_with_the_measured_slope():
+    ima, imp = _learned_rising(rise=20.0)
+    assert ima.depth_slope.slope(1.0) == pytest.approx(20.0)
+    xs = ima.support.nearest_any(0.06)
+    miss = 20.0 * (0.04 - 0.02)                   # the last anchor's miss, kept whole there
+    want = imp.force(xs, 0.01, 0.0) + 20.0 * (0.06 - xs) + miss
+    assert ima.desired_force(0.06, 0.01, 0.0) == pytest.approx(want)
+    # the third round (slope_length=None): the model's own (flat) slope
+    old, imp = _learned_rising(rise=20.0, slope_length=None)
+    assert old.depth_slope is None
+    assert old.desired_force(0.06, 0.01, 0.0) == pytest.approx(imp.force(xs, 0.01, 0.0) + miss)
+
+
+def test_the_measured_slope_is_capped_and_never_flattens_a_steeper_model():
+    ima, imp = _learned_rising(rise=200.0, lo=0.036)      # a local bump, not a wall
+    assert ima.max_slope == MAX_SLOPE == 50.0
+    xs = ima.support.nearest_any(0.055)
+    miss = 200.0 * (0.04 - 0.036)
+    want = imp.force(xs, 0.01, 0.0) + MAX_SLOPE * (0.055 - xs) + miss
+    assert want < ima.limit
+    assert ima.desired_force(0.055, 0.01, 0.0) == pytest.approx(want)
+    # the model rises 10 N/m, the measurement 10 - 8 = 2 N/m: the model's slope stays
+    ima, imp = _learned_rising(rise=-8.0, k=10.0)
+    xs = ima.support.nearest_any(0.06)
+    miss = -8.0 * (0.04 - 0.02)
+    assert ima.desired_force(0.06, 0.01, 0.0) == pytest.approx(
+        imp.force(0.06, 0.01, 0.0) + miss)
+    with pytest.raises(ValueError, match='max_slope'):
+        ImaRenderer(max_slope=0.0)
+    with pytest.raises(ValueError, match='slope_length'):
+        ImaRenderer(slope_length=-1.0)

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from impedance_master.support import BIN, Support
+from impedance_master.support import BIN, DepthSlope, Support
 
 
 def test_one_anchor_spreads_a_triangle_over_its_width_in_its_direction_only():
@@ -75,3 +75,63 @@ def test_support_is_in_unit_interval_grows_with_data_and_nearest_is_seen(anchors
     if xs is not None:
         assert xs >= s.min_depth
         assert max(s.count(xs, 1.0), s.count(xs, -1.0)) >= s.n_half - 1e-9
+
+
+# ---------------------------------------------------------------- fourth round: DepthSlope
+
+def test_depth_slope_of_anchors_on_a_line_is_the_line_and_per_direction():
+    s = DepthSlope(length=0.005, min_spread=0.001)
+    for i in range(11):                                   # inserting 40 -> 50 mm
+        x = 0.040 + 0.001 * i
+        assert s.add(x, 0.02, 0.1 + 8.0 * x)
+    assert s.slope(1.0) == pytest.approx(8.0)
+    assert s.slope(-1.0) is None                          # nothing seen retracting
+    for i in range(6):                                    # retracting 50 -> 45 mm
+        x = 0.050 - 0.001 * i
+        assert s.add(x, -0.02, -0.3 - 2.0 * x, z1=-1.0)
+    assert s.slope(-1.0) == pytest.approx(-2.0)
+    assert s.slope(1.0) == pytest.approx(8.0)             # the inserting line unchanged
+
+
+def test_depth_slope_weights_hand_checked():
+    """Three anchors 1 mm apart with length 1 mm: weights e^-2, e^-1, 1 (path since)."""
+    s = DepthSlope(length=0.001, min_spread=1e-4)
+    pts = [(0.010, 0.0), (0.011, 0.010), (0.012, 0.040)]
+    for x, f in pts:
+        s.add(x, 0.01, f)
+    w = [math.exp(-2.0), math.exp(-1.0), 1.0]
+    W = sum(w)
+    mx = sum(wi * x for wi, (x, _) in zip(w, pts, strict=True)) / W
+    mf = sum(wi * f for wi, (_, f) in zip(w, pts, strict=True)) / W
+    sxy = sum(wi * (x - mx) * (f - mf) for wi, (x, f) in zip(w, pts, strict=True))
+    sxx = sum(wi * (x - mx) ** 2 for wi, (x, _) in zip(w, pts, strict=True))
+    assert s.slope(1.0) == pytest.approx(sxy / sxx, rel=1e-6)
+    assert 10.0 < s.slope(1.0) < 30.0                     # between the two chords' 10 and 30
+
+
+def test_depth_slope_skips_rest_reversal_transitions_nonfinite_and_one_depth():
+    s = DepthSlope(min_speed=0.005, min_state=0.95, min_spread=0.001)
+    assert not s.add(0.04, 0.001, 0.2)                    # slower than min_speed
+    assert not s.add(0.04, 0.02, 0.2, z1=0.5)             # friction state still turning
+    assert not s.add(0.04, -0.02, 0.2, z1=0.99)           # retracting with z1 still +
+    assert not s.add(math.nan, 0.02, 0.2)
+    assert not s.add(0.04, 0.02, math.inf)
+    assert s.slope(1.0) is None and s.slope(-1.0) is None
+    for _ in range(5):
+        s.add(0.04, 0.02, 0.2)                            # one depth only: no slope
+    assert s.slope(1.0) is None
+    with pytest.raises(ValueError, match='length'):
+        DepthSlope(length=0.0)
+    with pytest.raises(ValueError, match='min_spread'):
+        DepthSlope(min_spread=-1.0)
+
+
+@given(st.lists(st.floats(0.0, 0.2), min_size=2, max_size=30), st.floats(-50.0, 50.0),
+       st.floats(-1.0, 1.0))
+def test_depth_slope_recovers_any_line_whatever_the_path(xs, b, a):
+    s = DepthSlope(length=0.005, min_spread=1e-4)
+    for x in xs:
+        s.add(x, 0.01, a + b * x)
+    got = s.slope(1.0)
+    if got is not None:
+        assert got == pytest.approx(b, abs=1e-6 + 1e-6 * abs(b))

@@ -33,6 +33,13 @@ every other vessel x operator x seed, cold start.
 * Second fresh held-out worlds (`drawn_cases(FRESH2_SEEDS)`, seeds 200-204, the same
   families and operators, 90 worlds): defined and committed before the third round's
   design work, run once after its design was final: the third round's blind figure.
+  Seen during the fourth round's development.
+* Third fresh held-out worlds (`drawn_cases(FRESH3_SEEDS)`, seeds 300-304, the same
+  families and operators, 90 worlds): defined and committed before the fourth round's
+  design work, run once after its design was final: the fourth round's blind figure. The
+  fourth round's renderer setting (`ImaRenderer` measured slope beyond the data,
+  `slope_length` 5 mm) was developed on the seeds 200-204 and checked on 100-104 and on
+  the tuning family's Experiment II.
 """
 from __future__ import annotations
 
@@ -52,6 +59,8 @@ DEVELOPMENT_SEEDS = (10, 11, 12)
 FRESH_SEEDS = (100, 101, 102, 103, 104)
 #: seeds of the third round's held-out worlds (run once, after its design was final)
 FRESH2_SEEDS = (200, 201, 202, 203, 204)
+#: seeds of the fourth round's held-out worlds (run once, after its design was final)
+FRESH3_SEEDS = (300, 301, 302, 303, 304)
 
 
 @dataclass(frozen=True)

@@ -41,7 +41,7 @@ from catheter_common.checks import nonneg, positive
 from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
 from impedance_master.impedance import FrictionState, Impedance, steady_states
 from impedance_master.safety import ERROR, OK, WARN, RendererStatus, SafeOutput, check_number
-from impedance_master.support import Support
+from impedance_master.support import DepthSlope, Support
 
 ANCHORING = ('none', 'full', 'residual', 'local')
 #: m, default reach in depth of the 'local' anchor correction (see ImaRenderer)
@@ -52,16 +52,20 @@ SUPPORT_HALF = 3.0
 SUPPORT_WIDTH = 0.003
 #: m, depth step of the slope with which a model is extended beyond its data (support)
 SLOPE_STEP = 0.005
+#: m, path length over which the measured force's slope in depth is taken (`DepthSlope`)
+SLOPE_LENGTH = 0.005
+#: N/m, the steepest measured slope a model is extended with: above the steepest wall or
+#: friction growth of the drawn vessels (about 40 N/m at 10 mm/s); a steeper rise is a local
+#: bump (a stenosis: up to 230 N/m over half a millimetre), not to be extended
+MAX_SLOPE = 50.0
 #: s, smallest time constant of the take-over from the fallback to the model's force
 RECOVER_TIME = 0.05
 
 
 def _same(a: Impedance, b: Optional[Impedance]) -> bool:
     """True if b is the same model as a (same object or same values)."""
-    if b is None:
-        return False
-    if a is b:
-        return True
+    if b is None or a is b:
+        return b is not None
     return (a.m == b.m and a.c == b.c and a.k == b.k and a.offset == b.offset
             and a.valid == b.valid and a.sigma == b.sigma and a.S == b.S and a.F == b.F
             and a.B == b.B and a.C == b.C and a.x0 == b.x0 and a.dx == b.dx
@@ -139,6 +143,11 @@ class ImaRenderer(_Rendered):
             miss is kept with weight (1 - c)^2 (toward the anchored baseline: the latest
             measured force plus the model's change).
         support_width: m, reach in depth of one anchor's support (triangular kernel).
+        slope_length: m, with the support weighing: deeper than the data the model is
+            extended with the steeper of its own slope and the MEASURED force's slope
+            over the last `slope_length` of the slave's path (`support.DepthSlope`;
+            fourth round of issue 12), at most `max_slope` N/m. None: the model's slope
+            (the third round).
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
     (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
     `n_bad_input`, `n_clamped`, `energy` (J, observer), `n_passivity` (steps with added
@@ -152,7 +161,8 @@ class ImaRenderer(_Rendered):
                  state_box: Optional[Tuple[float, float, float, float]] = None,
                  anchoring: str = 'local', anchor_length: Optional[float] = None,
                  support_half: Optional[float] = SUPPORT_HALF,
-                 support_width: float = SUPPORT_WIDTH):
+                 support_width: float = SUPPORT_WIDTH,
+                 slope_length: Optional[float] = SLOPE_LENGTH, max_slope: float = MAX_SLOPE):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -182,8 +192,12 @@ class ImaRenderer(_Rendered):
         self.anchor_length = float(anchor_length) if anchor_length == math.inf else \
             positive('anchor_length', anchor_length)
         self.support: Optional[Support] = None
+        self.depth_slope: Optional[DepthSlope] = None
+        self.max_slope = positive('max_slope', max_slope)
         if support_half is not None and anchoring == 'local':
             self.support = Support(lo, hi, support_width, support_half)
+            if slope_length is not None:
+                self.depth_slope = DepthSlope(positive('slope_length', slope_length))
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
         self._bump = 0.0
@@ -288,6 +302,7 @@ class ImaRenderer(_Rendered):
                 ext = fs * max(0.0, x) / xs
             else:
                 slope = (fs - m.force(xs - SLOPE_STEP, xd, xdd, za)) / SLOPE_STEP
+                slope = self._measured_slope(slope, fs >= 0.0)
                 slope = max(0.0, slope) if fs >= 0.0 else min(0.0, slope)
                 ext = fs + slope * (x - xs)
             hold += (1.0 - c) * (ext - hold)
@@ -296,6 +311,19 @@ class ImaRenderer(_Rendered):
         g *= max(0.0, 1.0 - 0.5 * abs(z[0] - self._za))
         g = 1.0 - (1.0 - (1.0 - c) ** 2) * (1.0 - g)
         return hold + flip + self._rho * g
+
+    def _measured_slope(self, slope: float, pushing: bool) -> float:
+        """The steeper of the model's slope at the edge of its data (its tables flatten
+        toward their priors there) and the measured one (`DepthSlope`, inserting if
+        `pushing`), at most max_slope."""
+        if self.depth_slope is None:
+            return slope
+        b = self.depth_slope.slope(1.0 if pushing else -1.0)
+        if b is None:
+            return slope
+        if pushing:
+            return max(slope, min(b, self.max_slope))
+        return min(slope, max(b, -self.max_slope))
 
     def _switch(self, x: float, xd: float, xdd: float) -> None:
         new = self._pending
@@ -323,6 +351,8 @@ class ImaRenderer(_Rendered):
             self._za2 = a.z2
             if self.support is not None:
                 self.support.add(a.x, a.xd)
+                if self.depth_slope is not None:
+                    self.depth_slope.add(a.x, a.xd, a.f, a.z1)
             if self.anchoring in ('full', 'local'):
                 self._rho = a.f - new.force(a.x, a.xd, a.xdd, (a.z1, a.z2))
             else:

@@ -15,6 +15,10 @@ know the force HERE, or do its tables there only repeat its priors (smoothness, 
 static force's pull to 0) beyond the data. `nearest_any(x)`: the depth nearest x with at
 least n_half anchors (the edge of the data to extend the model from). Counts only grow.
 
+`DepthSlope` (fourth round): the slope of the anchors' MEASURED force over depth along the
+slave's latest few millimetres of path, per direction: how steeply the force rose where
+the data end (the model's tables flatten there toward their priors).
+
 No rclpy, no numpy: O(kernel) per anchor, O(1) per query (a bisection for `nearest`).
 """
 from __future__ import annotations
@@ -123,3 +127,63 @@ class Support:
         if a is None or b is None:
             return b if a is None else a
         return a if abs(a - x) <= abs(b - x) else b
+
+
+class DepthSlope:
+    """How the MEASURED force changes with depth along the slave's latest path, per
+    direction of motion (fourth round of issue 12): a weighted straight line f = a + b x
+    through the anchors (x, f) moving in that direction, each weighed by
+    exp(-(path length travelled since, in that direction) / `length`): the force's slope
+    over the last few millimetres the slave moved through. Beyond the deepest point the
+    slave has reached, this is the honest extrapolation of what it met there (a wall's
+    rise, the friction's growth), where the model's tables only repeat their priors.
+
+    Args:
+        length: m, the path length over which older anchors fade (e-fold).
+        min_spread: m, the weighted standard deviation of the anchors' depths below which
+            there is no slope (None): a line through one depth is not a slope.
+        min_speed: m/s, anchors slower than this are not counted (at rest).
+    """
+
+    __slots__ = ('length', 'min_spread', 'min_speed', 'min_state', '_s', '_last')
+
+    def __init__(self, length: float = 0.005, min_spread: float = 0.001,
+                 min_speed: float = 0.005, min_state: float = 0.95):
+        self.min_state = float(min_state)
+        self.length = positive('length', length)
+        self.min_spread = positive('min_spread', min_spread)
+        self.min_speed = positive('min_speed', min_speed)
+        self._s = ([0.0] * 5, [0.0] * 5)        # [retracting, inserting]: w, wx, wf, wxx, wxf
+        self._last = [None, None]
+
+    def add(self, x: float, xd: float, f: float, z1: float = 1.0) -> bool:
+        """Count an anchor at depth x (m) moving at xd (m/s) with measured force f (N) and
+        the identifier's friction direction state z1 there; False if slower than
+        min_speed, not finite, or with a friction state not yet turned to the direction
+        of motion (|z1| < min_state: a reversal's transition is not a slope in depth)."""
+        if not (math.isfinite(x) and math.isfinite(xd) and math.isfinite(f)
+                and math.isfinite(z1)) or abs(xd) < self.min_speed:
+            return False
+        d = 1 if xd > 0.0 else 0
+        if (z1 if d else -z1) < self.min_state:
+            return False
+        s = self._s[d]
+        last = self._last[d]
+        lam = 1.0 if last is None else math.exp(-abs(x - last) / self.length)
+        self._last[d] = x
+        for i, v in enumerate((1.0, x, f, x * x, x * f)):
+            s[i] = lam * s[i] + v
+        return True
+
+    def slope(self, direction: float) -> Optional[float]:
+        """N/m, the slope of the measured force over depth along the latest path in the
+        direction sign(direction), or None (no anchors, or their depths spread less than
+        min_spread)."""
+        w, wx, wf, wxx, wxf = self._s[1 if direction > 0.0 else 0]
+        if w <= 0.0:
+            return None
+        mx = wx / w
+        var = wxx / w - mx * mx
+        if not var >= self.min_spread ** 2:
+            return None
+        return (wxf / w - mx * wf / w) / var
