@@ -42,7 +42,7 @@ from impedance_master.identification import SlidingWindowIdentifier, make_identi
 from impedance_master.metrics import (default_eval_start, error_stats, outage_mask,
                                       tracking_metrics, twin_reference)
 from impedance_master.operator import OPERATORS, experiment_trajectory
-from impedance_master.rendering import DfrRenderer, ImaRenderer
+from impedance_master.rendering import SAFE_MAX_RATE, DfrRenderer, ImaRenderer
 from sim_slave.vessels import vessel_spec
 
 MODES = ('ima', 'ima_thesis', 'dfr', 'anchored')
@@ -98,7 +98,7 @@ class ExperimentConfig:
     pretrain: Optional[str] = None
     thesis_offset: bool = True
     blend_time: float = 0.05
-    max_rate: float = 20.0
+    max_rate: float = SAFE_MAX_RATE
     passivity: bool = False
     sensor_seed: Optional[int] = None
     vessel: str = 'phantom'

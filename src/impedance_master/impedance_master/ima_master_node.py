@@ -43,7 +43,7 @@ from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import node_main
 from impedance_master.impedance import Impedance
-from impedance_master.rendering import DfrRenderer, ImaRenderer
+from impedance_master.rendering import SAFE_MAX_RATE, DfrRenderer, ImaRenderer
 
 MODES = ('ima', 'ima_thesis', 'dfr')
 #: the renderer's status levels ('ok', 'warn', 'error') as diagnostics levels
@@ -57,8 +57,8 @@ PARAMS = table(
           dynamic=True),
     Param('blend_time', 0.05, 'bumpless model switch time constant, s (mode ima; applies '
           'from the next tick)', 0.0, 5.0, dynamic=True),
-    Param('max_rate', 20.0, 'slew-rate limit of the desired force, N/s (mode ima)', 0.01, 1e6,
-          dynamic=True),
+    Param('max_rate', SAFE_MAX_RATE, 'slew-rate limit of the desired force, N/s (mode ima; '
+          '10 N/s: at most 0.01 N per 1 ms period)', 0.01, 1e6, dynamic=True),
     Param('passivity', True, 'time-domain passivity controller on the rendered model (mode '
           'ima)', dynamic=True),
     Param('fallback_time', 0.5, 'after a dropped model or bad input the renderer holds the '

@@ -40,24 +40,14 @@ from typing import Optional, Tuple
 from catheter_common.checks import nonneg, positive
 from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
 from impedance_master.impedance import FrictionState, Impedance, steady_states
-from impedance_master.safety import ERROR, OK, WARN, RendererStatus, SafeOutput, check_number
-from impedance_master.support import DepthSlope, Support
+from impedance_master.safety import (ERROR, OK, SAFE_MAX_RATE, WARN,  # noqa: F401
+                                    RendererStatus, SafeOutput, check_number)
+from impedance_master.support import (MAX_SLOPE, SLOPE_LENGTH, SLOPE_STEP,  # noqa: F401
+                                     SUPPORT_HALF, SUPPORT_WIDTH, DepthSlope, Support)
 
 ANCHORING = ('none', 'full', 'residual', 'local')
 #: m, default reach in depth of the 'local' anchor correction (see ImaRenderer)
 LOCAL_ANCHOR_LENGTH = 0.005
-#: anchors (slave samples, one per model) near a depth at which its support is 1/2
-SUPPORT_HALF = 3.0
-#: m, reach in depth of one anchor's support
-SUPPORT_WIDTH = 0.003
-#: m, depth step of the slope with which a model is extended beyond its data (support)
-SLOPE_STEP = 0.005
-#: m, path length over which the measured force's slope in depth is taken (`DepthSlope`)
-SLOPE_LENGTH = 0.005
-#: N/m, the steepest measured slope a model is extended with: above the steepest wall or
-#: friction growth of the drawn vessels (about 40 N/m at 10 mm/s); a steeper rise is a local
-#: bump (a stenosis: up to 230 N/m over half a millimetre), not to be extended
-MAX_SLOPE = 50.0
 #: s, smallest time constant of the take-over from the fallback to the model's force
 RECOVER_TIME = 0.05
 
@@ -107,7 +97,7 @@ class ImaRenderer(_Rendered):
             Every switch is bumpless, the first one too: it blends in from the force
             rendered before (0 N), so the first model does not step the operator's hand.
         max_rate: N/s, slew-rate limit of the output (> 0; default inf: none; the nodes use
-            20 N/s as a safety net).
+            `SAFE_MAX_RATE` as a safety net).
         dt: s, the call period (1 kHz loop), used by blending, slew limiting and timers.
         passivity: add the time-domain passivity controller (TDPA, Ryu & Hannaford): the
             observer E = sum f x' dt is the energy the operator has put into the rendered

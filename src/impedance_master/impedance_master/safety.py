@@ -29,6 +29,9 @@ from catheter_common.checks import Checked, nonneg, positive, positive_or_inf
 ABSURD_FORCE = 1e3
 
 OK, WARN, ERROR = 'ok', 'warn', 'error'
+#: N/s, the slew-rate limit the nodes and the experiments use (a safety net): at 1 kHz at most
+#: 0.01 N per period reaches the hand, whatever the model does (issue 12's bound)
+SAFE_MAX_RATE = 10.0
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,19 @@ from catheter_common.checks import positive
 
 #: m, bin width of the support histogram
 BIN = 0.001
+# The renderer's defaults for its support weighting and its extension beyond the data:
+#: anchors (slave samples, one per model) near a depth at which its support is 1/2
+SUPPORT_HALF = 3.0
+#: m, reach in depth of one anchor's support
+SUPPORT_WIDTH = 0.003
+#: m, depth step of the slope with which a model is extended beyond its data (support)
+SLOPE_STEP = 0.005
+#: m, path length over which the measured force's slope in depth is taken (`DepthSlope`)
+SLOPE_LENGTH = 0.005
+#: N/m, the steepest measured slope a model is extended with: above the steepest wall or
+#: friction growth of the drawn vessels (about 40 N/m at 10 mm/s); a steeper rise is a local
+#: bump (a stenosis: up to 230 N/m over half a millimetre), not to be extended
+MAX_SLOPE = 50.0
 
 
 class Support:
