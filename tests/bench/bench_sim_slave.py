@@ -29,6 +29,7 @@ import pathlib
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -211,7 +212,7 @@ import sys, time, rclpy
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 sys.path[:0] = {paths!r}
-from catheter_common.topics import QOS_FAST
+from catheter_common.qos import QOS_FAST
 from catheter_common.ros_node import run_node
 class Bare(Node):
     def __init__(self, **kw):
@@ -251,11 +252,19 @@ def realtime(seconds):
             m.header.stamp.sec + m.header.stamp.nanosec * 1e-9), QOS_FAST)
         exe = EventsExecutor()
         exe.add_node(node)
-        p = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        err = tempfile.TemporaryFile()
+        p = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=err)
         try:
-            end = time.monotonic() + 20
-            while len(stamps) < 200 and time.monotonic() < end:
+            # a new participant sometimes discovers the process only after 10-30 s; a
+            # starved machine (a nice 19 run beside other jobs) starts it late too
+            end = time.monotonic() + 60
+            while len(stamps) < 200 and time.monotonic() < end and p.poll() is None:
                 exe.spin_once(timeout_sec=0.05)
+            if p.poll() is not None:
+                err.seek(0)
+                tail = err.read().decode(errors='replace')[-600:]
+                raise RuntimeError(f'{name}: the process ended (exit {p.returncode}) before '
+                                   f'publishing; its stderr ends:\n{tail}')
             stamps.clear()
             end = time.monotonic() + seconds
             while time.monotonic() < end:
@@ -270,6 +279,11 @@ def realtime(seconds):
             node.destroy_node()
             rclpy.try_shutdown()
         st = np.unique(np.array(stamps))
+        if len(st) < 2:
+            raise RuntimeError(
+                f'{name}: {len(st)} distinct /slave/joint_state stamps in the {seconds:g} s '
+                'window (after up to 60 s for the first 200): the process did not run or DDS '
+                'did not discover it; no period to measure')
         per = np.diff(st) * 1e3
         result[name] = (len(st) / seconds, np.percentile(per, 50), np.percentile(per, 99),
                         per.max(), len(stamps))
