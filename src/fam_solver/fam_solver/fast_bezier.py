@@ -31,7 +31,7 @@ from scipy.linalg.lapack import dgesv as _dgesv
 
 from .arcs import row_product
 from .bezier import unit_nodes
-from .linsolve import banded_solve
+from .linsolve import banded_solve, limited_step
 
 _MAXR = np.maximum.reduce
 _MINR = np.minimum.reduce
@@ -236,12 +236,9 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
             dx = banded_solve(W * isc, (np.broadcast_to(A, (n,)), Bd, Mcol, e), rt)
         else:
             dx = banded_solve(W, (np.broadcast_to(A, (n,)), Bd, Mcol, e), r)
-        mx = _MAXR(np.abs(dx))
-        if not mx < math.inf:
+        phi = limited_step(phi, dx, step_limit)
+        if phi is None:
             break
-        if mx > step_limit:
-            dx *= step_limit / mx
-        phi = phi - dx
     phi, res, tip = best
     if not res < math.inf:
         phi, tip = np.zeros(n), complex(float(np.sum(l)))

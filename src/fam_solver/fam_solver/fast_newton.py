@@ -16,7 +16,7 @@ from scipy.linalg.lapack import dgesv as _dgesv
 from .arcs import row_product
 from .equations import RHO_MAX, clothoid_terms
 from .fast_bezier import bezier_tip_newton
-from .linsolve import banded_solve
+from .linsolve import banded_solve, limited_step
 
 _MAXR = np.maximum.reduce
 _FAST_CACHE = {}
@@ -198,12 +198,9 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
             dx = _dgesv(D, r)[2]
         else:   # J = I - (-W) D: the banded solver's convention
             dx = banded_solve(-w, (np.broadcast_to(a, (n,)), d, c, e), r)
-        mx = _MAXR(np.abs(dx))
-        if not mx < math.inf:
+        phi = limited_step(phi, dx, step_limit)
+        if phi is None:
             break
-        if mx > step_limit:
-            dx *= step_limit / mx
-        phi = phi - dx
     phi, res, tip, th_r = best
     rho = None if th_r is None else RHO_MAX * th_r
     if not res < math.inf:

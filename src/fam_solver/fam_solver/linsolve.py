@@ -21,6 +21,17 @@ BANDED_MIN_N = 24
 _TRIL_CACHE = {}
 
 
+def limited_step(phi: np.ndarray, dx: np.ndarray, step_limit: float) -> Optional[np.ndarray]:
+    """The Newton update ``phi - dx`` of the fast paths, with dx scaled down (in place) to a
+    largest component of `step_limit` rad; None when dx is not finite (the caller stops)."""
+    mx = np.maximum.reduce(np.abs(dx))
+    if not mx < np.inf:
+        return None
+    if mx > step_limit:
+        dx *= step_limit / mx
+    return phi - dx
+
+
 def _masks(n: int):
     m = _TRIL_CACHE.get(n)
     if m is None:
