@@ -164,9 +164,10 @@ class LocalBus:
             orig = pub.publish
             # the type's own CDR encoder (`cdr_encode`), rclpy's serialiser for the rest
             enc = encoder(pub.msg_type) or (lambda _m: None)
+            copier = message_copier(pub.msg_type)
 
             def publish(msg, _orig=orig, _topic=topic, bus=self, _enc=enc,
-                        _type=pub.msg_type):
+                        _type=pub.msg_type, _copier=copier):
                 if isinstance(msg, bytes):
                     data = msg
                 else:
@@ -179,13 +180,13 @@ class LocalBus:
                 bus.counts[_topic] += 1
                 if bus.record is not None:
                     bus.record(_topic, data)
+                copied = None
                 if bus.copy and _topic in bus.msg_topics and not isinstance(msg, bytes):
                     # a copy for the subscribers instead of deserialising the bytes (cheaper;
                     # taken now: the publisher may refill its message before delivery)
-                    copier = message_copier(type(msg))
-                    bus.queue.append((_topic, data, copier(msg) if copier else None))
-                else:
-                    bus.queue.append((_topic, data))
+                    cp = _copier if msg.__class__ is _type else message_copier(type(msg))
+                    copied = cp(msg) if cp else None
+                bus.queue.append((_topic, data, copied))
                 if bus.times is not None:
                     bus.note_times(_topic, msg)
                 if bus.immediate and not (bus._delivering or bus._holding):
@@ -280,10 +281,8 @@ class LocalBus:
         try:
             share = self.share
             while q:
-                item = q.popleft()
-                topic, data = item[0], item[1]
-                # the publisher's message copied at publish (`message_copier`)
-                copied = item[2] if len(item) > 2 else None
+                # copied: the publisher's message copied at publish (`message_copier`) or None
+                topic, data, copied = q.popleft()
                 last_type = last = None
                 for cb, raw, msg_type, with_info, owner in self.subs.get(topic, ()):
                     t = clock()
