@@ -183,6 +183,12 @@ def spin_ready(executor, limit: int, timeout: float = 0.0) -> int:
     return n
 
 
+def shutdown_context(context) -> None:
+    """Shut down an rclpy context the runner created (no error if it is already down)."""
+    import rclpy
+    rclpy.try_shutdown(context=context)
+
+
 def never_done():
     """A future nobody completes, for `spin_for` (one per run loop)."""
     from rclpy.task import Future

@@ -7,10 +7,9 @@ from __future__ import annotations
 import signal
 import time
 
-import rclpy
-
 from catheter_bringup.local_recording import merge_parts
 from catheter_bringup.part_pipe import RecorderPipe
+from catheter_bringup.rclpy_adapter import shutdown_context
 from catheter_bringup.result import RunResult
 from catheter_bringup.scenario import scenario_text
 
@@ -112,5 +111,5 @@ class RunTeardown:
             self.executor.shutdown()
             self.executor = None
         if self.context is not None and self._own_context:
-            rclpy.try_shutdown(context=self.context)
+            shutdown_context(self.context)
         self.context = None
