@@ -136,36 +136,31 @@ def main(argv=None):
         report('development set (seeds 10-12)', todo, run_all(todo, a.jobs),
                lambda c: (c[0], c[1]) != TUNING)
         print(f'(development set: {time.perf_counter() - t0:.0f} s)', flush=True)
+    sections = []
     if a.section in ('fresh', 'all'):
-        t1 = time.perf_counter()
         seeds = list(FRESH_SEEDS)[:1 if a.quick else None]
-        title = 'fresh held-out worlds'
+        title, note = 'fresh held-out worlds', ''
         if a.draw_seeds:
             seeds = [int(s) for s in a.draw_seeds.split(',')]
             if set(seeds) & set(FRESH3_SEEDS):
                 ap.error('--draw-seeds must not name the held-out seeds 300-304')
             title = f'development draws (seeds {seeds})'
-        todo = drawn_cases(seeds)
-        print(f'\n# bench_ima_general, {title}: {len(todo)} randomised draws '
-              f'(sim_slave.vessels.draw_vessel) of every vessel family x every operator x '
-              f'seeds {seeds}, cold start, Experiment II timing')
-        report(title, todo, run_all(todo, a.jobs), lambda c: True)
-        print(f'(fresh worlds: {time.perf_counter() - t1:.0f} s)')
+        sections.append((seeds, title, note))
     for name, all_seeds, title, note in (
             ('fresh2', FRESH2_SEEDS, 'second fresh held-out worlds',
-             "held out from the third round's design work (seen in the fourth's)"),
+             "; held out from the third round's design work (seen in the fourth's)"),
             ('fresh3', FRESH3_SEEDS, 'third fresh held-out worlds',
-             "held out from the fourth round's design work")):
-        if a.section != name:
-            continue
-        t2 = time.perf_counter()
-        seeds = list(all_seeds)[:1 if a.quick else None]
+             "; held out from the fourth round's design work")):
+        if a.section == name:
+            sections.append((list(all_seeds)[:1 if a.quick else None], title, note))
+    for seeds, title, note in sections:
+        t1 = time.perf_counter()
         todo = drawn_cases(seeds)
         print(f'\n# bench_ima_general, {title}: {len(todo)} randomised draws '
               f'(sim_slave.vessels.draw_vessel) of every vessel family x every operator x '
-              f'seeds {seeds}, cold start, Experiment II timing; {note}')
+              f'seeds {seeds}, cold start, Experiment II timing{note}')
         report(title, todo, run_all(todo, a.jobs), lambda c: True)
-        print(f'({title}: {time.perf_counter() - t2:.0f} s)')
+        print(f'({title}: {time.perf_counter() - t1:.0f} s)')
     print(f'\n(total {time.perf_counter() - t0:.0f} s)', flush=True)
 
 
