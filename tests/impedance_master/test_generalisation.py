@@ -7,7 +7,7 @@ import random
 
 import pytest
 
-from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS,
+from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS, FRESH4_SEEDS,
                                              FRESH_SEEDS, drawn_cases)
 from impedance_master.operator import OPERATORS
 from sim_slave.vessels import DRAW_RULES, VESSELS, draw_vessel, make_vessel, vessel_spec
@@ -85,4 +85,14 @@ def test_third_fresh_set_is_new_worlds_disjoint_from_every_seen_seed():
     todo = drawn_cases(FRESH3_SEEDS)
     assert len(todo) == 90
     seen = {c[3] for c in drawn_cases(FRESH_SEEDS) + drawn_cases(FRESH2_SEEDS)}
+    assert not {c[3] for c in todo} & seen
+
+
+def test_fourth_fresh_set_is_new_worlds_disjoint_from_every_seen_seed():
+    assert not set(FRESH4_SEEDS) & (set(FRESH_SEEDS) | set(FRESH2_SEEDS) | set(FRESH3_SEEDS)
+                                    | set(DEVELOPMENT_SEEDS))
+    todo = drawn_cases(FRESH4_SEEDS)
+    assert len(todo) == 90
+    seen = {c[3] for c in drawn_cases(FRESH_SEEDS) + drawn_cases(FRESH2_SEEDS)
+            + drawn_cases(FRESH3_SEEDS)}
     assert not {c[3] for c in todo} & seen

@@ -39,7 +39,10 @@ every other vessel x operator x seed, cold start.
   design work, run once after its design was final: the fourth round's blind figure. The
   fourth round's renderer setting (`ImaRenderer` measured slope beyond the data,
   `slope_length` 5 mm) was developed on the seeds 200-204 and checked on 100-104 and on
-  the tuning family's Experiment II.
+  the tuning family's Experiment II. Seen during the fifth round's development.
+* Fourth fresh held-out worlds (`drawn_cases(FRESH4_SEEDS)`, seeds 400-404, the same
+  families and operators, 90 worlds): defined and committed before the fifth round's
+  design work, to be run once after its design is final: the fifth round's blind figure.
 """
 from __future__ import annotations
 
@@ -61,6 +64,8 @@ FRESH_SEEDS = (100, 101, 102, 103, 104)
 FRESH2_SEEDS = (200, 201, 202, 203, 204)
 #: seeds of the fourth round's held-out worlds (run once, after its design was final)
 FRESH3_SEEDS = (300, 301, 302, 303, 304)
+#: seeds of the fifth round's held-out worlds (run once, after its design is final)
+FRESH4_SEEDS = (400, 401, 402, 403, 404)
 
 
 @dataclass(frozen=True)
