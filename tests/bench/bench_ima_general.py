@@ -123,7 +123,8 @@ def report(title, todo, results, counted):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--section', choices=('dev', 'fresh', 'fresh2', 'fresh3', 'fresh4', 'all'), default='all')
+    ap.add_argument('--section', default='all',
+                    choices=('dev', 'fresh', 'fresh2', 'fresh3', 'fresh4', 'all'))
     ap.add_argument('--quick', action='store_true', help='one seed per section')
     ap.add_argument('--jobs', type=int, default=1, help='processes (cases in parallel)')
     ap.add_argument('--draw-seeds', default=None,

@@ -7,8 +7,8 @@ import random
 
 import pytest
 
-from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS, FRESH4_SEEDS,
-                                             FRESH_SEEDS, drawn_cases)
+from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS,
+                                             FRESH4_SEEDS, FRESH_SEEDS, drawn_cases)
 from impedance_master.operator import OPERATORS
 from sim_slave.vessels import DRAW_RULES, VESSELS, draw_vessel, make_vessel, vessel_spec
 
