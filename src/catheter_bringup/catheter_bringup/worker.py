@@ -23,6 +23,12 @@ from typing import Callable, Dict, List, Optional
 
 import yaml
 
+#: node parameters every worker process sets (the scenario's `global_params` may override
+#: them): the image pipeline processes a frame as it arrives instead of at its next timer
+#: tick (shape_node `process_on_arrival`; lockstep, in one process or two, keeps the timer
+#: and so its message order)
+WORKER_PARAMS = {'process_on_arrival': True}
+
 
 class Worker:
     """Starts `run_scenario --only <nodes> --process <name>` on the scenario; stopped with
@@ -35,6 +41,7 @@ class Worker:
         self.log = log
         sc = dict(scenario)
         sc.pop('source', None)
+        sc['global_params'] = {**WORKER_PARAMS, **(sc.get('global_params') or {})}
         fd, self._yaml = tempfile.mkstemp(suffix='.yaml', prefix=f'worker_{name}_')
         with os.fdopen(fd, 'w') as f:
             yaml.safe_dump(sc, f)
