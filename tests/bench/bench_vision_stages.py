@@ -58,7 +58,7 @@ def frames_from_trace(rows):
     for name, rs in rows.items():
         for stamp, t0, t1, cpu, rq, sl, extra in rs:
             by.setdefault(stamp, {}).setdefault(name, []).append((t0, t1, cpu, rq, sl, extra))
-    out, kinds = {}, {}
+    out, kinds, solves = {}, {}, {}
     ms = 1e-6
 
     def timed(r, t_from=None):
@@ -80,18 +80,19 @@ def frames_from_trace(rows):
             'estimate': timed(est),
             'total': ((est[1] - stamp) * ms, None, None, None),
         }
-        kinds[stamp] = tuple(est[5]) if est[5] else ('?', '?')
-    return out, kinds
+        kinds[stamp] = tuple(est[5][:2]) if est[5] else ('?', '?')
+        solves[stamp] = est[5][2] if est[5] and len(est[5]) > 2 else 0
+    return out, kinds, solves
 
 
-def run(duration, load, tmp):
+def run(duration, load, tmp, record=()):
     os.environ[stage_trace.ENV] = tmp
     try:
         if load:
             with B.CpuLoad():
-                streams, lat, r = B.realtime_run('split', duration, tmp)
+                streams, lat, r = B.realtime_run('split', duration, tmp, record)
         else:
-            streams, lat, r = B.realtime_run('split', duration, tmp)
+            streams, lat, r = B.realtime_run('split', duration, tmp, record)
     finally:
         os.environ.pop(stage_trace.ENV, None)
     rows = {}
@@ -104,7 +105,7 @@ def run(duration, load, tmp):
 
 
 def report(streams, lat, r, rows, label):
-    frames, kinds = frames_from_trace(rows)
+    frames, kinds, solves = frames_from_trace(rows)
     stamps = sorted(frames)[2:]                 # start-up left out (as latency_stats)
     print(f'-- {label}: {len(stamps)} frames through every stage '
           f'(camera {len(rows.get("camera", []))}, shape {len(rows.get("shape", []))}, '
@@ -136,7 +137,9 @@ def report(streams, lat, r, rows, label):
     for kind in sorted(counts):
         e = [frames[k]['estimate'] for k in stamps if kinds[k] == kind]
         print(f'  estimate {kind[0]:12s} {kind[1]:18s} wall p50/p99/max {_pct([x[0] for x in e])}'
-              f', CPU p50/p99 {_pct([x[0] - x[1] - x[2] for x in e])[:15]}')
+              f', CPU p50/p99 {_pct([x[0] - x[1] - x[2] for x in e])[:15]}, FAM solves p50/max '
+              f'{np.median([solves[k] for k in stamps if kinds[k] == kind]):.0f}/'
+              f'{max(solves[k] for k in stamps if kinds[k] == kind)}')
     lt = lat.get('/catheter/tip_wrench')
     if lt:
         print(f'worker report: image -> tip force latency p50 {lt["p50_ms"]:.1f} ms, p99 '
@@ -149,7 +152,8 @@ def report(streams, lat, r, rows, label):
     for name, rep in sorted(r.processes.items()):
         if name != 'link':
             rt = rep.get('realtime', {})
-            print(f'{name}: CPU {100 * B.cpu_share(rt):.0f} % of a core, {rt.get("scheduling")}')
+            print(f'{name}: CPU {100 * B.cpu_share(rt):.0f} % of a core, {rt.get("scheduling")}, '
+                  f'CPUs {rep.get("cpus") or "any"}')
 
 
 def main():
@@ -157,13 +161,19 @@ def main():
     ap.add_argument('--duration', type=float, default=6.0)
     ap.add_argument('--runs', type=int, default=1)
     ap.add_argument('--load', action='store_true', help='a busy-loop process on one core')
+    ap.add_argument('--keep-bag', metavar='PATH', help='keep the (last) run\'s bag here, with '
+                    'the control points and the camera\'s tip force truth recorded')
     a = ap.parse_args()
+    record = ('/catheter/control_points', '/camera/tip_force_truth') if a.keep_bag else ()
     print(f'bench_vision_stages on {os.cpu_count()} cores, load average at start '
           f'{os.getloadavg()[0]:.1f}')
     for i in range(a.runs):
         with tempfile.TemporaryDirectory() as tmp:
-            streams, lat, r, rows = run(a.duration, a.load, tmp)
+            streams, lat, r, rows = run(a.duration, a.load, tmp, record)
             report(streams, lat, r, rows, f'run {i + 1}' + (' (loaded)' if a.load else ''))
+            if a.keep_bag:
+                import shutil
+                shutil.copy(os.path.join(tmp, 'rt_split.mcap'), a.keep_bag)
 
 
 if __name__ == '__main__':

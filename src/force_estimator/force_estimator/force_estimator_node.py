@@ -173,7 +173,7 @@ class ForceEstimatorNode(Node):
         lat = wall_time() - t0
         if stage is not None:
             stage.end('estimate', stage_trace.stamp_ns(msg.header.stamp),
-                      [est.method, est.status])
+                      [est.method, est.status, getattr(est, 'solves', 0)])
         self._lat_sum += lat
         self._lat_n += 1
         self._lat_max = max(self._lat_max, lat)
