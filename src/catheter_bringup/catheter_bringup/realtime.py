@@ -175,8 +175,8 @@ def worker_cpus(process: str, processes, cpus) -> Optional[frozenset]:
 
 def pin_process(pid: int, cpus, log: Callable[[str], None] = print) -> bool:
     """Keep every thread of process `pid` (threads it creates later inherit it) on `cpus`.
-    False (one log line) when not permitted or not available; a thread that ended meanwhile
-    is skipped."""
+    False when no thread was pinned (the process is gone) or, with one log line, when not
+    permitted or not available; a thread that ended meanwhile is skipped."""
     if not hasattr(os, 'sched_setaffinity'):
         log('[run] CPU affinity not available on this OS')
         return False
@@ -184,16 +184,18 @@ def pin_process(pid: int, cpus, log: Callable[[str], None] = print) -> bool:
         tids = [int(t) for t in os.listdir(f'/proc/{pid}/task')]
     except OSError:
         tids = [pid]
+    pinned = 0
     try:
         for tid in tids:
             try:
                 os.sched_setaffinity(tid, cpus)
             except ProcessLookupError:
                 continue
+            pinned += 1
     except OSError as exc:
         log(f'[run] CPU affinity {sorted(cpus)} for process {pid} refused ({exc}): unchanged')
         return False
-    return True
+    return pinned > 0
 
 
 #: young-generation collection threshold during a real-time loop (Python's default: 700)
