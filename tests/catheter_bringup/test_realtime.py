@@ -392,8 +392,8 @@ def test_worker_scenario_turns_on_processing_on_arrival(monkeypatch, tmp_path):
             with open(cmd[cmd.index('catheter_bringup.run_scenario') + 1]) as f:
                 seen.append(yaml.safe_load(f))
     monkeypatch.setattr(W.subprocess, 'Popen', Proc)
-    for given, want in (({}, True), ({'process_on_arrival': False}, False)):
-        w = W.Worker({'duration': 1.0, 'global_params': dict(given)}, ['shape_node'],
+    for params, want in (({}, True), ({"process_on_arrival": False}, False)):
+        w = W.Worker({'duration': 1.0, 'global_params': dict(params)}, ['shape_node'],
                      lambda *_: None)
         assert seen[-1]['global_params']['process_on_arrival'] is want
         w.cleanup()
