@@ -20,7 +20,9 @@ clock (period `period`) processes it; a frame replaced before it was processed c
 dropped. With `process_on_arrival` the callback processes the frame at once (no wait for
 the timer tick) when it was stamped after the previous frame's processing ended: nothing can
 be queued behind it then; a frame stamped while the node was busy (a backlog of frames
-delivered one after another) is kept for the timer, which takes the newest. While nobody
+delivered one after another) is kept for the timer, which takes the newest (the stamp is
+compared with this node's clock: a camera whose clock ran ahead of it by more than a frame's
+processing time would let a backlog through frame by frame). While nobody
 subscribes to any output, frames are not processed (counted 'idle').
 Every parameter applies at run time (from the next frame; a background_file that cannot be
 read is refused). Topic names are relative (the node's namespace applies).
