@@ -19,8 +19,9 @@ reference measured in the same run, and the ratio.
    each with 5 % injected link loss: rate and period p50/p99/max of every 1 kHz stream,
    measured where it is published; image -> tip force latency in the vision process; what
    DDS lost on the link topics (from the header stamps both ends saw) against the injected
-   loss; recorder loss; GC and scheduling per process; the CPU each process used while its
-   loop ran (by thread) against the one process; reference: a lone 1 kHz timer.
+   loss; recorder loss; GC, scheduling and CPU placement per process; the CPU each process
+   used while its loop ran (by thread) against the one process; reference: a lone 1 kHz
+   timer.
 3. Image -> tip force latency alone: synthetic 800x800 frames of the system camera at 30 Hz ->
    shape_node -> force_estimator_node (svr; fam when no model is installed).
 4. Recorder: write throughput of McapRecorder (pre-serialised CDR) against mcap_ros2's Writer
