@@ -19,8 +19,9 @@ reference measured in the same run, and the ratio.
    each with 5 % injected link loss: rate and period p50/p99/max of every 1 kHz stream,
    measured where it is published; image -> tip force latency in the vision process; what
    DDS lost on the link topics (from the header stamps both ends saw) against the injected
-   loss; recorder loss; GC and scheduling per process; the CPU each process used while its
-   loop ran (by thread) against the one process; reference: a lone 1 kHz timer.
+   loss; recorder loss; GC, scheduling and CPU placement per process; the CPU each process
+   used while its loop ran (by thread) against the one process; reference: a lone 1 kHz
+   timer.
 3. Image -> tip force latency alone: synthetic 800x800 frames of the system camera at 30 Hz ->
    shape_node -> force_estimator_node (svr; fam when no model is installed).
 4. Recorder: write throughput of McapRecorder (pre-serialised CDR) against mcap_ros2's Writer
@@ -171,8 +172,10 @@ class CpuLoad:
         self.proc.wait()
 
 
-def realtime_run(layout, duration, tmp):
-    """One real-time Experiment II run; returns (stream stats by topic, the RunResult)."""
+def realtime_run(layout, duration, tmp, record=()):
+    """One real-time Experiment II run; returns (stream stats by topic, the RunResult).
+    record: topics recorded besides the 1 kHz streams and /catheter/tip_wrench (the bag:
+    <tmp>/rt_<layout>.mcap)."""
     from catheter_bringup.overrides import apply_overrides
     from catheter_bringup.runner import ScenarioRunner
     from catheter_bringup.scenario import load_scenario
@@ -181,7 +184,7 @@ def realtime_run(layout, duration, tmp):
     if layout == 'one':
         sets.append('realtime_processes=1')          # every node in this one process
     sc = apply_overrides(load_scenario('experiment_ii'), sets)
-    sc['record']['only'] = [t for t, _, _ in STREAMS] + ['/catheter/tip_wrench']
+    sc['record']['only'] = [t for t, _, _ in STREAMS] + ['/catheter/tip_wrench'] + list(record)
     r = ScenarioRunner(sc, bag=f'{tmp}/rt_{layout}.mcap', progress=False,
                        log=lambda *_: None).run()
     streams, lat = {}, {}
@@ -260,8 +263,10 @@ def realtime(duration):
                 continue
             rt = rep.get('realtime', {})
             g = rt.get('gc', {})
-            note(f'  {name} process: scheduling, GC collections (gen0/1/2), GC total',
-                 f"{rt.get('scheduling')}, {g.get('gen0_count')}/{g.get('gen1_count')}/"
+            cpus = rep.get('cpus')
+            note(f'  {name} process: scheduling, CPUs, GC collections (gen0/1/2), GC total',
+                 f"{rt.get('scheduling')}, CPUs {cpus if cpus else 'any'}, "
+                 f"{g.get('gen0_count')}/{g.get('gen1_count')}/"
                  f"{g.get('gen2_count')}, {g.get('total_ms', 0):.1f} ms")
         # CPU while the loops ran: each split process against the one process that holds
         # the whole graph (the less noisy figure on a shared machine)

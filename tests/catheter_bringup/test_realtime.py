@@ -323,3 +323,77 @@ def test_thread_cpu_sees_a_busy_thread_and_cpu_delta_keeps_positive_use():
     assert all(v > 0 for v in d.values())
     assert R.cpu_delta({'a': 1.0}, {'a': 1.5, 'b': 0.2}) == {'a': 0.5, 'b': 0.2}
     assert R.cpu_delta({'a': 1.0}, {'a': 1.0}) == {}
+
+
+def test_worker_cpus_places_master_first_vision_last_only_when_both_run():
+    both = ['master', 'slave', 'vision']
+    assert R.worker_cpus('master', both, {3, 1, 2}) == {1}
+    assert R.worker_cpus('vision', both, {3, 1, 2}) == {3}
+    assert R.worker_cpus('slave', both, {0, 1}) is None
+    assert R.worker_cpus('recorder', both, {0, 1}) is None
+    # one CPU, or not both of master and vision: nowhere in particular
+    assert R.worker_cpus('master', both, {0}) is None
+    assert R.worker_cpus('vision', ['vision'], {0, 1}) is None      # layout one's worker
+    assert R.worker_cpus('master', ['master', 'slave'], {0, 1}) is None
+
+
+def test_pin_process_pins_every_thread_and_says_when_it_cannot(monkeypatch):
+    import threading
+    before = os.sched_getaffinity(0)
+    cpu = min(before)
+    stop = threading.Event()
+    t = threading.Thread(target=stop.wait)
+    t.start()
+    logs = []
+    try:
+        assert R.pin_process(os.getpid(), {cpu}, logs.append)
+        for tid in os.listdir('/proc/self/task'):
+            assert os.sched_getaffinity(int(tid)) == {cpu}
+        assert not logs
+        # a CPU that does not exist: refused, one log line
+        assert not R.pin_process(os.getpid(), {4096}, logs.append)
+        assert len(logs) == 1 and 'refused' in logs[0]
+        # a process that is gone: nothing pinned
+        assert not R.pin_process(2 ** 22 + 12345, {cpu}, logs.append)
+    finally:
+        stop.set()
+        t.join()
+        for tid in os.listdir('/proc/self/task'):
+            os.sched_setaffinity(int(tid), before)
+
+
+def test_workers_pin_the_split_layouts_master_and_vision(monkeypatch):
+    from catheter_bringup import worker as W
+    made = {}
+
+    class Fake:
+        def __init__(self, scenario, nodes, log, name, part=None, cpus=None):
+            made[name] = cpus
+    monkeypatch.setattr(W, 'Worker', Fake)
+    monkeypatch.setattr(W.os, 'sched_getaffinity', lambda _pid: {0, 1})
+    groups = {'master': ['a'], 'slave': ['b'], 'vision': ['c']}
+    W.Workers({'realtime_priority': 30}, groups, print)
+    assert made == {'master': {0}, 'slave': None, 'vision': {1}}
+    W.Workers({'realtime_priority': 0}, groups, print)       # no real-time loops: no placement
+    assert made == {'master': None, 'slave': None, 'vision': None}
+
+
+def test_worker_scenario_turns_on_processing_on_arrival(monkeypatch, tmp_path):
+    """A worker's scenario: shape_node processes frames as they arrive, unless the scenario
+    says otherwise."""
+    import yaml
+    from catheter_bringup import worker as W
+    seen = []
+
+    class Proc:
+        pid = 1
+
+        def __init__(self, cmd, **_kw):
+            with open(cmd[cmd.index('catheter_bringup.run_scenario') + 1]) as f:
+                seen.append(yaml.safe_load(f))
+    monkeypatch.setattr(W.subprocess, 'Popen', Proc)
+    for params, want in (({}, True), ({"process_on_arrival": False}, False)):
+        w = W.Worker({'duration': 1.0, 'global_params': dict(params)}, ['shape_node'],
+                     lambda *_: None)
+        assert seen[-1]['global_params']['process_on_arrival'] is want
+        w.cleanup()

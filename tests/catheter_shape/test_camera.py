@@ -74,6 +74,23 @@ def test_render_is_deterministic_and_noise_follows_rng(shape_helpers):
     assert 6 < diff[:100, 300:].std() / np.sqrt(2) < 10      # noise std ~ 8 grey levels
 
 
+def test_a_camera_renders_each_frame_as_a_fresh_camera_would(shape_helpers):
+    """The camera keeps its float frame buffer between frames: a frame must not depend on
+    the frames drawn before it (nor change when later ones are drawn), with or without
+    tissue, noise or blur."""
+    shapes = [shape_helpers.arc(k) for k in (0.4, -1.1, 2.5, 0.0)]
+    for kw in (dict(noise=8, seed=3), dict(noise=0, blur=0.0, seed=1)):
+        cam = SyntheticCamera(**kw)
+        seq = [cam.render(c, rng=np.random.default_rng(i), tissue_depth=0.006 * (i == 1))
+               for i, c in enumerate(shapes)]
+        kept = [f.image.copy() for f in seq]
+        for i, c in enumerate(shapes):
+            fresh = SyntheticCamera(**kw).render(c, rng=np.random.default_rng(i),
+                                                 tissue_depth=0.006 * (i == 1))
+            np.testing.assert_array_equal(seq[i].image, fresh.image)
+            np.testing.assert_array_equal(seq[i].image, kept[i])
+
+
 def test_tissue_hides_the_tip_and_is_in_the_background(shape_helpers):
     cam = SyntheticCamera(noise=0)
     f = cam.render(shape_helpers.arc(-0.8), tissue_depth=0.006)

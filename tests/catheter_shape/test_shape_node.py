@@ -219,3 +219,50 @@ def test_node_defaults_for_foreign_images_and_plausibility_statuses_counted(ros,
     assert node.set_parameters([Parameter('length', value=0.0)])[0].successful
     process(shape_helpers.arc(0.5, length=0.09), 3)
     assert [m.header.stamp.sec for m in out] == [1, 3], node._last_obs.status
+
+
+def _stamped(arr, ns):
+    from builtin_interfaces.msg import Time
+    return array_to_image(arr, Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000),
+                          'camera_optical_frame')
+
+
+def test_process_on_arrival_processes_fresh_frames_in_the_callback(ros, shape_helpers):
+    cam = SyntheticCamera(noise=0)
+    img = cam.render(shape_helpers.arc(0.2)).image
+    node = ros.add(ShapeNode(context=ros.context, parameter_overrides=[
+        Parameter('psi', value=[float(x) for x in cam.psi.reshape(-1)]),
+        Parameter('base_px', value=list(cam.base_px)),
+        Parameter('process_on_arrival', value=True)]))
+    probe = ros.node('cp_listener_arrival')
+    probe.create_subscription(PoseArray, T.CONTROL_POINTS, lambda m: None, Q.QOS_SENSOR)
+    assert ros.spin_until(lambda: node.pub_cp.get_subscription_count() > 0, 10.0)
+    now = node.get_clock().now().nanoseconds
+    # stamped after the node became idle: processed in the callback, nothing left pending
+    node._on_image(_stamped(img, now + 1_000_000))
+    assert node.diag.get('processed') == 1 and node._pending is None
+    assert node._last_obs.ok
+    idle = node._idle_since_ns
+    assert idle >= now
+    # a frame stamped while the node was busy (before its last processing ended) may have
+    # newer frames queued behind it: kept for the timer, which takes the newest
+    node._on_image(_stamped(img, idle - 1))
+    node._on_image(_stamped(img, idle - 1))
+    assert node.diag.get('processed') == 1 and node.diag.get('dropped') == 1
+    assert node._pending is not None
+    node._process()
+    assert node.diag.get('processed') == 2 and node._pending is None
+    # a processing that failed still marks the end of the busy time
+    before = node._idle_since_ns
+    node._on_image(_stamped(np.zeros((4, 4), np.uint8), node._idle_since_ns + 1))
+    assert node.diag.get('processed') == 3 and not node._last_obs.ok
+    assert node._idle_since_ns >= before
+    # off (the default): the callback only keeps the frame
+    node.set_parameters([Parameter('process_on_arrival', value=False)])
+    node._on_image(_stamped(img, node._idle_since_ns + 10**9))
+    assert node._pending is not None and node.diag.get('processed') == 3
+
+
+def test_process_on_arrival_is_off_by_default(ros):
+    node = ros.add(ShapeNode(context=ros.context))
+    assert node.params['process_on_arrival'] is False

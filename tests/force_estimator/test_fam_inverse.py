@@ -198,3 +198,46 @@ def test_property_analytic_and_finite_difference_jacobians_agree(inv, inv_fd, ma
     # (hypothesis found 43.3 vs 46.7 um with forces 3e-5 N apart)
     assert a.residual < 1.15 * b.residual + 1e-6
     assert a.solves < b.solves
+
+
+def test_warm_start_after_an_axial_unobservable_estimate_drops_the_weak_component(inv):
+    """After an estimate the shape could not pin down along its weak direction, the next
+    frame starts at the prior's mean (0) along that direction, not at the last guess there
+    (a guessed push beyond the buckling load warm-started the next, loaded frame of the
+    system scene 8 iterations from its answer); the answer is the cold estimate's."""
+    cat = Catheter(length=L, ei=EI)
+    straight = np.array([[0, 0, 0], [L / 3, 0, 0], [2 * L / 3, 0, 0], [L, 0, 0]], dtype=float)
+    loaded = _cp(solve_fam(cat, Loads(tip_force=(-0.002, 0.004)), n_arcs=12).centerline(200))
+    inv.reset()
+    cold = inv.estimate(loaded)
+    starts = []
+    orig = inv._solve
+
+    def spy(obs, x0):
+        starts.append(np.array(x0, dtype=float))
+        return orig(obs, x0)
+    inv._solve = spy
+    try:
+        inv.reset()
+        r0 = inv.estimate(straight)
+        assert r0.status == 'axial_unobservable'
+        w = r0.weak_direction
+        assert abs(w[0]) > 0.99                       # along the catheter
+        # the last guess: a push of 0.046 N along the weak direction (Euler load ~0.035 N)
+        guess = np.r_[r0.force + 0.046 * w, 0.0, 0.0]
+        inv._last, inv._last_eval = guess.copy(), guess.copy()
+        starts.clear()
+        r1 = inv.estimate(loaded)
+        assert abs(starts[0][:2] @ w) <= inv.tol
+        np.testing.assert_allclose(starts[0][:2], guess[:2] - (guess[:2] @ w) * w, atol=1e-12)
+        np.testing.assert_allclose(r1.force, cold.force, atol=5e-4)
+        assert r1.status == cold.status
+        # after an estimate whose force the shape determines: the last evaluated point as is
+        inv._last, inv._last_eval = r1.force.copy(), np.r_[r1.force, 0.0, 0.0]
+        assert inv.last_result.status == 'ok'
+        starts.clear()
+        inv.estimate(loaded)
+        np.testing.assert_array_equal(starts[0][:2], r1.force)
+    finally:
+        inv._solve = orig
+        inv.reset()

@@ -19,6 +19,8 @@ the collector's pauses.
 - `GcWatch`: counts and times every collection (gc.callbacks) while a run is in its loop.
 - `align_timers`: a worker's timers restarted together, so those of one period fall due in
   the same executor wake-up.
+- `worker_cpus` / `pin_process`: the split layout's CPU placement: the master process on
+  one CPU, the vision process on another (see `worker_cpus`).
 """
 from __future__ import annotations
 
@@ -146,6 +148,54 @@ def align_timers(timers) -> int:
             continue
         n += 1
     return n
+
+
+def worker_cpus(process: str, processes, cpus) -> Optional[frozenset]:
+    """The CPUs a worker process of the split layout is kept on, or None (anywhere).
+
+    With the master and slave loops under SCHED_FIFO on every CPU, the vision process was
+    preempted 20-60 times per frame stage (a real-time task that wakes on the CPU where the
+    vision thread runs preempts it there, and it waits in that CPU's run queue until the
+    loop sleeps again, even when the other CPU is idle): its stages took about three times
+    their CPU time (`tests/bench/bench_vision_stages.py`). Placed, the master's force loop
+    keeps one CPU to itself and the vision process keeps the last CPU, shared only with the
+    slave (which may run on any CPU, as may every process of the run not named here).
+    `processes`: the names of the run's workers (placement only when both 'master' and
+    'vision' are among them); `cpus`: the CPUs the run may use (e.g.
+    ``os.sched_getaffinity(0)``); fewer than two: no placement."""
+    cpus = sorted(int(c) for c in cpus)
+    if len(cpus) < 2 or not {'master', 'vision'} <= set(processes):
+        return None
+    if process == 'master':
+        return frozenset(cpus[:1])
+    if process == 'vision':
+        return frozenset(cpus[-1:])
+    return None
+
+
+def pin_process(pid: int, cpus, log: Callable[[str], None] = print) -> bool:
+    """Keep every thread of process `pid` (threads it creates later inherit it) on `cpus`.
+    False when no thread was pinned (the process is gone) or, with one log line, when not
+    permitted or not available; a thread that ended meanwhile is skipped."""
+    if not hasattr(os, 'sched_setaffinity'):
+        log('[run] CPU affinity not available on this OS')
+        return False
+    try:
+        tids = [int(t) for t in os.listdir(f'/proc/{pid}/task')]
+    except OSError:
+        tids = [pid]
+    pinned = 0
+    try:
+        for tid in tids:
+            try:
+                os.sched_setaffinity(tid, cpus)
+            except ProcessLookupError:
+                continue
+            pinned += 1
+    except OSError as exc:
+        log(f'[run] CPU affinity {sorted(cpus)} for process {pid} refused ({exc}): unchanged')
+        return False
+    return pinned > 0
 
 
 #: young-generation collection threshold during a real-time loop (Python's default: 700)

@@ -23,18 +23,28 @@ from typing import Callable, Dict, List, Optional
 
 import yaml
 
+#: node parameters every worker process sets (the scenario's `global_params` may override
+#: them): the image pipeline processes a frame as it arrives instead of at its next timer
+#: tick (shape_node `process_on_arrival`; lockstep, in one process or two, keeps the timer
+#: and so its message order)
+WORKER_PARAMS = {'process_on_arrival': True}
+
 
 class Worker:
     """Starts `run_scenario --only <nodes> --process <name>` on the scenario; stopped with
     SIGINT."""
 
     def __init__(self, scenario: dict, nodes: List[str], log: Callable[[str], None],
-                 name: str = 'vision', part: Optional[str] = None):
+                 name: str = 'vision', part: Optional[str] = None,
+                 cpus: Optional[frozenset] = None):
         self.nodes = list(nodes)
         self.name = name
         self.log = log
+        #: the CPUs it is kept on (`realtime.worker_cpus`), None: anywhere
+        self.cpus = cpus
         sc = dict(scenario)
         sc.pop('source', None)
+        sc['global_params'] = {**WORKER_PARAMS, **(sc.get('global_params') or {})}
         fd, self._yaml = tempfile.mkstemp(suffix='.yaml', prefix=f'worker_{name}_')
         with os.fdopen(fd, 'w') as f:
             yaml.safe_dump(sc, f)
@@ -51,7 +61,18 @@ class Worker:
         self._log_file = tempfile.TemporaryFile(mode='w+')
         self.proc: Optional[subprocess.Popen] = subprocess.Popen(
             cmd, stdout=subprocess.DEVNULL, stderr=self._log_file, text=True)
-        self.log(f'[run] {name} worker process (pid {self.proc.pid}): {", ".join(self.nodes)}')
+        self.log(f'[run] {name} worker process (pid {self.proc.pid}): {", ".join(self.nodes)}'
+                 + (f', CPUs {sorted(cpus)}' if cpus else ''))
+        if cpus and not self.pin():
+            self.cpus = None
+
+    def pin(self) -> bool:
+        """Keep every thread of the process on `cpus` (now: threads created later inherit
+        it; `Workers.go` pins again, for any thread made in between)."""
+        from catheter_bringup.realtime import pin_process
+        if not self.cpus or not self.running():
+            return False
+        return pin_process(self.proc.pid, self.cpus, self.log)
 
     def exited(self) -> bool:
         """True (and the reason logged) if the process ended on its own."""
@@ -65,6 +86,8 @@ class Worker:
         return self._log_file.read()[-2000:]
 
     def go(self) -> None:
+        if self.cpus:
+            self.pin()
         with open(self._go, 'w'):
             pass
 
@@ -103,9 +126,14 @@ class Workers:
 
     def __init__(self, scenario: dict, groups: Dict[str, List[str]],
                  log: Callable[[str], None], parts: Optional[Dict[str, str]] = None):
+        from catheter_bringup.realtime import worker_cpus
         self.log = log
         parts = parts or {}
-        self.workers = [Worker(scenario, nodes, log, name, parts.get(name))
+        # CPU placement with the loops under SCHED_FIFO (`realtime.worker_cpus`)
+        place = int(scenario.get('realtime_priority', 0)) > 0
+        cpus = os.sched_getaffinity(0) if hasattr(os, 'sched_getaffinity') else ()
+        self.workers = [Worker(scenario, nodes, log, name, parts.get(name),
+                               worker_cpus(name, groups, cpus) if place else None)
                         for name, nodes in groups.items()]
         self.reports: Dict[str, dict] = {}
         #: after `stop`: per link topic and receiving process, sent / taken / lost by DDS
@@ -155,6 +183,8 @@ class Workers:
                 w.kill()
             rep = w.report()
             if rep is not None:
+                # the CPUs it was kept on (None: any)
+                rep['cpus'] = sorted(w.cpus) if w.cpus else None
                 self.reports[w.name] = rep
             w.cleanup()
         self.workers = []

@@ -134,7 +134,8 @@ class SyntheticCamera:
     sigma, pixels (0 = none). vignetting: relative brightness loss at the corners (0-0.5).
     clamp: draw the clamp jaw behind the base (only if the base is in the image).
     electrodes: draw the tip and ring electrodes. seed: seeds the background texture and
-    the noise (render(rng=...) overrides the noise draw per frame).
+    the noise (render(rng=...) overrides the noise draw per frame). A camera keeps its float
+    frame buffer between renders: one render at a time per camera (not thread-safe).
     """
 
     def __init__(self, width: int = 640, height: int = 480, mm_per_px: float = 0.15,
@@ -176,6 +177,7 @@ class SyntheticCamera:
         else:
             self._bank = None
         self._rng = rng
+        self._buf = None
 
     @classmethod
     def framing(cls, length: float = 0.065, width: int = 640, height: int = 480,
@@ -284,12 +286,17 @@ class SyntheticCamera:
         visible = c
         if tissue_depth > 0:
             bg, visible = self._tissue(c, px, s_m, tissue_depth)
+        # the float frame in a buffer kept between frames (a fresh 800x800 float32 array per
+        # frame cost more in page faults than the addition itself); only `image` leaves
+        img = self._buf
+        if img is None or img.shape != (H, W):
+            img = self._buf = np.empty((H, W), np.float32)
         if self._bank is not None:
             k = int(rng.integers(2))
             dy, dx = (int(x) for x in rng.integers(0, self._pad, 2))
-            img = bg + self._bank[k, dy:dy + H, dx:dx + W]
+            np.add(bg, self._bank[k, dy:dy + H, dx:dx + W], out=img)
         else:
-            img = bg.copy()
+            np.copyto(img, bg)
         if u1 > u0 and v1 > v0:
             cw, ch = u1 - u0, v1 - v0
             off = np.array([u0, v0], dtype=float)

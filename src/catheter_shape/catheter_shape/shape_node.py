@@ -17,7 +17,13 @@ Publishes   catheter/control_points   geometry_msgs/PoseArray, 4 poses base -> t
 
 Frames are never queued: the callback keeps only the newest frame and a timer on the node
 clock (period `period`) processes it; a frame replaced before it was processed counts as
-dropped. While nobody subscribes to any output, frames are not processed (counted 'idle').
+dropped. With `process_on_arrival` the callback processes the frame at once (no wait for
+the timer tick) when it was stamped after the previous frame's processing ended: nothing can
+be queued behind it then; a frame stamped while the node was busy (a backlog of frames
+delivered one after another) is kept for the timer, which takes the newest (the stamp is
+compared with this node's clock: a camera whose clock ran ahead of it by more than a frame's
+processing time would let a backlog through frame by frame). While nobody
+subscribes to any output, frames are not processed (counted 'idle').
 Every parameter applies at run time (from the next frame; a background_file that cannot be
 read is refused). Topic names are relative (the node's namespace applies).
 """
@@ -42,6 +48,7 @@ from catheter_common.params import NodeParams, Param, table
 from catheter_common.ros_node import node_main, wall_time
 from catheter_shape.bezier import bezier_derivative, bezier_eval
 from catheter_shape.camera import SYSTEM_CAMERA, system_psi
+from catheter_shape import stage_trace
 from catheter_shape.segmentation import METHODS
 from catheter_shape.sensor import STATUSES, ShapeSensor
 
@@ -72,6 +79,10 @@ PARAMS = table(
           dynamic=True),
     Param('period', 0.005, 'processing timer period, s (node clock): the newest frame is '
           'processed, older unprocessed ones are dropped', 0.001, 1.0, dynamic=True),
+    Param('process_on_arrival', False, 'process a frame in its callback, without waiting for '
+          'the timer, when it was stamped after the previous frame\'s processing ended (the '
+          'real-time workers turn it on; off: the timer processes every frame, as lockstep '
+          'needs for its message order)', dynamic=True),
     Param('path_poses', 100, 'largest number of poses in catheter/shape', 2, 10000,
           dynamic=True),
     Param('degree', 3, 'Bezier degree (3: the 4 control points of the thesis; force_estimator '
@@ -207,6 +218,10 @@ class ShapeNode(Node):
         self.pub_debug = self.create_publisher(Image, T.relative(T.SHAPE_DEBUG_IMAGE),
                                                Q.QOS_SENSOR)
         self._pending: Optional[Image] = None
+        self._on_arrival = p['process_on_arrival']
+        #: node clock (ns) when the last processing ended: a frame stamped before it may
+        #: have newer ones queued behind it
+        self._idle_since_ns = 0
         self._timer = self.create_timer(p['period'], self._process)
         self._last_obs = None
         self.get_logger().info(
@@ -253,17 +268,33 @@ class ShapeNode(Node):
             self._timer.reset()          # the new period counts from now
         if 'path_poses' in changes:
             self._path_max = values['path_poses']
+        if 'process_on_arrival' in changes:
+            self._on_arrival = values['process_on_arrival']
 
     def _on_image(self, msg: Image) -> None:
+        if stage_trace.enabled():
+            now = stage_trace.time.time_ns()
+            stage_trace.note('arrive', stage_trace.stamp_ns(msg.header.stamp), now, now)
         self.diag.count('frames')
         if self._pending is not None:
             self.diag.count('dropped')
         self._pending = msg
+        if self._on_arrival:
+            st = msg.header.stamp
+            if st.sec * 1_000_000_000 + st.nanosec >= self._idle_since_ns:
+                self._process()
 
     def _process(self) -> None:
         msg, self._pending = self._pending, None
         if msg is None:
             return
+        try:
+            self._process_frame(msg)
+        finally:
+            self._idle_since_ns = self.get_clock().now().nanoseconds
+
+    def _process_frame(self, msg: Image) -> None:
+        stage = stage_trace.Stage.begin()
         t0 = wall_time()
         try:
             frame = image_to_array(msg)
@@ -285,6 +316,8 @@ class ShapeNode(Node):
         self._last_obs = obs
         self.diag.count('processed')
         stamp = msg.header.stamp
+        if stage is not None:
+            stage.end('shape', stage_trace.stamp_ns(stamp), obs.status)
         if obs.ok:
             self.pub_cp.publish(control_points_to_pose_array(obs.control_points, stamp))
             self.diag.count('published')

@@ -41,6 +41,7 @@ from catheter_common.messages import tip_force_msg
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_SENSOR
 from catheter_common.ros_node import node_main, wall_time
+from catheter_shape import stage_trace
 
 METHODS = ('svr', 'mlp', 'fam')
 #: the parameters of the FAM inversion (method fam, or the learned models' fallback)
@@ -162,6 +163,7 @@ class ForceEstimatorNode(Node):
             self._refused(msg, f'{len(msg.poses)} poses, expected 4 (p0..p3)')
             return
         cp = np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses])
+        stage = stage_trace.Stage.begin()
         t0 = wall_time()
         try:
             est = self.estimator.estimate(cp)
@@ -169,6 +171,9 @@ class ForceEstimatorNode(Node):
             self._refused(msg, str(exc))
             return
         lat = wall_time() - t0
+        if stage is not None:
+            stage.end('estimate', stage_trace.stamp_ns(msg.header.stamp),
+                      [est.method, est.status, getattr(est, 'solves', 0)])
         self._lat_sum += lat
         self._lat_n += 1
         self._lat_max = max(self._lat_max, lat)

@@ -32,6 +32,7 @@ from catheter_common.images import array_to_image
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_LATEST, QOS_SENSOR
 from catheter_common.ros_node import node_main
+from catheter_shape import stage_trace
 from sim_slave.camera import BLAZER_EI, BLAZER_LENGTH, DEFAULT_CAMERA, TipCamera
 from sim_slave.node_params import DEFAULT_VESSEL, VESSEL_CHOICES, vessel_from_params
 from sim_slave.vessel import VesselParams
@@ -124,6 +125,7 @@ class CameraNode(Node):
         want_truth = self.pub_truth.get_subscription_count() > 0
         if not (want_image or want_truth):
             return
+        stage = stage_trace.Stage.begin()
         stamp = self.get_clock().now().to_msg()
         try:
             frame = self.camera.frame(self.x, self.xd) if want_image else None
@@ -137,6 +139,8 @@ class CameraNode(Node):
                 self.diag.count('fam_not_converged')
                 self.diag.event('fam_not_converged', WARN, 'FAM did not converge: the frame '
                                 'shows its best iterate')
+            if stage is not None:
+                stage.end('camera', stage_trace.stamp_ns(stamp))
             self.pub_image.publish(array_to_image(frame.image, stamp, T.FRAME_CAMERA))
             self.diag.count('frames')
         w = WrenchStamped()
