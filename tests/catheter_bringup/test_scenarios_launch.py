@@ -109,6 +109,55 @@ def test_launch_with_layout_split_starts_master_slave_vision_processes(monkeypat
     assert sorted(every) == sorted(nodes)
 
 
+def test_launched_split_workers_get_the_worker_params_and_the_cpu_placement():
+    """The launch file's split processes are set up as the launchless runner's workers:
+    shape_node processes frames on arrival, and with a realtime_priority the master keeps
+    the first CPU, vision the last (`realtime.worker_cpus`), the slave runs anywhere."""
+    from catheter_bringup.make_launch import split_entries
+    from catheter_bringup.run_scenario import build_parser
+    sc = load_scenario('experiment_ii')
+    nodes = resolve_nodes(sc)[0]
+
+    def by_process(entries):
+        out = {}
+        for e in entries:
+            a = e['arguments']
+            out[a[a.index('--process') + 1]] = a
+        return out
+    procs = by_process(split_entries(sc, nodes, cpus={0, 1}))
+    for a in procs.values():
+        i = a.index('global_params.process_on_arrival=true')
+        assert a[i - 1] == '--set'
+        assert build_parser().parse_args(a).overrides[-1] == 'global_params.process_on_arrival=true'
+    assert procs['master'][procs['master'].index('--cpus') + 1] == '0'
+    assert procs['vision'][procs['vision'].index('--cpus') + 1] == '1'
+    assert '--cpus' not in procs['slave']
+    assert not any('--cpus' in a for a in by_process(split_entries(sc, nodes, cpus={0})).values())
+    quiet = dict(sc, realtime_priority=0, global_params={'process_on_arrival': False})
+    for a in by_process(split_entries(quiet, nodes, cpus={0, 1})).values():
+        assert '--cpus' not in a                       # no SCHED_FIFO loops: no placement
+        assert not any('process_on_arrival' in x for x in a)   # the scenario's value stands
+
+
+def test_run_scenario_pins_itself_before_setup_and_refuses_bad_cpus(monkeypatch):
+    from catheter_bringup import realtime, runner
+    from catheter_bringup.run_scenario import main, parse_cpus
+    assert parse_cpus('1,0') == frozenset({0, 1}) and parse_cpus(None) is None
+    for bad in ('a', '', '-1', '0,,1'):
+        with pytest.raises(ValueError, match='--cpus'):
+            parse_cpus(bad)
+    assert main(['smoke', '--cpus', 'x', '--no-record']) == 2
+    calls = []
+    monkeypatch.setattr(realtime, 'pin_process', lambda pid, cpus, log: calls.append(cpus))
+
+    def setup(self):
+        calls.append('setup')
+        raise ValueError('stop here')
+    monkeypatch.setattr(runner.ScenarioRunner, 'setup', setup)
+    assert main(['smoke', '--cpus', '0', '--no-record', '--quiet']) == 2
+    assert calls == [frozenset({0}), 'setup']
+
+
 def test_layout_is_validated_and_split_needs_real_time():
     from catheter_bringup.overrides import apply_overrides
     sc = load_scenario('smoke')

@@ -21,9 +21,11 @@ stepped deterministically.
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import pprint
 import sys
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, Iterable, List, Optional, Sequence
 
 from catheter_bringup.scenario import NodeInstance, load_scenario, resolve_nodes
 
@@ -54,19 +56,36 @@ def launch_entries(scenario: dict) -> List[Dict]:
     return out
 
 
-def split_entries(scenario: dict, nodes: Sequence[NodeInstance]) -> List[Dict]:
+def split_entries(scenario: dict, nodes: Sequence[NodeInstance],
+                  cpus: Optional[Iterable[int]] = None) -> List[Dict]:
     """Layout split: one process per group of `split_processes` (the force loop's nodes
     together), each a `run_scenario` in real time running only its nodes, with the loop
-    processes' SCHED_FIFO priority and their EventsExecutor; they talk over DDS."""
+    processes' SCHED_FIFO priority and their EventsExecutor; they talk over DDS. As the
+    launchless runner's workers (`catheter_bringup.worker`): the worker parameters
+    (`WORKER_PARAMS`, unless the scenario's global_params set them) and, with a
+    realtime_priority, the CPU placement of `realtime.worker_cpus` over `cpus` (default:
+    the CPUs this process may use, i.e. the machine the launch runs on)."""
+    from catheter_bringup.realtime import worker_cpus
     from catheter_bringup.scenario import split_processes
+    from catheter_bringup.worker import WORKER_PARAMS
     source = scenario.get('source') or scenario['name']
+    if cpus is None:
+        cpus = os.sched_getaffinity(0) if hasattr(os, 'sched_getaffinity') else ()
+    groups = split_processes(nodes, scenario)
+    place = int(scenario.get('realtime_priority', 0)) > 0
+    given = scenario.get('global_params') or {}
+    params = [a for k, v in WORKER_PARAMS.items() if k not in given
+              for a in ('--set', f'global_params.{k}={json.dumps(v)}')]
     out = []
-    for group, insts in split_processes(nodes, scenario).items():
+    for group, insts in groups.items():
+        args = [str(source), '--mode', 'realtime', '--no-record', '--quiet',
+                '--set', 'layout=split', *params, '--process', group, '--duration', '86400',
+                '--only', ','.join(i.name for i in insts)]
+        mine = worker_cpus(group, groups, cpus) if place else None
+        if mine:
+            args += ['--cpus', ','.join(str(c) for c in sorted(mine))]
         out.append({'package': 'catheter_bringup', 'executable': 'run_scenario',
-                    'arguments': [str(source), '--mode', 'realtime', '--no-record', '--quiet',
-                                  '--set', 'layout=split', '--process', group,
-                                  '--duration', '86400',
-                                  '--only', ','.join(i.name for i in insts)]})
+                    'arguments': args})
     return out
 
 

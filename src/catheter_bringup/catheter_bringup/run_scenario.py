@@ -47,7 +47,24 @@ def build_parser() -> argparse.ArgumentParser:
                         'into this .mcap part (the runner merges the parts into the bag)')
     p.add_argument('--report', default=None,
                    help='write what this process published, took and spent to this JSON file')
+    p.add_argument('--cpus', default=None,
+                   help='comma-separated CPU numbers: keep this process (every thread) on '
+                        'them (a worker of layout split started by the launch file; '
+                        '`realtime.worker_cpus` says which)')
     return p
+
+
+def parse_cpus(text: Optional[str]) -> Optional[frozenset]:
+    """'0,1' -> frozenset({0, 1}); None -> None; ValueError naming --cpus otherwise."""
+    if text is None:
+        return None
+    try:
+        cpus = frozenset(int(c) for c in text.split(','))
+    except ValueError:
+        raise ValueError(f'--cpus must be comma-separated CPU numbers, got {text!r}') from None
+    if not cpus or min(cpus) < 0:
+        raise ValueError(f'--cpus must name CPUs numbered from 0, got {text!r}')
+    return cpus
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
@@ -125,9 +142,13 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     from catheter_bringup.runner import ScenarioRunner
     try:
         sc, why = prepare_scenario(opts)
+        cpus = parse_cpus(opts.cpus)
     except ValueError as exc:
         print(f'run_scenario: {exc}', file=sys.stderr)
         return 2
+    if cpus:
+        from catheter_bringup.realtime import pin_process
+        pin_process(os.getpid(), cpus, print)     # before rclpy makes its threads
     if not opts.quiet:
         print(f"run {sc['name']} ({why})", flush=True)
     bag = opts.bag
