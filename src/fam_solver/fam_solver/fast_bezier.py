@@ -27,11 +27,11 @@ import math
 from typing import Optional
 
 import numpy as np
-from scipy.linalg.lapack import dgesv as _dgesv
+from scipy.linalg.lapack import dgesv as _dgesv, dgetrs as _dgetrs
 
 from .arcs import row_product
 from .bezier import unit_nodes
-from .linsolve import banded_solve, limited_step
+from .linsolve import banded_solve, chord_pays, limited_step
 
 _MAXR = np.maximum.reduce
 _MINR = np.minimum.reduce
@@ -144,6 +144,9 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
     it = 0
     J = None
     lw = l * w
+    lu = None                        # LU factors of the last (scaled) Jacobian: chord steps
+    lu_scaled = chord = False
+    res_prev = res_jac = math.inf
     a = np.empty((n, 1, 4))          # (m, fy, -fx, -1) per arc
     a[:, 0, 3] = -1.0
     for it in range(max_iter + 1):
@@ -173,11 +176,21 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
             res = math.inf
         if res < best[1]:
             best = (phi, res, complex(P[-1]))
-        if res <= 1e-13 + rtol * pmax or it == max_iter or \
+        tol = 1e-13 + rtol * pmax
+        if res <= tol or it == max_iter or \
                 (it >= patience and res > quasi_above and res > 0.1 * hist[(it - 2) % 3]):
             break
         hist[it % 3] = res
         sc = -BB[:, 0, 0]           # -dr/dM EI/l (1 to leading order)
+        chord = lu is not None and chord_pays(res, res_prev, res_jac, tol, chord)
+        if chord:   # the last Jacobian's factors again (fast_newton: the same rule)
+            res_prev = res
+            phi = limited_step(phi, _dgetrs(lu, piv, r / sc if lu_scaled else r)[0],
+                               step_limit)
+            if phi is None:
+                break
+            continue
+        res_prev = res_jac = res
         W = sc * w                  # -dr/dM: the Jacobian's row weights (linsolve's w)
         if not _MINR(np.abs(W)) > 0:
             break
@@ -222,9 +235,10 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
                 else:
                     Jt -= np.where(lower, (c * rho_)[:, None], 0.0)
                 Jt.flat[::n + 1] += c * sig
-                dx = _dgesv(Jt, rt)[2]
+                lu, piv, dx, _ = _dgesv(Jt, rt)
             else:
-                dx = _dgesv(D, r)[2]
+                lu, piv, dx, _ = _dgesv(D, r)
+            lu_scaled = scaled
         elif scaled:
             u = rt / W
             if follower:

@@ -11,12 +11,12 @@ import math
 from typing import Optional
 
 import numpy as np
-from scipy.linalg.lapack import dgesv as _dgesv
+from scipy.linalg.lapack import dgesv as _dgesv, dgetrs as _dgetrs
 
 from .arcs import row_product
 from .equations import RHO_MAX, clothoid_terms
 from .fast_bezier import bezier_tip_newton
-from .linsolve import banded_solve, limited_step
+from .linsolve import banded_solve, chord_pays, limited_step
 
 _MAXR = np.maximum.reduce
 _FAST_CACHE = {}
@@ -105,10 +105,12 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     max|r| < QUASI_ABOVE). N <= FAST_DENSE_MAX_N: dense Jacobian (returned); beyond: the O(N)
     banded solve (no Jacobian returned). Gives up after ``patience`` iterations while max|r|
     is still above QUASI_ABOVE and fell less than 10x in the last two (a start that leads
-    nowhere near a solution).
+    nowhere near a solution). Dense: near the solution a step may be a chord step, the last
+    Jacobian's LU factors again (``linsolve.chord_pays``: when predicted to reach the
+    tolerance in no more steps than Newton); the iterations count both kinds.
 
     Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
-    Jacobian of the last Newton step (None if no step was taken or N > FAST_DENSE_MAX_N) and the
+    Jacobian of the last Newton (not chord) step (None if no step was taken or N > FAST_DENSE_MAX_N) and the
     clothoid rates (N,) at phi (None for circular arcs). bezier: the thesis' Bezier arcs
     (``fast_bezier.bezier_tip_newton``, the same interface; clothoid is ignored)."""
     dense = n <= FAST_DENSE_MAX_N
@@ -130,6 +132,9 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     V = np.empty((n, _K_FAST))
     V[:, 0] = 1.0
     hist = [math.inf] * 3          # max|r| of the last iterations (for ``patience``)
+    lu = None                      # LU factors of the last Jacobian (dense), for chord steps
+    res_prev = res_jac = math.inf
+    chord = False
     for it in range(max_iter + 1):
         th_end = acc(phi)
         lE = l * np.exp(1j * (th_end - phi))
@@ -158,10 +163,19 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
             res = math.inf
         if res < best[1]:
             best = (phi, res, complex(P[-1]), th_r)
-        if res <= 1e-13 + rtol * pmax or it == max_iter or \
+        tol = 1e-13 + rtol * pmax
+        if res <= tol or it == max_iter or \
                 (it >= patience and res > QUASI_ABOVE and res > 0.1 * hist[(it - 2) % 3]):
             break
         hist[it % 3] = res
+        chord = lu is not None and chord_pays(res, res_prev, res_jac, tol, chord)
+        if chord:
+            res_prev = res
+            phi = limited_step(phi, _dgetrs(lu, piv, r)[0], step_limit)
+            if phi is None:
+                break
+            continue
+        res_prev = res_jac = res
         # -dMbar/dphi = D: D_ij = a_i (j < i), d_i (j = i), c_j + e_i (j > i); J = I + W D
         Y = R[:, 2:] * cF                      # g', q' (, k, k-km, k', (k-km)') terms
         irc = (1j * rel * cF).imag
@@ -195,7 +209,7 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
             D *= wc
             D.flat[::n + 1] = w * d + 1.0
             J = D
-            dx = _dgesv(D, r)[2]
+            lu, piv, dx, _ = _dgesv(D, r)
         else:   # J = I - (-W) D: the banded solver's convention
             dx = banded_solve(-w, (np.broadcast_to(a, (n,)), d, c, e), r)
         phi = limited_step(phi, dx, step_limit)
