@@ -144,7 +144,7 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
     it = 0
     J = None
     lw = l * w
-    lu = None                        # LU factors of the last (scaled) Jacobian: chord steps
+    lu = piv = None                  # LU factors of the last (scaled) Jacobian: chord steps
     lu_scaled = chord = False
     res_prev = res_jac = math.inf
     a = np.empty((n, 1, 4))          # (m, fy, -fx, -1) per arc

@@ -110,9 +110,10 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     tolerance in no more steps than Newton); the iterations count both kinds.
 
     Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
-    Jacobian of the last Newton (not chord) step (None if no step was taken or N > FAST_DENSE_MAX_N) and the
-    clothoid rates (N,) at phi (None for circular arcs). bezier: the thesis' Bezier arcs
-    (``fast_bezier.bezier_tip_newton``, the same interface; clothoid is ignored)."""
+    Jacobian of the last Newton (not chord) step (None if no step was taken or
+    N > FAST_DENSE_MAX_N) and the clothoid rates (N,) at phi (None for circular arcs).
+    bezier: the thesis' Bezier arcs (``fast_bezier.bezier_tip_newton``, the same interface;
+    clothoid is ignored)."""
     dense = n <= FAST_DENSE_MAX_N
     if bezier:
         return bezier_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit, rtol,
@@ -132,7 +133,7 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     V = np.empty((n, _K_FAST))
     V[:, 0] = 1.0
     hist = [math.inf] * 3          # max|r| of the last iterations (for ``patience``)
-    lu = None                      # LU factors of the last Jacobian (dense), for chord steps
+    lu = piv = None                # LU factors of the last Jacobian (dense), for chord steps
     res_prev = res_jac = math.inf
     chord = False
     for it in range(max_iter + 1):

@@ -47,9 +47,10 @@ def chord_pays(res: float, res_prev: float, res_jac: float, tol: float,
     now, q res / res_jac (then chord steps at that ratio). The chord step is taken when chord
     steps alone are predicted to reach tol in no more steps than a Newton step followed by
     chord steps (a chord step saves less than a residual evaluation costs: measured at
-    N = 1-64, the Jacobian's build and LU cost 0.5-1.6 chord steps). Typically the last step of a solve becomes a chord step
-    when it lands below tol: then one more step costs a residual evaluation and a
-    back-substitution, not a Jacobian (the staircase of the solve time over N, issue 15)."""
+    N = 1-64, the Jacobian's build and LU cost 0.5-1.6 chord steps). Typically the last step
+    of a solve becomes a chord step when it lands below tol: then one more step costs a
+    residual evaluation and a back-substitution, not a Jacobian (the staircase of the solve
+    time over N, issue 15)."""
     if not (res_jac <= CHORD_MAX_RES and 0.0 < res < res_prev):
         return False
     q = res / res_prev
