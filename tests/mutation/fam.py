@@ -255,4 +255,17 @@ MUTANTS = [
            '        res_prev = res_jac = res',
            '        res_prev = res',
            'kernel: where the Jacobian was built not recorded (no chord steps)'),
+    # -- round 5: few arcs damped like four (STEP_TURN), not Bezier arcs
+    Mutant('M56', P + 'fast_newton.py',
+           '    if not bezier:\n        step_limit = max(step_limit, STEP_TURN / n)',
+           '    if False:\n        step_limit = max(step_limit, STEP_TURN / n)',
+           'kernel: N = 1-3 arcs damped by the per-arc limit alone (more iterations)'),
+    Mutant('M57', P + 'fast_newton.py',
+           '        step_limit = max(step_limit, STEP_TURN / n)',
+           '        step_limit = max(step_limit, STEP_TURN)',
+           'kernel: the tip-turn budget applied per arc (many arcs damped less than before)'),
+    Mutant('M58', P + 'fast_newton.py',
+           '    if not bezier:\n        step_limit = max(step_limit, STEP_TURN / n)',
+           '    if True:\n        step_limit = max(step_limit, STEP_TURN / n)',
+           'kernel: one Bezier arc with the larger steps (reaches another equilibrium)'),
 ]

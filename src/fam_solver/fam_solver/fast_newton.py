@@ -31,6 +31,11 @@ FAST_DENSE_MAX_N = 64
 QUASI_ABOVE = 1e-2
 #: ... and from the first step below this N (the rates, ~ load / N^2, are large there)
 _QUASI_MIN_N = 3
+#: a damped step may turn the tip by at least this much (rad) whatever N: the per-arc limit
+#: (0.3 rad) times 4 arcs, so N = 1-3 arcs are damped no more than N = 4. Not for Bezier
+#: arcs: few long Bezier arcs have extra equilibria near the start, and larger steps reached
+#: another one on 4 of 800 random loads at N = 1-2 (package README, design record)
+STEP_TURN = 1.2
 
 # Every function the arcs need is linear in E_k = integral_0^1 v^k e^{i phi v} dv, k = 0..4
 # (see ``arcs``): g = E0, q = E1, g' = i E1, q' = i E2, k = (E2 - E1)/2, k - km = (E3 - E2)/2,
@@ -115,6 +120,11 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     bezier: the thesis' Bezier arcs (``fast_bezier.bezier_tip_newton``, the same interface;
     clothoid is ignored)."""
     dense = n <= FAST_DENSE_MAX_N
+    # step_limit bounds each arc's change: a step may turn the tip by up to n step_limit, so
+    # few long arcs would be damped far more than many short ones -- give every N the tip
+    # turn of STEP_TURN per step at least (not Bezier arcs: see STEP_TURN)
+    if not bezier:
+        step_limit = max(step_limit, STEP_TURN / n)
     if bezier:
         return bezier_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit, rtol,
                                  patience, QUASI_ABOVE, dense)
