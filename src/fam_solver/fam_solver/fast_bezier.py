@@ -106,6 +106,19 @@ _PHI_FOR_TERMS = [min([(1e-17 / max(float(_MAG[j]), 1e-300)) ** (1.0 / j)
                        for j in range(k, _K0)] + [_SPLIT]) for k in range(1, _K0 + 1)]
 
 
+#: sums along an axis without ndarray.sum's Python wrapper (the same ufunc, the same numbers)
+_ADD = np.add.reduce
+_LOWER = {}
+
+
+def _lower(n: int) -> np.ndarray:
+    """The strictly lower triangle (n, n) bool, cached per n (allocated once, not per call)."""
+    m = _LOWER.get(n)
+    if m is None:
+        m = _LOWER[n] = np.tri(n, n, -1, dtype=bool)
+    return m
+
+
 def _powers(x: np.ndarray, k: int) -> np.ndarray:
     V = np.empty((x.size, k))
     V[:, 0] = 1.0
@@ -138,7 +151,7 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
     Jacobian, returned; else the O(N) banded solve). Returns phi, converged, iterations,
     max|r|, tip (complex), J (or None), None (no clothoid rates)."""
     acc = np.add.accumulate
-    lower = np.tri(n, n, -1, dtype=bool) if dense else None
+    lower = _lower(n) if dense else None
     best = (phi, math.inf, 0j)
     hist = [math.inf] * 3
     it = 0
@@ -169,7 +182,7 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
         np.negative(fx, out=a[:, 0, 2])
         # B_p = sum_q b_q H_pq and its phi-derivative (n, 2, 4); r, dr/dphi = sum_p a_p B_p
         BB = ((T[:, :8].conjugate() * f[:, None]).imag - T[:, 8:16].real).reshape(n, 2, 4)
-        RG = (BB * a).sum(2)
+        RG = _ADD(BB * a, axis=2)
         r = RG[:, 0]
         res = _MAXR(np.abs(r))
         if not res < math.inf:
@@ -196,7 +209,7 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
             break
         ig = -1.0 / W
         # dr = Im(conj K df), K = sum_q b_q (h_1q + i h_2q) + sum_p a_p (H_px + i H_py)
-        Kn = BB[:, 0, 1] + 1j * BB[:, 0, 2] + (a[:, 0] * T[:, :4]).sum(1)
+        Kn = BB[:, 0, 1] + 1j * BB[:, 0, 2] + _ADD(a[:, 0] * T[:, :4], axis=1)
         kK = (Kn.conjugate() * f).real
         Mlow = -RF.real
         Mcol = Mlow - (lE * T[:, 17] * cF).imag       # g' = T[:, 17]
