@@ -27,11 +27,11 @@ import math
 from typing import Optional
 
 import numpy as np
-from scipy.linalg.lapack import dgesv as _dgesv
+from scipy.linalg.lapack import dgesv as _dgesv, dgetrs as _dgetrs
 
 from .arcs import row_product
 from .bezier import unit_nodes
-from .linsolve import banded_solve, limited_step
+from .linsolve import banded_solve, chord_pays, limited_step
 
 _MAXR = np.maximum.reduce
 _MINR = np.minimum.reduce
@@ -106,6 +106,19 @@ _PHI_FOR_TERMS = [min([(1e-17 / max(float(_MAG[j]), 1e-300)) ** (1.0 / j)
                        for j in range(k, _K0)] + [_SPLIT]) for k in range(1, _K0 + 1)]
 
 
+#: sums along an axis without ndarray.sum's Python wrapper (the same ufunc, the same numbers)
+_ADD = np.add.reduce
+_LOWER = {}
+
+
+def _lower(n: int) -> np.ndarray:
+    """The strictly lower triangle (n, n) bool, cached per n (allocated once, not per call)."""
+    m = _LOWER.get(n)
+    if m is None:
+        m = _LOWER[n] = np.tri(n, n, -1, dtype=bool)
+    return m
+
+
 def _powers(x: np.ndarray, k: int) -> np.ndarray:
     V = np.empty((x.size, k))
     V[:, 0] = 1.0
@@ -138,12 +151,15 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
     Jacobian, returned; else the O(N) banded solve). Returns phi, converged, iterations,
     max|r|, tip (complex), J (or None), None (no clothoid rates)."""
     acc = np.add.accumulate
-    lower = np.tri(n, n, -1, dtype=bool) if dense else None
+    lower = _lower(n) if dense else None
     best = (phi, math.inf, 0j)
     hist = [math.inf] * 3
     it = 0
     J = None
     lw = l * w
+    lu = piv = None                  # LU factors of the last (scaled) Jacobian: chord steps
+    lu_scaled = chord = False
+    res_prev = res_jac = math.inf
     a = np.empty((n, 1, 4))          # (m, fy, -fx, -1) per arc
     a[:, 0, 3] = -1.0
     for it in range(max_iter + 1):
@@ -166,24 +182,34 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
         np.negative(fx, out=a[:, 0, 2])
         # B_p = sum_q b_q H_pq and its phi-derivative (n, 2, 4); r, dr/dphi = sum_p a_p B_p
         BB = ((T[:, :8].conjugate() * f[:, None]).imag - T[:, 8:16].real).reshape(n, 2, 4)
-        RG = (BB * a).sum(2)
+        RG = _ADD(BB * a, axis=2)
         r = RG[:, 0]
         res = _MAXR(np.abs(r))
         if not res < math.inf:
             res = math.inf
         if res < best[1]:
             best = (phi, res, complex(P[-1]))
-        if res <= 1e-13 + rtol * pmax or it == max_iter or \
+        tol = 1e-13 + rtol * pmax
+        if res <= tol or it == max_iter or \
                 (it >= patience and res > quasi_above and res > 0.1 * hist[(it - 2) % 3]):
             break
         hist[it % 3] = res
         sc = -BB[:, 0, 0]           # -dr/dM EI/l (1 to leading order)
+        chord = lu is not None and chord_pays(res, res_prev, res_jac, tol, chord)
+        if chord:   # the last Jacobian's factors again (fast_newton: the same rule)
+            res_prev = res
+            phi = limited_step(phi, _dgetrs(lu, piv, r / sc if lu_scaled else r)[0],
+                               step_limit)
+            if phi is None:
+                break
+            continue
+        res_prev = res_jac = res
         W = sc * w                  # -dr/dM: the Jacobian's row weights (linsolve's w)
         if not _MINR(np.abs(W)) > 0:
             break
         ig = -1.0 / W
         # dr = Im(conj K df), K = sum_q b_q (h_1q + i h_2q) + sum_p a_p (H_px + i H_py)
-        Kn = BB[:, 0, 1] + 1j * BB[:, 0, 2] + (a[:, 0] * T[:, :4]).sum(1)
+        Kn = BB[:, 0, 1] + 1j * BB[:, 0, 2] + _ADD(a[:, 0] * T[:, :4], axis=1)
         kK = (Kn.conjugate() * f).real
         Mlow = -RF.real
         Mcol = Mlow - (lE * T[:, 17] * cF).imag       # g' = T[:, 17]
@@ -222,9 +248,10 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
                 else:
                     Jt -= np.where(lower, (c * rho_)[:, None], 0.0)
                 Jt.flat[::n + 1] += c * sig
-                dx = _dgesv(Jt, rt)[2]
+                lu, piv, dx, _ = _dgesv(Jt, rt)
             else:
-                dx = _dgesv(D, r)[2]
+                lu, piv, dx, _ = _dgesv(D, r)
+            lu_scaled = scaled
         elif scaled:
             u = rt / W
             if follower:

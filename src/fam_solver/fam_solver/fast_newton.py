@@ -11,12 +11,12 @@ import math
 from typing import Optional
 
 import numpy as np
-from scipy.linalg.lapack import dgesv as _dgesv
+from scipy.linalg.lapack import dgesv as _dgesv, dgetrs as _dgetrs
 
 from .arcs import row_product
 from .equations import RHO_MAX, clothoid_terms
 from .fast_bezier import bezier_tip_newton
-from .linsolve import banded_solve, limited_step
+from .linsolve import banded_solve, chord_pays, limited_step
 
 _MAXR = np.maximum.reduce
 _FAST_CACHE = {}
@@ -31,6 +31,11 @@ FAST_DENSE_MAX_N = 64
 QUASI_ABOVE = 1e-2
 #: ... and from the first step below this N (the rates, ~ load / N^2, are large there)
 _QUASI_MIN_N = 3
+#: a damped step may turn the tip by at least this much (rad) whatever N: the per-arc limit
+#: (0.3 rad) times 4 arcs, so N = 1-3 arcs are damped no more than N = 4. Not for Bezier
+#: arcs: few long Bezier arcs have extra equilibria near the start, and larger steps reached
+#: another one on 4 of 800 random loads at N = 1-2 (package README, design record)
+STEP_TURN = 1.2
 
 # Every function the arcs need is linear in E_k = integral_0^1 v^k e^{i phi v} dv, k = 0..4
 # (see ``arcs``): g = E0, q = E1, g' = i E1, q' = i E2, k = (E2 - E1)/2, k - km = (E3 - E2)/2,
@@ -105,13 +110,21 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     max|r| < QUASI_ABOVE). N <= FAST_DENSE_MAX_N: dense Jacobian (returned); beyond: the O(N)
     banded solve (no Jacobian returned). Gives up after ``patience`` iterations while max|r|
     is still above QUASI_ABOVE and fell less than 10x in the last two (a start that leads
-    nowhere near a solution).
+    nowhere near a solution). Dense: near the solution a step may be a chord step, the last
+    Jacobian's LU factors again (``linsolve.chord_pays``: when predicted to reach the
+    tolerance in no more steps than Newton); the iterations count both kinds.
 
     Returns phi (N,), converged, iterations, max|r|, tip position (complex) at phi, the
-    Jacobian of the last Newton step (None if no step was taken or N > FAST_DENSE_MAX_N) and the
-    clothoid rates (N,) at phi (None for circular arcs). bezier: the thesis' Bezier arcs
-    (``fast_bezier.bezier_tip_newton``, the same interface; clothoid is ignored)."""
+    Jacobian of the last Newton (not chord) step (None if no step was taken or
+    N > FAST_DENSE_MAX_N) and the clothoid rates (N,) at phi (None for circular arcs).
+    bezier: the thesis' Bezier arcs (``fast_bezier.bezier_tip_newton``, the same interface;
+    clothoid is ignored)."""
     dense = n <= FAST_DENSE_MAX_N
+    # step_limit bounds each arc's change: a step may turn the tip by up to n step_limit, so
+    # few long arcs would be damped far more than many short ones -- give every N the tip
+    # turn of STEP_TURN per step at least (not Bezier arcs: see STEP_TURN)
+    if not bezier:
+        step_limit = max(step_limit, STEP_TURN / n)
     if bezier:
         return bezier_tip_newton(n, l, w, F, m, follower, phi, max_iter, step_limit, rtol,
                                  patience, QUASI_ABOVE, dense)
@@ -130,6 +143,9 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     V = np.empty((n, _K_FAST))
     V[:, 0] = 1.0
     hist = [math.inf] * 3          # max|r| of the last iterations (for ``patience``)
+    lu = piv = None                # LU factors of the last Jacobian (dense), for chord steps
+    res_prev = res_jac = math.inf
+    chord = False
     for it in range(max_iter + 1):
         th_end = acc(phi)
         lE = l * np.exp(1j * (th_end - phi))
@@ -158,10 +174,19 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
             res = math.inf
         if res < best[1]:
             best = (phi, res, complex(P[-1]), th_r)
-        if res <= 1e-13 + rtol * pmax or it == max_iter or \
+        tol = 1e-13 + rtol * pmax
+        if res <= tol or it == max_iter or \
                 (it >= patience and res > QUASI_ABOVE and res > 0.1 * hist[(it - 2) % 3]):
             break
         hist[it % 3] = res
+        chord = lu is not None and chord_pays(res, res_prev, res_jac, tol, chord)
+        if chord:
+            res_prev = res
+            phi = limited_step(phi, _dgetrs(lu, piv, r)[0], step_limit)
+            if phi is None:
+                break
+            continue
+        res_prev = res_jac = res
         # -dMbar/dphi = D: D_ij = a_i (j < i), d_i (j = i), c_j + e_i (j > i); J = I + W D
         Y = R[:, 2:] * cF                      # g', q' (, k, k-km, k', (k-km)') terms
         irc = (1j * rel * cF).imag
@@ -195,7 +220,7 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
             D *= wc
             D.flat[::n + 1] = w * d + 1.0
             J = D
-            dx = _dgesv(D, r)[2]
+            lu, piv, dx, _ = _dgesv(D, r)
         else:   # J = I - (-W) D: the banded solver's convention
             dx = banded_solve(-w, (np.broadcast_to(a, (n,)), d, c, e), r)
         phi = limited_step(phi, dx, step_limit)
