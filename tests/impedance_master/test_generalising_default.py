@@ -165,3 +165,39 @@ def test_the_measured_slope_is_capped_and_never_flattens_a_steeper_model():
         ImaRenderer(max_slope=0.0)
     with pytest.raises(ValueError, match='slope_length'):
         ImaRenderer(slope_length=-1.0)
+
+
+# ------------------------------------------- fifth round: continuous across a gap in the data
+
+def _learned_gap(miss=0.02, xd=0.01):
+    """A renderer with data at 10-13 mm and 25-28 mm (inserting), none between, the last
+    anchor at 28 mm; the model k x + offset + 2 x' with a large offset (the old extension
+    from the NEAREST seen depth jumped at the gap's middle: in proportion to the depth from
+    25 mm, with the slope from 13 mm)."""
+    ima = ImaRenderer(blend_time=0.0, max_rate=1e9)
+    base = Impedance(0.0, 2.0, 5.0, 0.2)
+    z1, z2 = steady_states(xd, base.v_s, base.beta)
+    imp = None
+    for x in [0.010 + 0.0005 * i for i in range(7)] + [0.025 + 0.0005 * i for i in range(7)]:
+        imp = Impedance(0.0, 2.0, 5.0, 0.2,
+                        anchor=(x, xd, 0.0, z1, z2, base.force(x, xd, 0.0) + miss, 0.0))
+        assert ima.set_impedance(imp)
+        ima.desired_force(x, xd, 0.0)
+    return ima, imp
+
+
+def test_across_a_gap_in_the_data_the_rendered_force_is_continuous():
+    ima, imp = _learned_gap()
+    lo, hi = ima.support.bracket(0.019)
+    assert lo < 0.015 and hi > 0.023                  # a gap of about 10 mm
+    xs = [0.0135 + 1e-5 * i for i in range(1101)]     # 13.5 to 24.5 mm, 0.01 mm steps
+    f = [ima.desired_force(x, 0.01, 0.0) for x in xs]
+    # the model rises 5 N/m (0.05 mN per step); the anchor's correction grows toward 28 mm
+    assert max(abs(b - a) for a, b in zip(f, f[1:], strict=False)) < 2e-4
+    # a linear model interpolated between the edges of the gap is itself: the model plus
+    # the anchor's miss, kept with the support's weight
+    x = 0.019
+    c = ima.support.anywhere(x)
+    g = 1.0 - (1.0 - (1.0 - c) ** 2) * (1.0 - math.exp(-abs(x - 0.028) / LOCAL_ANCHOR_LENGTH))
+    assert ima.desired_force(x, 0.01, 0.0) == pytest.approx(imp.force(x, 0.01, 0.0)
+                                                            + 0.02 * g)
