@@ -7,6 +7,7 @@ import pytest
 
 from impedance_master import ImaRenderer, Impedance
 from impedance_master.impedance import steady_states
+from impedance_master.anchoring import SIGN_BAND
 from impedance_master.rendering import LOCAL_ANCHOR_LENGTH, MAX_SLOPE, SUPPORT_HALF
 
 
@@ -201,3 +202,24 @@ def test_across_a_gap_in_the_data_the_rendered_force_is_continuous():
     g = 1.0 - (1.0 - (1.0 - c) ** 2) * (1.0 - math.exp(-abs(x - 0.028) / LOCAL_ANCHOR_LENGTH))
     assert ima.desired_force(x, 0.01, 0.0) == pytest.approx(imp.force(x, 0.01, 0.0)
                                                             + 0.02 * g)
+
+
+def test_beyond_the_data_the_extension_is_continuous_where_the_edge_force_crosses_zero():
+    # the model's force at the edge lo of the data is 2 x' (drag; 5 N/m (x - lo)): its sign,
+    # which decides whether the model is extended with the rising slope (a wall, friction
+    # growing) or held, changes with the master's velocity; the old hard switch stepped
+    # 5 N/m x 20 mm = 0.1 N at 60 mm as x' crossed 0
+    lo = _learned(k=5.0)[0].support.bracket(0.06)[0]
+    assert 0.039 <= lo <= 0.042
+    ima, imp = _learned(k=5.0, offset=-5.0 * lo)
+    assert ima.support.bracket(0.06)[0] == lo and ima.support.anywhere(0.06) == 0.0
+    assert SIGN_BAND == 0.01
+    # outside the band: pushing (2 x' >= 10 mN) the model's rise, pulling held at the edge
+    assert ima.desired_force(0.06, 0.006, 0.0) == pytest.approx(
+        imp.force(0.06, 0.006, 0.0) + 0.02)
+    assert ima.desired_force(0.06, -0.006, 0.0) == pytest.approx(
+        imp.force(lo, -0.006, 0.0) + 0.02)
+    # inside: blended, continuous
+    f = [ima.desired_force(0.06, -0.006 + 1e-5 * i, 0.0) for i in range(1201)]
+    assert max(abs(b - a) for a, b in zip(f, f[1:], strict=False)) < 5e-4
+    assert f[600] == pytest.approx(0.5 * 5.0 * (0.06 - lo) + 0.02)      # x' = 0: u = 1/2

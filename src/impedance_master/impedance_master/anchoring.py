@@ -25,6 +25,17 @@ from impedance_master.impedance import Impedance
 from impedance_master.support import SLOPE_STEP, DepthSlope, Support
 
 
+#: the share of the anchor's miss kept after a full reversal of the friction direction
+#: (0.5, to keep a direction-independent miss such as breathing, screened worse in the
+#: fifth round: README, Benchmark)
+REVERSAL_KEEP = 0.0
+
+
+#: N, the force at the edge of the data within which its sign (which way the model is
+#: extended deeper) is blended: the sensor noise's level
+SIGN_BAND = 0.01
+
+
 class AnchorTerm(NamedTuple):
     """The renderer's view of a model's anchor: depth x (m), friction states z1, z2 there,
     and the model's miss rho (N) there."""
@@ -92,15 +103,22 @@ def supported_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorT
         hold += (1.0 - c) * (ext - hold)
     elif lo is not None:
         # deeper: the slope over SLOPE_STEP inside the data, never toward a smaller
-        # |force| (friction grows with the length, a wall with the depth)
+        # |force| (friction grows with the length, a wall with the depth); where the
+        # force at the edge is within SIGN_BAND of 0 its sign is unknown: the two
+        # extensions are blended by it (a hard switch jumped as it crossed 0)
         fs = m.force(lo, xd, xdd, za)
-        slope = (fs - m.force(lo - SLOPE_STEP, xd, xdd, za)) / SLOPE_STEP
-        slope = measured_slope(depth_slope, max_slope, slope, fs >= 0.0)
-        slope = max(0.0, slope) if fs >= 0.0 else min(0.0, slope)
-        ext = fs + slope * (x - lo)
+        model_slope = (fs - m.force(lo - SLOPE_STEP, xd, xdd, za)) / SLOPE_STEP
+        u = min(1.0, max(0.0, 0.5 + 0.5 * fs / SIGN_BAND))
+        ext = fs
+        if u > 0.0:
+            ext += u * max(0.0, measured_slope(depth_slope, max_slope, model_slope,
+                                               True)) * (x - lo)
+        if u < 1.0:
+            ext += (1.0 - u) * min(0.0, measured_slope(depth_slope, max_slope, model_slope,
+                                                       False)) * (x - lo)
         hold += (1.0 - c) * (ext - hold)
     d = abs(x - a.x)
     g = (math.exp(-d / anchor_length) if d else 1.0)
-    g *= max(0.0, 1.0 - 0.5 * abs(z[0] - a.z1))
+    g *= max(REVERSAL_KEEP, 1.0 - 0.5 * abs(z[0] - a.z1))
     g = 1.0 - (1.0 - (1.0 - c) ** 2) * (1.0 - g)
     return hold + flip + a.rho * g
