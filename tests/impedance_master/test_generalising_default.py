@@ -7,6 +7,7 @@ import pytest
 
 from impedance_master import ImaRenderer, Impedance
 from impedance_master.impedance import steady_states
+from impedance_master.anchoring import SIGN_BAND
 from impedance_master.rendering import LOCAL_ANCHOR_LENGTH, MAX_SLOPE, SUPPORT_HALF
 
 
@@ -165,3 +166,60 @@ def test_the_measured_slope_is_capped_and_never_flattens_a_steeper_model():
         ImaRenderer(max_slope=0.0)
     with pytest.raises(ValueError, match='slope_length'):
         ImaRenderer(slope_length=-1.0)
+
+
+# ------------------------------------------- fifth round: continuous across a gap in the data
+
+def _learned_gap(miss=0.02, xd=0.01):
+    """A renderer with data at 10-13 mm and 25-28 mm (inserting), none between, the last
+    anchor at 28 mm; the model k x + offset + 2 x' with a large offset (the old extension
+    from the NEAREST seen depth jumped at the gap's middle: in proportion to the depth from
+    25 mm, with the slope from 13 mm)."""
+    ima = ImaRenderer(blend_time=0.0, max_rate=1e9)
+    base = Impedance(0.0, 2.0, 5.0, 0.2)
+    z1, z2 = steady_states(xd, base.v_s, base.beta)
+    imp = None
+    for x in [0.010 + 0.0005 * i for i in range(7)] + [0.025 + 0.0005 * i for i in range(7)]:
+        imp = Impedance(0.0, 2.0, 5.0, 0.2,
+                        anchor=(x, xd, 0.0, z1, z2, base.force(x, xd, 0.0) + miss, 0.0))
+        assert ima.set_impedance(imp)
+        ima.desired_force(x, xd, 0.0)
+    return ima, imp
+
+
+def test_across_a_gap_in_the_data_the_rendered_force_is_continuous():
+    ima, imp = _learned_gap()
+    lo, hi = ima.support.bracket(0.019)
+    assert lo < 0.015 and hi > 0.023                  # a gap of about 10 mm
+    xs = [0.0135 + 1e-5 * i for i in range(1101)]     # 13.5 to 24.5 mm, 0.01 mm steps
+    f = [ima.desired_force(x, 0.01, 0.0) for x in xs]
+    # the model rises 5 N/m (0.05 mN per step); the anchor's correction grows toward 28 mm
+    assert max(abs(b - a) for a, b in zip(f, f[1:], strict=False)) < 2e-4
+    # a linear model interpolated between the edges of the gap is itself: the model plus
+    # the anchor's miss, kept with the support's weight
+    x = 0.019
+    c = ima.support.anywhere(x)
+    g = 1.0 - (1.0 - (1.0 - c) ** 2) * (1.0 - math.exp(-abs(x - 0.028) / LOCAL_ANCHOR_LENGTH))
+    assert ima.desired_force(x, 0.01, 0.0) == pytest.approx(imp.force(x, 0.01, 0.0)
+                                                            + 0.02 * g)
+
+
+def test_beyond_the_data_the_extension_is_continuous_where_the_edge_force_crosses_zero():
+    # the model's force at the edge lo of the data is 2 x' (drag; 5 N/m (x - lo)): its sign,
+    # which decides whether the model is extended with the rising slope (a wall, friction
+    # growing) or held, changes with the master's velocity; the old hard switch stepped
+    # 5 N/m x 20 mm = 0.1 N at 60 mm as x' crossed 0
+    lo = _learned(k=5.0)[0].support.bracket(0.06)[0]
+    assert 0.039 <= lo <= 0.042
+    ima, imp = _learned(k=5.0, offset=-5.0 * lo)
+    assert ima.support.bracket(0.06)[0] == lo and ima.support.anywhere(0.06) == 0.0
+    assert SIGN_BAND == 0.01
+    # outside the band: pushing (2 x' >= 10 mN) the model's rise, pulling held at the edge
+    assert ima.desired_force(0.06, 0.006, 0.0) == pytest.approx(
+        imp.force(0.06, 0.006, 0.0) + 0.02)
+    assert ima.desired_force(0.06, -0.006, 0.0) == pytest.approx(
+        imp.force(lo, -0.006, 0.0) + 0.02)
+    # inside: blended, continuous
+    f = [ima.desired_force(0.06, -0.006 + 1e-5 * i, 0.0) for i in range(1201)]
+    assert max(abs(b - a) for a, b in zip(f, f[1:], strict=False)) < 5e-4
+    assert f[600] == pytest.approx(0.5 * 5.0 * (0.06 - lo) + 0.02)      # x' = 0: u = 1/2

@@ -77,6 +77,32 @@ def test_support_is_in_unit_interval_grows_with_data_and_nearest_is_seen(anchors
         assert max(s.count(xs, 1.0), s.count(xs, -1.0)) >= s.n_half - 1e-9
 
 
+def test_bracket_is_the_seen_depths_around_x_in_either_direction():
+    s = Support(0.0, 0.1, width=0.001, n_half=1.5)   # kernel: 1/2, 1, 1/2
+    for _ in range(2):
+        s.add(0.020, 0.01)                           # bin 20: 2 (seen), 19, 21: 1
+        s.add(0.060, -0.01)                          # the same at 60 mm, retracting
+    assert s.bracket(0.04) == pytest.approx((0.020, 0.060))
+    assert s.bracket(0.020) == pytest.approx((0.020, 0.020))   # on a seen bin
+    lo, hi = s.bracket(0.01)
+    assert lo is None and hi == pytest.approx(0.020)
+    lo, hi = s.bracket(0.09)
+    assert lo == pytest.approx(0.060) and hi is None
+    assert Support().bracket(0.05) == (None, None)
+
+
+@given(st.lists(st.tuples(st.floats(0.0, 0.08), st.floats(-0.05, 0.05)), max_size=30),
+       st.floats(-0.01, 0.1))
+def test_bracket_holds_x_between_neighbouring_seen_depths(anchors, x):
+    s = Support(-0.07, 0.25, n_half=1.0)
+    for a in anchors:
+        s.add(*a)
+    lo, hi = s.bracket(x)
+    seen = sorted(set(s._seen[0]) | set(s._seen[1]))
+    assert lo == max([b for b in seen if b <= x], default=None)
+    assert hi == min([b for b in seen if b >= x], default=None)
+
+
 # ---------------------------------------------------------------- fourth round: DepthSlope
 
 def test_depth_slope_of_anchors_on_a_line_is_the_line_and_per_direction():

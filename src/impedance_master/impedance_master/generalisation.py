@@ -42,7 +42,10 @@ every other vessel x operator x seed, cold start.
   the tuning family's Experiment II. Seen during the fifth round's development.
 * Fourth fresh held-out worlds (`drawn_cases(FRESH4_SEEDS)`, seeds 400-404, the same
   families and operators, 90 worlds): defined and committed before the fifth round's
-  design work, to be run once after its design is final: the fifth round's blind figure.
+  design work, run once after its design was final (8f8a9d7): the fifth round's blind
+  figure. The fifth round's changes (the renderer's extension continuous across gaps in
+  the data and where the edge's force crosses 0; the opt-in online score) were developed
+  on the seeds 100-104, 200-204 and 300-304. Seen from now on.
 """
 from __future__ import annotations
 

@@ -42,6 +42,9 @@ from impedance_master.envelope import DEFAULT_ENVELOPE, ModelEnvelope
 from impedance_master.impedance import FrictionState, Impedance, steady_states
 from impedance_master.safety import (ERROR, OK, SAFE_MAX_RATE, WARN,  # noqa: F401
                                     RendererStatus, SafeOutput, check_number)
+from impedance_master.anchoring import (AnchorTerm, anchor_term, anchored_force,
+                                       supported_force)
+from impedance_master.scoring import SCORE_LAG, SCORE_RATE, OnlineScore
 from impedance_master.support import (MAX_SLOPE, SLOPE_LENGTH, SLOPE_STEP,  # noqa: F401
                                      SUPPORT_HALF, SUPPORT_WIDTH, DepthSlope, Support)
 
@@ -137,7 +140,14 @@ class ImaRenderer(_Rendered):
             extended with the steeper of its own slope and the MEASURED force's slope
             over the last `slope_length` of the slave's path (`support.DepthSlope`;
             fourth round of issue 12), at most `max_slope` N/m. None: the model's slope
-            (the third round).
+            (the third round). Between two seen depths (a gap in the data) the model is
+            interpolated between its values there (fifth round; the extension from the
+            NEAREST seen depth jumped at the gap's middle: `anchoring.supported_force`).
+        score_memory: s, with the support weighing: blend the anchored baseline into the
+            rendered force by the online score's least-squares weight
+            (`scoring.OnlineScore`, forgetting time constant `score_memory`, horizon
+            `score_lag` s, weight slew `score_rate` 1/s; fifth round). None (default):
+            off; it did not pay on the seen worlds (README, Benchmark).
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
     (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
     `n_bad_input`, `n_clamped`, `energy` (J, observer), `n_passivity` (steps with added
@@ -152,7 +162,9 @@ class ImaRenderer(_Rendered):
                  anchoring: str = 'local', anchor_length: Optional[float] = None,
                  support_half: Optional[float] = SUPPORT_HALF,
                  support_width: float = SUPPORT_WIDTH,
-                 slope_length: Optional[float] = SLOPE_LENGTH, max_slope: float = MAX_SLOPE):
+                 slope_length: Optional[float] = SLOPE_LENGTH, max_slope: float = MAX_SLOPE,
+                 score_memory: Optional[float] = None, score_lag: float = SCORE_LAG,
+                 score_rate: float = SCORE_RATE):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -184,10 +196,17 @@ class ImaRenderer(_Rendered):
         self.support: Optional[Support] = None
         self.depth_slope: Optional[DepthSlope] = None
         self.max_slope = positive('max_slope', max_slope)
+        self.score: Optional[OnlineScore] = None
         if support_half is not None and anchoring == 'local':
             self.support = Support(lo, hi, support_width, support_half)
             if slope_length is not None:
                 self.depth_slope = DepthSlope(positive('slope_length', slope_length))
+            if score_memory is not None:
+                self.score = OnlineScore(
+                    Support(lo, hi, support_width, support_half),
+                    None if slope_length is None else DepthSlope(slope_length),
+                    self.anchor_length, self.max_slope, self._out.dt, score_lag,
+                    score_memory, score_rate)
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
         self._bump = 0.0
@@ -195,6 +214,7 @@ class ImaRenderer(_Rendered):
         self._z = (0.0, 0.0)
         self._rho = 0.0
         self._rho_set = False
+        self._term = AnchorTerm(0.0, 0.0, 0.0, 0.0)
         self._xa = 0.0
         self._za = 0.0
         self._za2 = 0.0
@@ -270,50 +290,16 @@ class ImaRenderer(_Rendered):
         return f
 
     def _eval_supported(self, x: float, xd: float, xdd: float) -> float:
-        """'local' anchoring where the model has data; beyond its data (the support
-        `c` near x is thin) the model's tables are its priors' guess: extend the model
-        from the nearest depth with data instead (weight 1 - c) and keep more of the
-        anchor's measured force (weight (1 - c)^2): toward the anchored baseline."""
+        """`anchoring.supported_force` on the master's state, blended toward the anchored
+        baseline by the online score's weight (if scoring)."""
         m = self.model
-        sup = self.support
         z = self._z if self._state is not None else steady_states(xd, m.v_s, m.beta)
-        za = (self._za, self._za2)
-        hold = m.force(x, xd, xdd, za)          # the anchor's direction of friction
-        flip = m.force(x, xd, xdd, z) - hold    # the model's change of direction
-        c = sup.anywhere(x)
-        xs = sup.nearest_any(x) if c < 1.0 else None
-        if xs is not None and xs != x:
-            # shallower than the data: in proportion to the depth (friction and drag grow
-            # with the inserted length from 0); deeper: the slope over SLOPE_STEP inside
-            # the data, never toward a smaller |force| (friction grows with the length, a
-            # wall with the depth)
-            fs = m.force(xs, xd, xdd, za)
-            if x < xs:
-                ext = fs * max(0.0, x) / xs
-            else:
-                slope = (fs - m.force(xs - SLOPE_STEP, xd, xdd, za)) / SLOPE_STEP
-                slope = self._measured_slope(slope, fs >= 0.0)
-                slope = max(0.0, slope) if fs >= 0.0 else min(0.0, slope)
-                ext = fs + slope * (x - xs)
-            hold += (1.0 - c) * (ext - hold)
-        d = abs(x - self._xa)
-        g = (math.exp(-d / self.anchor_length) if d else 1.0)
-        g *= max(0.0, 1.0 - 0.5 * abs(z[0] - self._za))
-        g = 1.0 - (1.0 - (1.0 - c) ** 2) * (1.0 - g)
-        return hold + flip + self._rho * g
-
-    def _measured_slope(self, slope: float, pushing: bool) -> float:
-        """The steeper of the model's slope at the edge of its data (its tables flatten
-        toward their priors there) and the measured one (`DepthSlope`, inserting if
-        `pushing`), at most max_slope."""
-        if self.depth_slope is None:
-            return slope
-        b = self.depth_slope.slope(1.0 if pushing else -1.0)
-        if b is None:
-            return slope
-        if pushing:
-            return max(slope, min(b, self.max_slope))
-        return min(slope, max(b, -self.max_slope))
+        f = supported_force(m, z, x, xd, xdd, self._term, self.anchor_length, self.support,
+                            self.depth_slope, self.max_slope)
+        w = self.score.weight * self.support.anywhere(x) if self.score is not None else 0.0
+        if w > 0.0:
+            f += w * (anchored_force(m, z, x, xd, xdd, self._term) - f)
+        return f
 
     def _switch(self, x: float, xd: float, xdd: float) -> None:
         new = self._pending
@@ -336,17 +322,14 @@ class ImaRenderer(_Rendered):
         self._rho_set = False
         if self.anchoring != 'none' and a is not None:
             self._rho_set = True
-            self._xa = a.x
-            self._za = a.z1
-            self._za2 = a.z2
+            term = self._term = anchor_term(new, self.anchoring)
+            self._xa, self._za, self._za2, self._rho = term
             if self.support is not None:
                 self.support.add(a.x, a.xd)
                 if self.depth_slope is not None:
                     self.depth_slope.add(a.x, a.xd, a.f, a.z1)
-            if self.anchoring in ('full', 'local'):
-                self._rho = a.f - new.force(a.x, a.xd, a.xdd, (a.z1, a.z2))
-            else:
-                self._rho = a.r
+                if self.score is not None:
+                    self.score.observe(new, term, a)
         self.model = new
         self.n_switches += 1
         if self._out.in_fallback:       # a good model after a fault: take over bumplessly
@@ -391,6 +374,8 @@ class ImaRenderer(_Rendered):
             return self._out.output(0.0)
         self._bad_now = False
         self._xd = xd
+        if self.score is not None:
+            self.score.tick(self._age)
         if self._state is not None:
             self._z = self._state.update(x, xd)
         if self._pending is not None:

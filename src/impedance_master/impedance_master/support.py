@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from typing import Optional
+from typing import Optional, Tuple
 
 from catheter_common.checks import positive
 
@@ -132,6 +132,22 @@ class Support:
         if j == len(b):
             return b[-1]
         return b[j] if b[j] - x < x - b[j - 1] else b[j - 1]
+
+    def bracket(self, x: float) -> Tuple[Optional[float], Optional[float]]:
+        """(lo, hi): the deepest depth at or above x and the shallowest at or below it
+        seen (n_half anchors) in either direction; None where there is none. The
+        renderer interpolates between them (a gap in the data) or extends from the one
+        there is: continuous in x (the nearest seen depth jumps at a gap's middle)."""
+        lo = hi = None
+        for b in self._seen:
+            if b:
+                j = bisect.bisect_right(b, x)
+                if j > 0 and (lo is None or b[j - 1] > lo):
+                    lo = b[j - 1]
+                j = bisect.bisect_left(b, x)
+                if j < len(b) and (hi is None or b[j] < hi):
+                    hi = b[j]
+        return lo, hi
 
     def nearest_any(self, x: float) -> Optional[float]:
         """The depth nearest x seen (n_half anchors) in either direction, or None."""
