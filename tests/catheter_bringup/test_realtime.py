@@ -346,6 +346,10 @@ def test_pin_process_pins_every_thread_and_says_when_it_cannot(monkeypatch):
     t.start()
     logs = []
     try:
+        if len(before) > 1:          # the loop (main) thread only: the other keeps its CPUs
+            assert R.pin_process(os.getpid(), {cpu}, logs.append, main_only=True)
+            assert os.sched_getaffinity(0) == {cpu}
+            assert os.sched_getaffinity(t.native_id) == before
         assert R.pin_process(os.getpid(), {cpu}, logs.append)
         for tid in os.listdir('/proc/self/task'):
             assert os.sched_getaffinity(int(tid)) == {cpu}
@@ -376,6 +380,36 @@ def test_workers_pin_the_split_layouts_master_and_vision(monkeypatch):
     assert made == {'master': {0}, 'slave': None, 'vision': {1}}
     W.Workers({'realtime_priority': 0}, groups, print)       # no real-time loops: no placement
     assert made == {'master': None, 'slave': None, 'vision': None}
+
+
+def test_a_1khz_worker_pins_its_loop_thread_only_at_go(monkeypatch, tmp_path):
+    """The master's helper threads stay free (pinned with them, its loop stalled); vision's
+    every thread, from the start."""
+    from catheter_bringup import worker as W
+    pins = []
+    monkeypatch.setattr(R, 'pin_process',
+                        lambda pid, cpus, log, main_only=False: pins.append(main_only) or True)
+
+    class Proc:
+        pid = 1
+
+        def __init__(self, cmd, **_kw):
+            pass
+
+        def poll(self):
+            return None
+    monkeypatch.setattr(W.subprocess, 'Popen', Proc)
+    assert R.pins_loop_thread_only('master') and R.pins_loop_thread_only('slave')
+    assert not R.pins_loop_thread_only('vision')
+    for name, at_start, at_go in (('master', [], [True]), ('vision', [False], [False, False])):
+        pins.clear()
+        w = W.Worker({'duration': 1.0}, ['x'], lambda *_: None, name, cpus=frozenset({0}))
+        assert pins == at_start
+        w._go = str(tmp_path / f'{name}.go')
+        w.go()
+        assert pins == at_go
+        w.proc = None
+        w.cleanup()
 
 
 def test_worker_scenario_turns_on_processing_on_arrival(monkeypatch, tmp_path):

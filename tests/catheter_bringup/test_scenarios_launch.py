@@ -139,7 +139,7 @@ def test_launched_split_workers_get_the_worker_params_and_the_cpu_placement():
         assert not any('process_on_arrival' in x for x in a)   # the scenario's value stands
 
 
-def test_run_scenario_pins_itself_before_setup_and_refuses_bad_cpus(monkeypatch):
+def test_run_scenario_pins_itself_and_refuses_bad_cpus(monkeypatch):
     from catheter_bringup import realtime, runner
     from catheter_bringup.run_scenario import main, parse_cpus
     assert parse_cpus('1,0') == frozenset({0, 1}) and parse_cpus(None) is None
@@ -148,14 +148,28 @@ def test_run_scenario_pins_itself_before_setup_and_refuses_bad_cpus(monkeypatch)
             parse_cpus(bad)
     assert main(['smoke', '--cpus', 'x', '--no-record']) == 2
     calls = []
-    monkeypatch.setattr(realtime, 'pin_process', lambda pid, cpus, log: calls.append(cpus))
+    monkeypatch.setattr(realtime, 'pin_process',
+                        lambda pid, cpus, log, main_only=False: calls.append((cpus, main_only)))
 
     def setup(self):
         calls.append('setup')
         raise ValueError('stop here')
     monkeypatch.setattr(runner.ScenarioRunner, 'setup', setup)
     assert main(['smoke', '--cpus', '0', '--no-record', '--quiet']) == 2
-    assert calls == [frozenset({0}), 'setup']
+    assert calls == [(frozenset({0}), False), 'setup']      # every thread, before any exists
+    # a 1 kHz process: its loop thread only, once setup made the other threads
+    calls.clear()
+
+    class Done(Exception):
+        pass
+
+    def run(self):
+        raise Done
+    monkeypatch.setattr(runner.ScenarioRunner, 'setup', lambda self: calls.append('setup'))
+    monkeypatch.setattr(runner.ScenarioRunner, 'run', run)
+    with pytest.raises(Done):
+        main(['smoke', '--cpus', '1', '--process', 'master', '--no-record', '--quiet'])
+    assert calls == ['setup', (frozenset({1}), True)]
 
 
 def test_layout_is_validated_and_split_needs_real_time():

@@ -173,15 +173,30 @@ def worker_cpus(process: str, processes, cpus) -> Optional[frozenset]:
     return None
 
 
-def pin_process(pid: int, cpus, log: Callable[[str], None] = print) -> bool:
-    """Keep every thread of process `pid` (threads it creates later inherit it) on `cpus`.
-    False when no thread was pinned (the process is gone) or, with one log line, when not
-    permitted or not available; a thread that ended meanwhile is skipped."""
+def pins_loop_thread_only(process: str) -> bool:
+    """Whether a placed worker keeps only its loop thread on its CPUs (pinned once its
+    threads exist), not every thread: the 1 kHz processes (`scenario.LOOP_PROCESSES`). With
+    every thread of the master on its CPU, its helper threads (Fast DDS's, rclpy's) could
+    only run there, behind other work of that CPU, and the SCHED_FIFO loop thread stalled
+    8-73 ms in 5 of 15 `bench_system --split-only` runs (waiting for a thread that held
+    what the loop needed; not traced further); with the loop thread alone pinned, one stall
+    (16 ms) in 6 runs, as often as with no placement (catheter_bringup README, round 6)."""
+    from catheter_bringup.scenario import LOOP_PROCESSES
+    return process in LOOP_PROCESSES
+
+
+def pin_process(pid: int, cpus, log: Callable[[str], None] = print,
+                main_only: bool = False) -> bool:
+    """Keep every thread of process `pid` (threads it creates later inherit it) on `cpus`;
+    `main_only`: its main thread only (thread id = pid: a real-time loop's executor thread;
+    see `pins_loop_thread_only`). False when no thread was pinned (the process is gone) or,
+    with one log line, when not permitted or not available; a thread that ended meanwhile
+    is skipped."""
     if not hasattr(os, 'sched_setaffinity'):
         log('[run] CPU affinity not available on this OS')
         return False
     try:
-        tids = [int(t) for t in os.listdir(f'/proc/{pid}/task')]
+        tids = [pid] if main_only else [int(t) for t in os.listdir(f'/proc/{pid}/task')]
     except OSError:
         tids = [pid]
     pinned = 0

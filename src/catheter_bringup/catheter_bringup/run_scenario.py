@@ -146,8 +146,9 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     except ValueError as exc:
         print(f'run_scenario: {exc}', file=sys.stderr)
         return 2
-    if cpus:
-        from catheter_bringup.realtime import pin_process
+    from catheter_bringup.realtime import pin_process, pins_loop_thread_only
+    loop_only = bool(cpus) and pins_loop_thread_only(opts.process)
+    if cpus and not loop_only:
         pin_process(os.getpid(), cpus, print)     # before rclpy makes its threads
     if not opts.quiet:
         print(f"run {sc['name']} ({why})", flush=True)
@@ -170,6 +171,8 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         print(f'run_scenario: {exc}', file=sys.stderr)
         runner.close()
         return 2 if isinstance(exc, ValueError) else 1
+    if loop_only:
+        pin_process(os.getpid(), cpus, print, main_only=True)   # the loop thread, made now
     res = runner.run()
     if opts.report:
         write_report(opts.report, opts.process, res)

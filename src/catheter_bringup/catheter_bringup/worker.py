@@ -63,16 +63,20 @@ class Worker:
             cmd, stdout=subprocess.DEVNULL, stderr=self._log_file, text=True)
         self.log(f'[run] {name} worker process (pid {self.proc.pid}): {", ".join(self.nodes)}'
                  + (f', CPUs {sorted(cpus)}' if cpus else ''))
-        if cpus and not self.pin():
+        from catheter_bringup.realtime import pins_loop_thread_only
+        #: a 1 kHz worker pins its loop thread only, at `go` (its other threads exist then)
+        self._loop_only = pins_loop_thread_only(name)
+        if cpus and not self._loop_only and not self.pin():
             self.cpus = None
 
     def pin(self) -> bool:
-        """Keep every thread of the process on `cpus` (now: threads created later inherit
-        it; `Workers.go` pins again, for any thread made in between)."""
+        """Keep the process's threads on `cpus`: every thread (now: threads created later
+        inherit it; `Workers.go` pins again, for any thread made in between), or for a 1 kHz
+        worker its loop (main) thread only."""
         from catheter_bringup.realtime import pin_process
         if not self.cpus or not self.running():
             return False
-        return pin_process(self.proc.pid, self.cpus, self.log)
+        return pin_process(self.proc.pid, self.cpus, self.log, main_only=self._loop_only)
 
     def exited(self) -> bool:
         """True (and the reason logged) if the process ended on its own."""
