@@ -46,6 +46,9 @@ every other vessel x operator x seed, cold start.
   figure. The fifth round's changes (the renderer's extension continuous across gaps in
   the data and where the edge's force crosses 0; the opt-in online score) were developed
   on the seeds 100-104, 200-204 and 300-304. Seen from now on.
+* Fifth fresh held-out worlds (`drawn_cases(FRESH5_SEEDS)`, seeds 500-504, the same
+  families and operators, 90 worlds): defined and committed before the sixth round's
+  design work, to be run once after its design is final: the sixth round's blind figure.
 """
 from __future__ import annotations
 
@@ -69,6 +72,8 @@ FRESH2_SEEDS = (200, 201, 202, 203, 204)
 FRESH3_SEEDS = (300, 301, 302, 303, 304)
 #: seeds of the fifth round's held-out worlds (run once, after its design is final)
 FRESH4_SEEDS = (400, 401, 402, 403, 404)
+#: seeds of the sixth round's held-out worlds (run once, after its design is final)
+FRESH5_SEEDS = (500, 501, 502, 503, 504)
 
 
 @dataclass(frozen=True)
