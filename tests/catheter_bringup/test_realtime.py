@@ -382,32 +382,27 @@ def test_workers_pin_the_split_layouts_master_and_vision(monkeypatch):
     assert made == {'master': None, 'slave': None, 'vision': None}
 
 
-def test_a_1khz_worker_pins_its_loop_thread_only_at_go(monkeypatch, tmp_path):
-    """The master's helper threads stay free (pinned with them, its loop stalled); vision's
-    every thread, from the start."""
+def test_a_placed_worker_is_asked_to_pin_itself(monkeypatch):
+    """Workers pin themselves (`run_scenario --cpus`, the launch file's way too): the 1 kHz
+    processes their loop thread only (`pins_loop_thread_only`), vision every thread."""
     from catheter_bringup import worker as W
-    pins = []
-    monkeypatch.setattr(R, 'pin_process',
-                        lambda pid, cpus, log, main_only=False: pins.append(main_only) or True)
+    cmds = []
 
     class Proc:
         pid = 1
 
         def __init__(self, cmd, **_kw):
-            pass
+            cmds.append(cmd)
 
         def poll(self):
             return None
     monkeypatch.setattr(W.subprocess, 'Popen', Proc)
     assert R.pins_loop_thread_only('master') and R.pins_loop_thread_only('slave')
     assert not R.pins_loop_thread_only('vision')
-    for name, at_start, at_go in (('master', [], [True]), ('vision', [False], [False, False])):
-        pins.clear()
-        w = W.Worker({'duration': 1.0}, ['x'], lambda *_: None, name, cpus=frozenset({0}))
-        assert pins == at_start
-        w._go = str(tmp_path / f'{name}.go')
-        w.go()
-        assert pins == at_go
+    for cpus, want in ((frozenset({1, 0}), '0,1'), (None, None)):
+        w = W.Worker({'duration': 1.0}, ['x'], lambda *_: None, 'master', cpus=cpus)
+        cmd = cmds[-1]
+        assert (cmd[cmd.index('--cpus') + 1] if '--cpus' in cmd else None) == want
         w.proc = None
         w.cleanup()
 

@@ -172,6 +172,17 @@ def test_run_scenario_pins_itself_and_refuses_bad_cpus(monkeypatch):
     assert calls == ['setup', (frozenset({1}), True)]
 
 
+def test_a_worker_reports_the_cpus_it_kept_itself_on(tmp_path):
+    import json
+    from types import SimpleNamespace
+    from catheter_bringup.run_scenario import write_report
+    res = SimpleNamespace(status='complete', reason='', nodes=[], published={}, recorded={},
+                          received={}, cost={}, realtime={}, wall_time=0.0)
+    for cpus, want in ((frozenset({1, 0}), [0, 1]), (None, None)):
+        write_report(str(tmp_path / 'r.json'), 'vision', res, cpus)
+        assert json.loads((tmp_path / 'r.json').read_text())['cpus'] == want
+
+
 def test_layout_is_validated_and_split_needs_real_time():
     from catheter_bringup.overrides import apply_overrides
     sc = load_scenario('smoke')

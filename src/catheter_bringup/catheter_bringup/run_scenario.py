@@ -148,8 +148,9 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         return 2
     from catheter_bringup.realtime import pin_process, pins_loop_thread_only
     loop_only = bool(cpus) and pins_loop_thread_only(opts.process)
-    if cpus and not loop_only:
-        pin_process(os.getpid(), cpus, print)     # before rclpy makes its threads
+    pinned = None           # the CPUs this process keeps itself on, for the report
+    if cpus and not loop_only and pin_process(os.getpid(), cpus, _log):
+        pinned = cpus       # every thread: before rclpy makes its threads (they inherit it)
     if not opts.quiet:
         print(f"run {sc['name']} ({why})", flush=True)
     bag = opts.bag
@@ -171,20 +172,27 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         print(f'run_scenario: {exc}', file=sys.stderr)
         runner.close()
         return 2 if isinstance(exc, ValueError) else 1
-    if loop_only:
-        pin_process(os.getpid(), cpus, print, main_only=True)   # the loop thread, made now
+    if loop_only and pin_process(os.getpid(), cpus, _log, main_only=True):
+        pinned = cpus       # the loop thread only, once setup made the others
     res = runner.run()
     if opts.report:
-        write_report(opts.report, opts.process, res)
+        write_report(opts.report, opts.process, res, pinned)
     print(summarize(res), flush=True)
     return 1 if res.status == 'failed' else 0
 
 
-def write_report(path: str, process: str, res: RunResult) -> None:
-    """A worker process's report (read by `catheter_bringup.worker.Workers`)."""
+def _log(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)     # a worker's stderr is its log
+
+
+def write_report(path: str, process: str, res: RunResult,
+                 cpus: Optional[frozenset] = None) -> None:
+    """A worker process's report (read by `catheter_bringup.worker.Workers`); `cpus`: the
+    CPUs it kept itself on (None: any)."""
     import json
     with open(path, 'w') as f:
         json.dump({'process': process, 'status': res.status, 'reason': res.reason,
+                   'cpus': sorted(cpus) if cpus else None,
                    'nodes': res.nodes, 'published': res.published, 'recorded': res.recorded,
                    'received': res.received,
                    'cost': res.cost, 'realtime': res.realtime, 'wall_s': res.wall_time}, f)

@@ -40,8 +40,6 @@ class Worker:
         self.nodes = list(nodes)
         self.name = name
         self.log = log
-        #: the CPUs it is kept on (`realtime.worker_cpus`), None: anywhere
-        self.cpus = cpus
         sc = dict(scenario)
         sc.pop('source', None)
         sc['global_params'] = {**WORKER_PARAMS, **(sc.get('global_params') or {})}
@@ -58,25 +56,14 @@ class Worker:
                '--duration', str(scenario['duration'] + 60.0)]
         if part:
             cmd += ['--part-bag', part]    # records its nodes' messages itself
+        if cpus:
+            # the worker pins itself (`run_scenario --cpus`, as the launch file's workers)
+            cmd += ['--cpus', ','.join(str(c) for c in sorted(cpus))]
         self._log_file = tempfile.TemporaryFile(mode='w+')
         self.proc: Optional[subprocess.Popen] = subprocess.Popen(
             cmd, stdout=subprocess.DEVNULL, stderr=self._log_file, text=True)
         self.log(f'[run] {name} worker process (pid {self.proc.pid}): {", ".join(self.nodes)}'
                  + (f', CPUs {sorted(cpus)}' if cpus else ''))
-        from catheter_bringup.realtime import pins_loop_thread_only
-        #: a 1 kHz worker pins its loop thread only, at `go` (its other threads exist then)
-        self._loop_only = pins_loop_thread_only(name)
-        if cpus and not self._loop_only and not self.pin():
-            self.cpus = None
-
-    def pin(self) -> bool:
-        """Keep the process's threads on `cpus`: every thread (now: threads created later
-        inherit it; `Workers.go` pins again, for any thread made in between), or for a 1 kHz
-        worker its loop (main) thread only."""
-        from catheter_bringup.realtime import pin_process
-        if not self.cpus or not self.running():
-            return False
-        return pin_process(self.proc.pid, self.cpus, self.log, main_only=self._loop_only)
 
     def exited(self) -> bool:
         """True (and the reason logged) if the process ended on its own."""
@@ -90,8 +77,6 @@ class Worker:
         return self._log_file.read()[-2000:]
 
     def go(self) -> None:
-        if self.cpus:
-            self.pin()
         with open(self._go, 'w'):
             pass
 
@@ -187,8 +172,7 @@ class Workers:
                 w.kill()
             rep = w.report()
             if rep is not None:
-                # the CPUs it was kept on (None: any)
-                rep['cpus'] = sorted(w.cpus) if w.cpus else None
+                rep.setdefault('cpus', None)     # the CPUs it kept itself on (None: any)
                 self.reports[w.name] = rep
             w.cleanup()
         self.workers = []
