@@ -21,7 +21,7 @@ pytestmark = pytest.mark.ros
 def split_run(tmp_path_factory):
     bag = tmp_path_factory.mktemp('split') / 'split.mcap'
     sc = apply_overrides(load_scenario('smoke'), ['mode=realtime', 'layout=split',
-                                                  'duration=2.5'])
+                                                  'duration=3.0'])
     logs = []
     res = ScenarioRunner(sc, bag=str(bag), progress=False, log=logs.append).run()
     return res, bag, logs
