@@ -325,7 +325,7 @@ def per_message():
     from rclpy.serialization import deserialize_message, serialize_message
     from sensor_msgs.msg import JointState
     from catheter_bringup.cdr_encode import encoder
-    from catheter_bringup.rclpy_adapter import message_copier as copier
+    from catheter_bringup.msg_copy import message_copier as copier
     from catheter_interfaces.msg import ImpedanceModel, MasterCommand
     js = JointState(name=['insertion', 'rotation'], position=[0.01, 0.0],
                     velocity=[0.0, 0.0], effort=[0.0, 0.0])
@@ -334,7 +334,7 @@ def per_message():
     im = ImpedanceModel(status='ok', s_table=[0.1] * 20, f_table=[0.1] * 20,
                         b_table=[0.1] * 20, c_table=[0.1] * 20)
     print('per message (us): rclpy serialise / the bus\'s encoder (cdr_encode) / rclpy '
-          'deserialise / the bus\'s copy (rclpy_adapter.message_copier) / construct')
+          'deserialise / the bus\'s copy (msg_copy.message_copier) / construct')
 
     def per_call(fn, n=5000):
         t = time.perf_counter()

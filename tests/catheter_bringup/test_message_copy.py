@@ -1,4 +1,4 @@
-"""`rclpy_adapter.message_copier`: the worker bus's copy of a published message for its
+"""`msg_copy.message_copier`: the worker bus's copy of a published message for its
 in-process subscribers. The reference is rclpy's own round trip, deserialize_message(
 serialize_message(msg)): the copy must equal it field for field AND in each value's Python
 type (float / int / bool / str, array.array typecode, numpy dtype), for any message of every
@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from catheter_bringup import msg_copy as C
 from catheter_bringup import rclpy_adapter as A
 from catheter_bringup.cdr import message_class
 from msg_tools import GRAPH_TYPES, message_strategy
@@ -57,7 +58,7 @@ def _check(msg):
     (None) and the caller deserialises."""
     ser, de = A.serializer()
     ref = de(ser(msg), type(msg))
-    copier = A.message_copier(type(msg))
+    copier = C.message_copier(type(msg))
     got = copier(msg) if copier is not None else None
     if got is None:
         return False
@@ -92,7 +93,7 @@ def _leaves(x):
 @pytest.mark.parametrize('type_name', GRAPH_TYPES)
 def test_copy_equals_the_serialisation_round_trip(type_name):
     cls = message_class(type_name)
-    copier = A.message_copier(cls)
+    copier = C.message_copier(cls)
 
     @settings(max_examples=40, deadline=None)
     @given(message_strategy(cls, max_len=5))
@@ -106,10 +107,10 @@ def test_the_graphs_1khz_types_are_copied_and_float32_ones_are_not():
                  'catheter_interfaces/msg/MasterCommand',
                  'catheter_interfaces/msg/ImpedanceModel', 'sensor_msgs/msg/Image',
                  'geometry_msgs/msg/PoseArray'):
-        assert A.message_copier(message_class(name)) is not None, name
+        assert C.message_copier(message_class(name)) is not None, name
     # a float32 scalar is rounded by the round trip: such a type is deserialised instead
-    assert A.message_copier(message_class('std_msgs/msg/ColorRGBA')) is None
-    assert A.message_copier(message_class('visualization_msgs/msg/Marker')) is None
+    assert C.message_copier(message_class('std_msgs/msg/ColorRGBA')) is None
+    assert C.message_copier(message_class('visualization_msgs/msg/Marker')) is None
 
 
 @given(st.floats(allow_nan=True), st.integers(-2 ** 31, 2 ** 31 - 1), st.booleans())
@@ -141,15 +142,15 @@ def test_unchecked_fields_are_copied_only_when_exact(f, i, b):
     m.s_table = [0.5, f]
     assert _check(m)
     m.kind = np.uint8(7)          # (rclpy's serializer aborts the process on this one)
-    assert A.message_copier(ImpedanceModel)(m) is None
-    assert A.message_copier(WrenchStamped)(JointState()) is None     # another class
+    assert C.message_copier(ImpedanceModel)(m) is None
+    assert C.message_copier(WrenchStamped)(JointState()) is None     # another class
 
 
 def test_shared_copy_is_independent_of_a_reused_outgoing_message():
     """The publisher fills the same object again next period: the copy keeps the old values."""
     from sensor_msgs.msg import JointState
     js = JointState(name=['insertion'], position=[0.01], velocity=[0.0], effort=[0.5])
-    got = A.message_copier(JointState)(js)
+    got = C.message_copier(JointState)(js)
     js.position[0] = 0.02
     js.name[0] = 'x'
     js.header.stamp.sec = 9

@@ -12,8 +12,9 @@ import collections
 import time
 from typing import Callable, Dict, List, Optional
 
-from catheter_bringup.rclpy_adapter import (intercept_publish, message_copier, serializer,
-                                            take_callback, wrap_callback)
+from catheter_bringup.msg_copy import message_copier
+from catheter_bringup.rclpy_adapter import (intercept_publish, serializer, take_callback,
+                                            wrap_callback)
 
 
 class PublishCounter:
@@ -82,7 +83,7 @@ class LocalBus:
     in-process subscription of its topic (raw subscriptions get the bytes, the others one
     message, shared: subscribers must not modify what they receive, as in rclcpp's
     intra-process delivery; the message is a copy of the published one made at publish,
-    `rclpy_adapter.message_copier`, equal to the deserialised bytes, or the bytes
+    `msg_copy.message_copier`, equal to the deserialised bytes, or the bytes
     deserialised where the copier refuses it). Deterministic and without DDS delivery
     latency. The nodes' own
     DDS subscriptions stay (subscription counts, "work only while subscribed" keep working)
@@ -116,7 +117,7 @@ class LocalBus:
         #: it); False: a fresh copy each
         self.share = True
         #: subscribers get a copy of the published message made at publish
-        #: (`rclpy_adapter.message_copier`) instead of deserialising its bytes (lockstep and
+        #: (`msg_copy.message_copier`) instead of deserialising its bytes (lockstep and
         #: the workers alike; False: deserialised, the reference of the tests)
         self.copy = True
         #: topics with a subscriber in this process that takes messages (not raw bytes)

@@ -4,7 +4,7 @@ The local bus serialises every publish (for the recording, and for DDS when anot
 takes the topic). ``rclpy.serialization.serialize_message`` converts the message through
 every field's Python property and nested message object, the largest cost of a lockstep
 step once the subscribers got copies instead of deserialised bytes
-(`catheter_bringup.rclpy_adapter.message_copier`; figures: the package README, "Benchmark",
+(`catheter_bringup.msg_copy.message_copier`; figures: the package README, "Benchmark",
 round 5 of the lockstep). `encoder` builds, per message class, a function that reads
 the slots directly and packs runs of fixed-size fields with one precompiled ``struct``
 each: the bytes of plain little-endian CDR (encapsulation ``00 01 00 00``; every primitive
