@@ -93,21 +93,22 @@ class HistoryIdentifier:
         self.P = n_params(p)
         self._K = len(self.sigmas)
         self._cand = [candidate_index(p, k) for k in range(self._K)]
+        # scales of the feature columns: velocity by V, acceleration by A (coefficients in N)
+        self._V = 0.04
+        self._A = 1.0
         P, G = self.P, self.n_nodes
         # flat indices (into the raveled P x P matrix) of each candidate's block: one `take`
         # instead of np.ix_ per solve (the same values, ~4 us against ~35 us)
         self._cand_flat = [(i[:, None] * P + i).ravel() for i in self._cand]
-        self._cand_flat_diag = [i * (P + 1) for i in self._cand]
+        # flat indices of the diagonal entries of each candidate's S and C nodes (`_model`)
+        self._diag_sc = [np.concatenate([i[:G], i[3 * G:4 * G]]) * (P + 1) for i in self._cand]
+        self._tab_div = np.array([[1.0], [1.0], [1.0], [self._V]])
         # a sample's row has 2 nonzeros per table block (nodes j, j + 1) and the mass: its
         # positions per cell j, and their flat indices into the P x P matrix
         nb = 2 + 2 * self._K
         self._row_pos = [np.append((np.arange(nb)[:, None] * G + [j, j + 1]).ravel(), P - 1)
                          for j in range(G - 1)]
         self._row_flat = [(q[:, None] * P + q).ravel() for q in self._row_pos]
-        self._row_coef = np.ones(nb)      # scratch: 1, (z1, z2 - z1) per bank, x' / V
-        # scales of the feature columns: velocity by V, acceleration by A (coefficients in N)
-        self._V = 0.04
-        self._A = 1.0
         self._lam = math.exp(-1.0 / (self.memory * self.rate))
         self._prior, self._lo, self._hi = build_prior(p, self._A)
         # per candidate: its prior block and bounds (constant), for the solves
@@ -333,21 +334,20 @@ class HistoryIdentifier:
         else:
             j = int(u)
             w = u - j
-        c = self._row_coef           # c[0] = 1 (the static table)
-        i = 1
+        w0 = 1.0 - w
+        row = [w0, w]                # in `_row_pos[j]` order: S, (F_k, B_k) per bank, C, mass
         for z1, z2 in zs:
-            c[i] = z1
-            c[i + 1] = z2 - z1
-            i += 2
-        c[i] = xd / self._V
-        v = np.empty(c.size * 2 + 1)
-        np.multiply(c, 1.0 - w, out=v[0:-1:2])
-        np.multiply(c, w, out=v[1:-1:2])
-        v[-1] = xdd / self._A
+            dz = z2 - z1
+            row += (w0 * z1, w * z1, w0 * dz, w * dz)
+        vz = xd / self._V
+        row += (w0 * vz, w * vz, xdd / self._A)
+        v = np.array(row)
         if j not in self._touched:
             self._touched.append(j)
-        self._acc[j] += np.multiply.outer(v, v)
-        self._acc_b[j] += v * f
+        acc = self._acc[j]
+        acc += np.multiply.outer(v, v)
+        acc = self._acc_b[j]
+        acc += v * f
         self._rows += 1
         self.n_moving += 1
 
@@ -404,17 +404,22 @@ class HistoryIdentifier:
             f0 = float(theta @ M @ theta - 2.0 * b @ theta)
             if f0 >= bound:
                 return None, f0
+        # a clamped parameter sits on its bound, so only free ones can be outside the box:
+        # clipping the whole vector clamps exactly the ones outside
         free = np.ones(n, dtype=bool)
         for _ in range(3):
-            bad = free & ((theta < lo) | (theta > hi))
+            bad = (theta < lo) | (theta > hi)
             if not bad.any():
                 break
-            theta[bad] = np.clip(theta[bad], lo[bad], hi[bad])
+            np.maximum(theta, lo, out=theta)
+            np.minimum(theta, hi, out=theta)
             free &= ~bad
             Mf = M[free]
-            rhs = b[free] - Mf[:, ~free] @ theta[~free]
+            fixed = ~free
+            rhs = b[free] - Mf[:, fixed] @ theta[fixed]
             theta[free] = _spd_solve(Mf[:, free], rhs)[0]
-        theta = np.clip(theta, lo, hi)
+        np.maximum(theta, lo, out=theta)
+        np.minimum(theta, hi, out=theta)
         return theta, float(theta @ M @ theta - 2.0 * b @ theta)
 
     def _select(self) -> dict:
@@ -488,17 +493,22 @@ class HistoryIdentifier:
         the rest, so force() is unchanged on the grid (outside it the linear part continues
         while the tables hold their end values)."""
         G = self.n_nodes
-        S = theta[:G]
-        C = theta[3 * G:4 * G] / self._V
-        info = self._A_s.reshape(-1)[self._cand_flat_diag[self.selected]] * self._g
-        k, off = _line(self._nodes, S, info[:G] + 1e-9)
-        wc = info[3 * G:4 * G] + 1e-9
-        c = float(np.sum(wc * C) / np.sum(wc))
-        return Impedance.from_arrays(
-            float(theta[-1]) / self._A, c, k, off, x0=self.x_min, dx=self.dx,
-            sigma=self.sigmas[self.selected], v_s=self.v_s, beta=self.beta,
-            S=S - (k * self._nodes + off), F=theta[G:2 * G], B=theta[2 * G:3 * G], C=C - c,
-            status='ok')
+        T = theta[:4 * G].reshape(4, G) / self._tab_div       # S, F, B, C (C in N s/m)
+        info = self._A_s.take(self._diag_sc[self.selected])    # data on the S and C nodes
+        info *= self._g
+        info += 1e-9
+        k, off = _line(self._nodes, T[0], info[:G])
+        wc = info[G:]
+        c = float(np.sum(wc * T[3]) / np.sum(wc))
+        T[0] -= k * self._nodes + off
+        T[3] -= c
+        if not np.isfinite(T).all():
+            raise ValueError('S, F, B, C must be finite')
+        imp = Impedance(float(theta[-1]) / self._A, c, k, off, True, x0=self.x_min, dx=self.dx,
+                        sigma=self.sigmas[self.selected], v_s=self.v_s, beta=self.beta,
+                        status='ok')
+        imp.S, imp.F, imp.B, imp.C = T.tolist()
+        return imp
 
 
 _POTRF, _POTRS = get_lapack_funcs(('potrf', 'potrs'), (np.zeros(1),))
@@ -506,14 +516,15 @@ _POTRF, _POTRS = get_lapack_funcs(('potrf', 'potrs'), (np.zeros(1),))
 
 def _spd_solve(M: np.ndarray, b: np.ndarray):
     """(x solving M x = b, True) for a symmetric positive definite M (Cholesky: LAPACK's
-    potrf / potrs, the calls of scipy's cho_factor / cho_solve without their checks);
+    potrf / potrs on the lower triangle, what scipy's cho_factor / cho_solve call, without
+    their checks);
     (LU's x, False) if M is not positive definite. An empty system (every parameter
     clamped) has the empty solution."""
     if b.size == 0:
         return b.copy(), True
-    c, info = _POTRF(M, lower=0, overwrite_a=0, clean=0)
+    c, info = _POTRF(M.T, lower=1, overwrite_a=0, clean=0)   # M.T: Fortran order, no copy
     if info == 0:
-        x, info = _POTRS(c, b, lower=0)
+        x, info = _POTRS(c, b, lower=1)
         if info == 0:
             return x, True
     return np.linalg.solve(M, b), False
@@ -521,13 +532,14 @@ def _spd_solve(M: np.ndarray, b: np.ndarray):
 
 def _line(x: np.ndarray, y: np.ndarray, w: np.ndarray):
     """(slope, intercept) of the least-squares line through (x, y) with weights w."""
-    sw = w.sum()
-    mx = (w * x).sum() / sw
-    my = (w * y).sum() / sw
+    sw = float(w.sum())
+    mx = float(w @ x) / sw
+    my = float(w @ y) / sw
     dx = x - mx
-    sxx = (w * dx * dx).sum()
-    k = (w * dx * (y - my)).sum() / sxx if sxx > 0.0 else 0.0
-    return float(k), float(my - k * mx)
+    wdx = w * dx
+    sxx = float(wdx @ dx)
+    k = float(wdx @ (y - my)) / sxx if sxx > 0.0 else 0.0
+    return k, my - k * mx
 
 
 def _json_ready(ident: HistoryIdentifier) -> dict:
