@@ -10,12 +10,15 @@ outage intervals ([start + d, start + length + 2 d)); evaluated from 1.5 s + 2 d
 
 Tables: Experiment I; Experiment II (cold start, and after Experiment I on the same phantom);
 compliant hand; the delay x loss sweep; behaviour at model switches and at rest;
-identification time per sample. Thesis numbers beside.
-Options: --seeds N (default 3), --quick (1 seed, fewer sweep cells).
+identification time per sample, and its per-sample distribution against the pre-rework
+re-fit (issue 15). Thesis numbers beside.
+Options: --seeds N (default 3), --quick (1 seed, fewer sweep cells), --timing-only (the
+identification timing sections alone).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import pathlib
 import sys
 import time
@@ -228,6 +231,77 @@ def sweep_figure(table, path):
     print(f'(figure: {path})')
 
 
+def _experiment_inputs(**cfg):
+    """The default identifier's inputs (x, x', x'', f) in a closed-loop experiment."""
+    import impedance_master.experiment as experiment
+    from impedance_master.history import HistoryIdentifier
+    got = []
+
+    class Rec(HistoryIdentifier):
+        def update(self, x, xd, xdd, f):
+            got.append((x, xd, xdd, f))
+            return super().update(x, xd, xdd, f)
+
+    orig = experiment.make_identifier
+    experiment.make_identifier = lambda **kw: Rec(**kw)
+    try:
+        run_experiment(ExperimentConfig(**cfg))
+    finally:
+        experiment.make_identifier = orig
+    return got
+
+
+def refit_tail(rounds=5):
+    """Issue 15: the per-sample cost distribution of the default identifier against the
+    pre-rework re-fit (tests/impedance_master/history_reference.py, main before issue 15's
+    rework) on the same inputs, alternated in this run; ratio = this / reference."""
+    import gc
+    sys.path.insert(0, str(ROOT / 'tests' / 'impedance_master'))
+    try:
+        from history_reference import BatchHistoryIdentifier
+    finally:
+        sys.path.pop(0)
+    from impedance_master.generalisation import drawn_cases
+    from impedance_master.history import HistoryIdentifier
+    world = [c for c in drawn_cases((300,)) if c[:2] == ('soft', 'human')][0]
+    streams = [('Exp. II seed 0 (12 s)', _experiment_inputs(experiment='II', seed=0)),
+               ('soft x human 300 (12 s)', _experiment_inputs(
+                   experiment='II', vessel=world[0], operator=world[1], seed=world[2],
+                   vessel_params=world[3]))]
+    pc = time.perf_counter
+    qs = (50, 90, 99, 99.9)
+    print(f'\n## Identification per-sample cost: the re-fit tail (issue 15), {rounds} rounds '
+          f'alternated, us per update() (load average at start {os.getloadavg()[0]:.1f})')
+    print(f'{"stream, identifier":<46} {"p50":>6} {"p90":>6} {"p99":>7} {"p99.9":>7} '
+          f'{"max":>7} {"mean":>6}')
+    for label, data in streams:
+        per = {'this': [], 'ref': []}
+        for _ in range(rounds):
+            for key, cls in (('this', HistoryIdentifier), ('ref', BatchHistoryIdentifier)):
+                ident = cls()
+                t = np.empty(len(data))
+                gc.collect()
+                for i, smp in enumerate(data):
+                    t0 = pc()
+                    ident.update(*smp)
+                    t[i] = pc() - t0
+                per[key].append(t * 1e6)
+        rows = {}
+        for key in per:
+            # per statistic the median over the rounds (one round's preemptions do not rule)
+            stats = [[np.percentile(t, q) for q in qs] + [t.max(), t.mean()] for t in per[key]]
+            rows[key] = np.median(np.array(stats), axis=0)
+        for key, name in (('this', 'default (this checkout)'),
+                          ('ref', 'reference: pre-rework re-fit')):
+            print(f'{label + ", " + name:<46} ' + ' '.join(
+                f'{v:{w}.1f}' for v, w in zip(rows[key], (6, 6, 7, 7, 7, 6), strict=True)))
+        print(f'{label + ", ratio this / reference":<46} ' + ' '.join(
+            f'{a / b:{w}.2f}' for a, b, w in zip(rows['this'], rows['ref'],
+                                                (6, 6, 7, 7, 7, 6), strict=True)))
+    print('(per statistic the median over the rounds; p99.9 is the 12th largest of 12 000 '
+          'samples, max the largest: both hold the machine\'s preemptions too)')
+
+
 def timing():
     print('\n## Identification time per sample (Experiment II slave data, 12 000 samples)')
     from impedance_master.experiment import pretrain_identifier  # noqa: F401
@@ -293,7 +367,12 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--seeds', type=int, default=3)
     ap.add_argument('--quick', action='store_true')
+    ap.add_argument('--timing-only', action='store_true')
     a = ap.parse_args(argv)
+    if a.timing_only:
+        timing()
+        refit_tail(rounds=3 if a.quick else 5)
+        return
     seeds = list(range(1 if a.quick else a.seeds))
     t_start = time.perf_counter()
     print(f'# bench_ima: seeds {seeds}; error vs the true vessel force along the master motion '
@@ -324,6 +403,7 @@ def main(argv=None):
         table = sweep(seeds, (0.0, 0.05, 0.2, 0.5, 1.0), (0.0, 0.1, 0.3))
     sweep_figure(table, ROOT / 'out' / 'bench' / 'ima_delay_loss.png')
     timing()
+    refit_tail(rounds=3 if a.quick else 5)
     print(f'\n(total {time.perf_counter() - t_start:.0f} s)')
 
 
