@@ -251,6 +251,28 @@ def _experiment_inputs(**cfg):
     return got
 
 
+def _same_models(data, new_cls, ref_cls):
+    """(models, selections, largest relative difference of any model number) of the two
+    identifiers fed the same samples; AssertionError if they ever differ in kind (one has a
+    model, the other none; status, selection, solve count)."""
+    def numbers(m):
+        return np.array([m.m, m.c, m.k, m.offset, m.sigma, *m.S, *m.F, *m.B, *m.C,
+                         *(m.anchor or ())])
+    a, b = new_cls(), ref_cls()
+    n, worst, last = 0, 0.0, None
+    for i, smp in enumerate(data):
+        ma, mb = a.update(*smp), b.update(*smp)
+        assert (ma is None) == (mb is None) and (a.status, a.selected, a.n_solves) == \
+            (b.status, b.selected, b.n_solves), f'sample {i}'
+        if mb is None or not mb.valid or mb is last:
+            continue
+        last = mb
+        n += 1
+        x, y = numbers(ma), numbers(mb)
+        worst = max(worst, float(np.max(np.abs(x - y) / np.maximum(np.abs(y), 1e-3))))
+    return n, b.n_selections, worst
+
+
 def refit_tail(rounds=5):
     """Issue 15: the per-sample cost distribution of the default identifier against the
     pre-rework re-fit (tests/impedance_master/history_reference.py, main before issue 15's
@@ -263,16 +285,24 @@ def refit_tail(rounds=5):
         sys.path.pop(0)
     from impedance_master.generalisation import drawn_cases
     from impedance_master.history import HistoryIdentifier
-    world = [c for c in drawn_cases((300,)) if c[:2] == ('soft', 'human')][0]
-    streams = [('Exp. II seed 0 (12 s)', _experiment_inputs(experiment='II', seed=0)),
-               ('soft x human 300 (12 s)', _experiment_inputs(
-                   experiment='II', vessel=world[0], operator=world[1], seed=world[2],
-                   vessel_params=world[3]))]
+    worlds = [c for c in drawn_cases((300,))
+              if c[:2] in (('soft', 'human'), ('stribeck_kv', 'sines'), ('stiff_wall', 'minjerk'))]
+    streams = [(f'Exp. II seed {s}', _experiment_inputs(experiment='II', seed=s))
+               for s in (0, 1, 2)]
+    streams += [(f'{v} x {op} {seed}', _experiment_inputs(
+        experiment='II', vessel=v, operator=op, seed=seed, vessel_params=vp))
+        for v, op, seed, vp in worlds]
+    print('\n## Identification: the published models against the pre-rework re-fit (issue 15)')
+    print(f'{"stream (12 s, closed loop)":<34} {"models":>6} {"selections":>10} '
+          f'{"max |this - ref| / max(|ref|, 1e-3)":>36}')
+    for label, data in streams:
+        n, sel, worst = _same_models(data, HistoryIdentifier, BatchHistoryIdentifier)
+        print(f'{label:<34} {n:6d} {sel:>10} {worst:36.1e}')
     pc = time.perf_counter
     qs = (50, 90, 99, 99.9)
     print(f'\n## Identification per-sample cost: the re-fit tail (issue 15), {rounds} rounds '
           f'alternated, us per update() (load average at start {os.getloadavg()[0]:.1f})')
-    print(f'{"stream, identifier":<46} {"p50":>6} {"p90":>6} {"p99":>7} {"p99.9":>7} '
+    print(f'{"stream, identifier":<52} {"p50":>6} {"p90":>6} {"p99":>7} {"p99.9":>7} '
           f'{"max":>7} {"mean":>6}')
     for label, data in streams:
         per = {'this': [], 'ref': []}
@@ -293,9 +323,9 @@ def refit_tail(rounds=5):
             rows[key] = np.median(np.array(stats), axis=0)
         for key, name in (('this', 'default (this checkout)'),
                           ('ref', 'reference: pre-rework re-fit')):
-            print(f'{label + ", " + name:<46} ' + ' '.join(
+            print(f'{label + ", " + name:<52} ' + ' '.join(
                 f'{v:{w}.1f}' for v, w in zip(rows[key], (6, 6, 7, 7, 7, 6), strict=True)))
-        print(f'{label + ", ratio this / reference":<46} ' + ' '.join(
+        print(f'{label + ", ratio this / reference":<52} ' + ' '.join(
             f'{a / b:{w}.2f}' for a, b, w in zip(rows['this'], rows['ref'],
                                                 (6, 6, 7, 7, 7, 6), strict=True)))
     print('(per statistic the median over the rounds; p99.9 is the 12th largest of 12 000 '
