@@ -171,6 +171,28 @@ def test_the_models_are_the_batch_references_on_the_slave_data():
     assert n > 200 and ident.n_selections == 0
 
 
+@pytest.mark.parametrize('params', [
+    dict(sigmas=(3e-4,)),                                    # one candidate: no selection
+    dict(n_nodes=5, solve_every=7, select_every=1, memory=2.0),
+    dict(x_min=0.02, x_max=0.05, n_nodes=9, select_margin=0.0),   # data beyond the grid
+])
+def test_other_settings_give_the_batch_references_models_too(params):
+    stream = _slave_stream(4.0)
+    new, ref = HistoryIdentifier(**params), BatchHistoryIdentifier(**params)
+    n = 0
+    for i, smp in enumerate(stream):
+        a, b = new.update(*smp), ref.update(*smp)
+        assert (a is None) == (b is None) and (new.selected, new.n_selections) == \
+            (ref.selected, ref.n_selections), i
+        if b is not None and b.valid:
+            n += 1
+            fa, fb = _flat(a), _flat(b)
+            assert np.all(np.abs(fa - fb) <= 1e-9 * np.maximum(np.abs(fb), 1e-3)), i
+    assert n > 1000
+    if params.get('select_margin') == 0.0:          # switches on any better fit: 2 here
+        assert ref.n_selections >= 2
+
+
 def _experiment_stream(**cfg):
     """The identifier's inputs in a closed-loop experiment."""
     got = []
