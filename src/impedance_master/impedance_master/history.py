@@ -515,11 +515,10 @@ _POTRF, _POTRS = get_lapack_funcs(('potrf', 'potrs'), (np.zeros(1),))
 
 
 def _spd_solve(M: np.ndarray, b: np.ndarray):
-    """(x solving M x = b, True) for a symmetric positive definite M (Cholesky: LAPACK's
-    potrf / potrs on the lower triangle, what scipy's cho_factor / cho_solve call, without
-    their checks);
-    (LU's x, False) if M is not positive definite. An empty system (every parameter
-    clamped) has the empty solution."""
+    """(x solving M x = b, True) for a symmetric positive definite M: Cholesky by LAPACK's
+    potrf / potrs (what scipy's cho_factor / cho_solve call, here on the lower triangle and
+    without their checks); (LU's x, False) if M is not positive definite. An empty system
+    (every parameter clamped) has the empty solution."""
     if b.size == 0:
         return b.copy(), True
     c, info = _POTRF(M.T, lower=1, overwrite_a=0, clean=0)   # M.T: Fortran order, no copy
