@@ -10,12 +10,15 @@ outage intervals ([start + d, start + length + 2 d)); evaluated from 1.5 s + 2 d
 
 Tables: Experiment I; Experiment II (cold start, and after Experiment I on the same phantom);
 compliant hand; the delay x loss sweep; behaviour at model switches and at rest;
-identification time per sample. Thesis numbers beside.
-Options: --seeds N (default 3), --quick (1 seed, fewer sweep cells).
+identification time per sample, and its per-sample distribution against the pre-rework
+re-fit (issue 15). Thesis numbers beside.
+Options: --seeds N (default 3), --quick (1 seed, fewer sweep cells), --timing-only (the
+identification timing sections alone).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import pathlib
 import sys
 import time
@@ -228,6 +231,107 @@ def sweep_figure(table, path):
     print(f'(figure: {path})')
 
 
+def _experiment_inputs(**cfg):
+    """The default identifier's inputs (x, x', x'', f) in a closed-loop experiment."""
+    import impedance_master.experiment as experiment
+    from impedance_master.history import HistoryIdentifier
+    got = []
+
+    class Rec(HistoryIdentifier):
+        def update(self, x, xd, xdd, f):
+            got.append((x, xd, xdd, f))
+            return super().update(x, xd, xdd, f)
+
+    orig = experiment.make_identifier
+    experiment.make_identifier = lambda **kw: Rec(**kw)
+    try:
+        run_experiment(ExperimentConfig(**cfg))
+    finally:
+        experiment.make_identifier = orig
+    return got
+
+
+def _same_models(data, new_cls, ref_cls):
+    """(models, selections, largest relative difference of any model number) of the two
+    identifiers fed the same samples; AssertionError if they ever differ in kind (one has a
+    model, the other none; status, selection, solve count)."""
+    def numbers(m):
+        return np.array([m.m, m.c, m.k, m.offset, m.sigma, *m.S, *m.F, *m.B, *m.C,
+                         *(m.anchor or ())])
+    a, b = new_cls(), ref_cls()
+    n, worst, last = 0, 0.0, None
+    for i, smp in enumerate(data):
+        ma, mb = a.update(*smp), b.update(*smp)
+        assert (ma is None) == (mb is None) and (a.status, a.selected, a.n_solves) == \
+            (b.status, b.selected, b.n_solves), f'sample {i}'
+        if mb is None or not mb.valid or mb is last:
+            continue
+        last = mb
+        n += 1
+        x, y = numbers(ma), numbers(mb)
+        worst = max(worst, float(np.max(np.abs(x - y) / np.maximum(np.abs(y), 1e-3))))
+    return n, b.n_selections, worst
+
+
+def refit_tail(rounds=5):
+    """Issue 15: the per-sample cost distribution of the default identifier against the
+    pre-rework re-fit (tests/impedance_master/history_reference.py, main before issue 15's
+    rework) on the same inputs, alternated in this run; ratio = this / reference."""
+    import gc
+    sys.path.insert(0, str(ROOT / 'tests' / 'impedance_master'))
+    try:
+        from history_reference import BatchHistoryIdentifier
+    finally:
+        sys.path.pop(0)
+    from impedance_master.generalisation import drawn_cases
+    from impedance_master.history import HistoryIdentifier
+    worlds = [c for c in drawn_cases((300,))
+              if c[:2] in (('soft', 'human'), ('stribeck_kv', 'sines'), ('stiff_wall', 'minjerk'))]
+    streams = [(f'Exp. II seed {s}', _experiment_inputs(experiment='II', seed=s))
+               for s in (0, 1, 2)]
+    streams += [(f'{v} x {op} {seed}', _experiment_inputs(
+        experiment='II', vessel=v, operator=op, seed=seed, vessel_params=vp))
+        for v, op, seed, vp in worlds]
+    print('\n## Identification: the published models against the pre-rework re-fit (issue 15)')
+    print(f'{"stream (12 s, closed loop)":<34} {"models":>6} {"selections":>10} '
+          f'{"max |this - ref| / max(|ref|, 1e-3)":>36}')
+    for label, data in streams:
+        n, sel, worst = _same_models(data, HistoryIdentifier, BatchHistoryIdentifier)
+        print(f'{label:<34} {n:6d} {sel:>10} {worst:36.1e}')
+    pc = time.perf_counter
+    qs = (50, 90, 99, 99.9)
+    print(f'\n## Identification per-sample cost: the re-fit tail (issue 15), {rounds} rounds '
+          f'alternated, us per update() (load average at start {os.getloadavg()[0]:.1f})')
+    print(f'{"stream, identifier":<52} {"p50":>6} {"p90":>6} {"p99":>7} {"p99.9":>7} '
+          f'{"max":>7} {"mean":>6}')
+    for label, data in streams:
+        per = {'this': [], 'ref': []}
+        for _ in range(rounds):
+            for key, cls in (('this', HistoryIdentifier), ('ref', BatchHistoryIdentifier)):
+                ident = cls()
+                t = np.empty(len(data))
+                gc.collect()
+                for i, smp in enumerate(data):
+                    t0 = pc()
+                    ident.update(*smp)
+                    t[i] = pc() - t0
+                per[key].append(t * 1e6)
+        rows = {}
+        for key in per:
+            # per statistic the median over the rounds (one round's preemptions do not rule)
+            stats = [[np.percentile(t, q) for q in qs] + [t.max(), t.mean()] for t in per[key]]
+            rows[key] = np.median(np.array(stats), axis=0)
+        for key, name in (('this', 'default (this checkout)'),
+                          ('ref', 'reference: pre-rework re-fit')):
+            print(f'{label + ", " + name:<52} ' + ' '.join(
+                f'{v:{w}.1f}' for v, w in zip(rows[key], (6, 6, 7, 7, 7, 6), strict=True)))
+        print(f'{label + ", ratio this / reference":<52} ' + ' '.join(
+            f'{a / b:{w}.2f}' for a, b, w in zip(rows['this'], rows['ref'],
+                                                (6, 6, 7, 7, 7, 6), strict=True)))
+    print('(per statistic the median over the rounds; p99.9 is the 12th largest of 12 000 '
+          'samples, max the largest: both hold the machine\'s preemptions too)')
+
+
 def timing():
     print('\n## Identification time per sample (Experiment II slave data, 12 000 samples)')
     from impedance_master.experiment import pretrain_identifier  # noqa: F401
@@ -293,7 +397,12 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--seeds', type=int, default=3)
     ap.add_argument('--quick', action='store_true')
+    ap.add_argument('--timing-only', action='store_true')
     a = ap.parse_args(argv)
+    if a.timing_only:
+        timing()
+        refit_tail(rounds=3 if a.quick else 5)
+        return
     seeds = list(range(1 if a.quick else a.seeds))
     t_start = time.perf_counter()
     print(f'# bench_ima: seeds {seeds}; error vs the true vessel force along the master motion '
@@ -324,6 +433,7 @@ def main(argv=None):
         table = sweep(seeds, (0.0, 0.05, 0.2, 0.5, 1.0), (0.0, 0.1, 0.3))
     sweep_figure(table, ROOT / 'out' / 'bench' / 'ima_delay_loss.png')
     timing()
+    refit_tail(rounds=3 if a.quick else 5)
     print(f'\n(total {time.perf_counter() - t_start:.0f} s)')
 
 

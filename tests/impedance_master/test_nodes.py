@@ -4,6 +4,8 @@ import math
 
 import pytest
 from geometry_msgs.msg import WrenchStamped
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from rclpy.parameter import Parameter
 from catheter_interfaces.msg import ImpedanceModel, MasterCommand
 from sensor_msgs.msg import JointState
@@ -13,10 +15,11 @@ from catheter_common.messages import impedance_fields, impedance_msg, master_com
 from catheter_common.topics import (MASTER_COMMAND, MASTER_LINK_FORCE,
                                     MASTER_LINK_IMPEDANCE, MASTER_RENDERED_FORCE, SLAVE_FORCE,
                                     SLAVE_IMPEDANCE, SLAVE_JOINT_STATE)
+from catheter_common import topics as T
 from catheter_common.qos import QOS_FAST
 from impedance_master.ima_master_node import ImaMasterNode
 from impedance_master.impedance import Impedance
-from impedance_master.impedance_identifier_node import ImpedanceIdentifierNode
+from impedance_master.impedance_identifier_node import ImpedanceIdentifierNode, fill_table_msg
 from impedance_master.sim_haptic_node import MASTER_HAND_FORCE, SimHapticNode
 
 pytestmark = pytest.mark.ros
@@ -301,3 +304,75 @@ def test_sim_haptic_node_checks_each_model_once_and_still_refuses_a_bad_one(ros)
         assert sent() == 5 and len(checks) == 7
     finally:
         shn.impedance_fields = orig
+
+
+_F = st.floats(-10.0, 10.0)
+
+
+def _table_model(draw, n):
+    tabs = [draw(st.lists(_F, min_size=n, max_size=n)) for _ in range(4)]
+    return Impedance(*(draw(_F) for _ in range(4)), valid=draw(st.booleans()),
+                     x0=draw(st.floats(-0.1, 0.1)), dx=draw(st.floats(1e-4, 0.1)),
+                     sigma=draw(st.floats(0.0, 0.01)), v_s=draw(st.floats(1e-4, 0.1)),
+                     beta=draw(st.floats(0.0, 5.0)), S=tabs[0], F=tabs[1], B=tabs[2],
+                     C=tabs[3], status=draw(st.sampled_from(['ok', 'at_rest', ''])),
+                     anchor=[draw(_F) for _ in range(7)])
+
+
+def _same_msg(a, b):
+    names = [n for n in ImpedanceModel.get_fields_and_field_types() if n != 'header']
+    for n in names:
+        assert getattr(a, n) == getattr(b, n), n
+    assert a.header.frame_id == b.header.frame_id
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(2, 20), st.data())
+def test_fill_table_msg_writes_what_impedance_msg_makes(n, data):
+    """Issue 15: the identifier node writes a new table model into its message in place;
+    the message is then what impedance_msg makes of the model (header aside)."""
+    first, second = _table_model(data.draw, n), _table_model(data.draw, n)
+    msg = impedance_msg(first, 5, 'catheter_base')
+    assert fill_table_msg(msg, second)
+    _same_msg(msg, impedance_msg(second, 5, 'catheter_base'))
+
+
+def test_fill_table_msg_leaves_everything_else_to_impedance_msg():
+    table = dict(S=[0.1, 0.2, 0.3], F=[0.0] * 3, B=[0.0] * 3, C=[1.0] * 3, status='ok',
+                 anchor=(0.03, 0.01, 0, 1, 1.2, 0.2, 0.01))
+    m = Impedance(0.01, 2.0, 3.0, 0.5, **table)
+    msg = impedance_msg(m, 5, 'catheter_base')
+    before = copy.deepcopy(msg)
+    bad = copy.deepcopy(m)
+    bad.S[1] = math.nan                        # mutated after construction: not finite
+    huge = m.copy(c=1.7e308, k=1.7e308)        # finite, its sum overflows: impedance_msg's
+    for other, target in ((m.copy(anchor=None), msg), (Impedance(0.1, 2.0, 3.0, 0.5), msg),
+                          (m.copy(S=[0.1] * 4, F=[0.0] * 4, B=[0.0] * 4, C=[1.0] * 4), msg),
+                          (bad, msg), (huge, msg), (m, None),
+                          (m, impedance_msg(m.copy(anchor=None), 5, 'catheter_base')),
+                          (m, impedance_msg(Impedance(0.1, 2.0, 3.0, 0.5), 5, 'x'))):
+        assert not fill_table_msg(target, other)
+        _same_msg(msg, before)
+    with pytest.raises(ValueError, match='model S1'):
+        impedance_msg(bad, 5, 'catheter_base')
+
+
+def test_identifier_node_writes_a_new_table_model_into_its_message(ros):
+    from catheter_bringup.rclpy_adapter import intercept_publish
+    node = ros.add(ImpedanceIdentifierNode(context=ros.context))
+    probe = ros.node('probe_ident_fill')
+    collect(probe, ImpedanceModel, SLAVE_IMPEDANCE)
+    assert ros.spin_until(lambda: node.pub.get_subscription_count() > 0, 10.0)
+    out = []
+    intercept_publish(node.pub, lambda m: out.append(copy.deepcopy(m)))
+    a = Impedance(0.01, 2.0, 3.0, 0.5, S=[0.1, 0.2, 0.3], F=[0.0] * 3, B=[0.1] * 3,
+                  C=[1.0] * 3, status='ok', anchor=(0.03, 0.01, 0, 1, 1.2, 0.2, 0.01))
+    b = a.copy(c=2.5, S=[0.3, 0.2, 0.1], anchor=(0.04, 0.0, 0, -1, -1.2, -0.2, 0.0))
+    node.model = a
+    node._publish()
+    first = node._msg
+    node.model = b
+    node._publish()
+    assert node._msg is first                 # written in place, not a new message
+    _same_msg(out[1], impedance_msg(b, 5, T.FRAME_CATHETER_BASE))
+    assert out[0].c == 2.0 and list(out[0].s_table) == [0.1, 0.2, 0.3]

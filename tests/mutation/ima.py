@@ -11,6 +11,8 @@ TESTS = ['tests/impedance_master', 'tests/sim_slave', '-k',
          'not test_nodes and not test_graph and not test_node and not test_camera_node']
 
 IM = 'src/impedance_master/impedance_master/'
+RT = 'tests/impedance_master/test_identifier_refit.py'
+NT = 'tests/impedance_master/test_nodes.py'
 S = 'src/sim_slave/sim_slave/'
 
 MUTANTS = [
@@ -41,8 +43,8 @@ MUTANTS = [
            'self._lam = 1.0',
            'issue 14 survivor: the forgetting removed'),
     Mutant('I07', IM + 'history.py',
-           '        decay = self._lam ** k',
-           '        decay = self._lam',
+           '        g = self._g * self._lam ** k',
+           '        g = self._g * self._lam',
            'issue 14 survivor: the forgetting changed (per batch instead of per sample)'),
     Mutant('I08', IM + 'history.py',
            '        x, xd, xdd_in, f = self._despike(x, xd, xdd_in, f)',
@@ -165,6 +167,42 @@ MUTANTS = [
            '        u = 1.0 if fs >= 0.0 else 0.0',
            "beyond the data the slope's direction switches hard with the sign of the edge's "
            'force (a jump where it crosses 0)'),
+    # -- issue 15: the re-fit's work spread and cut (same models as before)
+    Mutant('R01', IM + 'history.py',
+           '            flat[self._row_flat[j]] += self._acc[j].reshape(-1) / g',
+           '            flat[self._row_flat[j]] += self._acc[j].reshape(-1) / self._g',
+           "a batch's rows added at the old scale (the batch forgotten against itself)",
+           tests=(RT,)),
+    Mutant('R02', IM + 'history.py',
+           '        M *= self._g\n',
+           '\n',
+           'the lazy forgetting scale not applied to the matrix of a solve', tests=(RT,)),
+    Mutant('R03', IM + 'history.py',
+           '        if g < self._G_MIN:\n            self._A_s *= g',
+           '        if g < self._G_MIN:\n            self._A_s *= 1.0',
+           'the scale folded back into b but not into the matrix', tests=(RT,)),
+    Mutant('R04', IM + 'history.py',
+           '            if f0 >= bound:',
+           '            if True:',
+           'every other candidate skipped at a selection (the presliding length never '
+           'switches)', tests=(RT,)),
+    Mutant('R05', IM + 'history.py',
+           '        done = solved.get(self.selected)',
+           '        done = next(iter(solved.values()))',
+           "after a switch the model is the previous candidate's fit", tests=(RT,)),
+    Mutant('R06', IM + 'history.py',
+           '        if j not in self._touched:',
+           '        if not self._touched:',
+           "a batch's rows in a second grid cell never reach the normal equations",
+           tests=(RT,)),
+    Mutant('R07', IM + 'impedance_identifier_node.py',
+           '    if not (n == len(msg.s_table) == len(F) == len(B) == len(C)):',
+           '    if False:',
+           'a model with another node count written into the old message', tests=(NT,)),
+    Mutant('R08', IM + 'impedance_identifier_node.py',
+           '    msg.valid = bool(model.valid)\n',
+           '\n',
+           "the in-place message keeps the previous model's valid flag", tests=(NT,)),
     # -- operator and vessel families (issue 12)
     Mutant('I16', IM + 'operator.py',
            '        self._amp = min((self.x_hi - self.x_lo) / span if span > 0 else math.inf,',
