@@ -31,6 +31,8 @@ FAST_DENSE_MAX_N = 64
 QUASI_ABOVE = 1e-2
 #: ... and from the first step below this N (the rates, ~ load / N^2, are large there)
 _QUASI_MIN_N = 3
+#: up to this N the Newton step's Jacobian is built in Python floats (``_small_jacobian``)
+SMALL_N = 4
 #: a damped step may turn the tip by at least this much (rad) whatever N: the per-arc limit
 #: (0.3 rad) times 4 arcs, so N = 1-3 arcs are damped no more than N = 4. Not for Bezier
 #: arcs: few long Bezier arcs have extra equilibria near the start, and larger steps reached
@@ -187,14 +189,24 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
                 break
             continue
         res_prev = res_jac = res
+        # clothoid arcs: with the rates' own derivatives (see clothoid_terms), quadratic
+        # convergence; far from the solution the circular-arc factors do as well, cheaper
+        terms = clothoid and (res < QUASI_ABOVE or n < _QUASI_MIN_N)
+        if n <= SMALL_N:
+            J = _small_jacobian(R.tolist(), rel.tolist(), ZF.tolist(), w.tolist(), cF, follower,
+                                terms, None if th_r is None else th_r.tolist())
+            lu, piv, dx, _ = _dgesv(J, r)
+            phi = limited_step(phi, dx, step_limit)
+            if phi is None:
+                break
+            continue
         # -dMbar/dphi = D: D_ij = a_i (j < i), d_i (j = i), c_j + e_i (j > i); J = I + W D
         Y = R[:, 2:] * cF                      # g', q' (, k, k-km, k', (k-km)') terms
         irc = (1j * rel * cF).imag
         d = irc + Y[:, 1].imag
         c = irc + Y[:, 0].imag
         e = None
-        if clothoid and (res < QUASI_ABOVE or n < _QUASI_MIN_N):
-            # with the rates' own derivatives (see clothoid_terms): quadratic convergence
+        if terms:
             rho_ = RHO_MAX * th_r
             Yr = Y.real
             lo_, dg_, up_, row_ = clothoid_terms(z0.real, Y[:, 0].imag, Yr[:, 2], Yr[:, 3],
@@ -232,6 +244,77 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
         phi, tip, rho = np.zeros(n), complex(float(np.sum(l))), None
     pmax = _MAXR(np.abs(phi))
     return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J, rho
+
+
+def _small_jacobian(R: list, rel: list, ZF: list, w: list, cF: complex, follower: bool,
+                    terms: bool, th_r: Optional[list]) -> np.ndarray:
+    """The dense Jacobian J = I + W D of ``fast_tip_newton``'s Newton step for few arcs
+    (N <= SMALL_N), in Python floats: on one or two arcs numpy's per-call overhead is most of
+    the cost of the ~40 array operations of the general form (and all of it for the clothoid
+    rates' terms, which N < _QUASI_MIN_N adds at every step). The same formulas in the same
+    order (``clothoid_terms`` for the rates); R: (N, 4 or 8) rows of l e^{i theta_start}
+    (g, q, g', q' (, k, k - km, k', (k - km)')); rel = P_N - P_i; ZF = (rel + lever) cF;
+    terms: add the rates' derivatives (th_r = tanh(rho / RHO_MAX))."""
+    n = len(w)
+    a = [0.0] * n
+    c = [0.0] * n
+    d = [0.0] * n
+    e = [0.0] * n
+    for i in range(n):
+        Ri = R[i]
+        irc = (rel[i] * cF).real
+        zr = ZF[i].real
+        y0 = (Ri[2] * cF).imag
+        c[i] = irc + y0
+        d[i] = irc + (Ri[3] * cF).imag
+        if follower:
+            d[i] -= zr
+            e[i] = -zr
+        else:
+            a[i] = zr
+    if terms:
+        # clothoid_terms: sigma_j = w'_j sg_j, tau_j = w'_j tg_j, u_j = a_j sigma_j
+        cs = 0.0
+        us = [0.0] * n
+        for i in range(n):
+            Ri = R[i]
+            t = th_r[i]
+            ws = w[i] * (1.0 - t * t)
+            sig = ws * (Ri[0] * cF).real
+            tau = ws * (Ri[2] * cF).imag
+            ka = (Ri[4] * cF).real
+            kb = (Ri[5] * cF).real
+            rho = RHO_MAX * t
+            ap = rho * (Ri[6] * cF).real
+            bp = rho * (Ri[7] * cF).real
+            u = ka * sig
+            us[i] = (u, ka, kb, sig, tau, ap, bp)
+        if follower:
+            for i in range(n):
+                u, ka, kb, sig, tau, ap, bp = us[i]
+                cs += u                           # sum over j <= i
+                d[i] += kb * (tau - sig) + bp
+                c[i] += ka * (tau - sig) - (cs - u) + ap
+                e[i] += cs - kb * sig
+        else:
+            S = 0.0
+            for i in range(n - 1, -1, -1):        # S: sum over j > i
+                u, ka, kb, sig, tau, ap, bp = us[i]
+                a[i] += S + kb * sig
+                d[i] += S + kb * tau + bp
+                c[i] += S + ka * tau + ap
+                S += u
+    J = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        wi = w[i]
+        Ji = J[i]
+        for j in range(n):
+            if j < i:
+                Ji[j] = 0.0 if follower else wi * a[i]
+            elif j > i:
+                Ji[j] = wi * (c[j] + e[i])
+        Ji[i] = wi * d[i] + 1.0
+    return np.array(J)
 
 
 def jacobian_at(phi: np.ndarray, l: np.ndarray, w: np.ndarray, F: complex, m: float,
