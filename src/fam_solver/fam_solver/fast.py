@@ -266,7 +266,10 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
     if graded and np.any(phi):
         # second pass on graded arcs from this equal-arc solution (see graded_fractions);
         # the stability check below then uses the graded Jacobian
-        f, start = fast_grade(phi, F, follower)
+        # (circular and Bezier arcs start from the equal arcs' curvature; clothoid arcs from
+        # their tangent-angle curve: from the curvature start Newton's steps without the
+        # rates' terms (max|r| > QUASI_ABOVE) contracted slowly at N = 3-8 (design record))
+        f, start = fast_grade(phi, F, follower, curvature=not cl)
         lg = L * f
         p2, c2, it2, r2, tip2, J2, rho2 = fast_tip_newton(n, lg, lg / EI, F, m, follower, start,
                                                           mi, clothoid=cl, bezier=bezier)
