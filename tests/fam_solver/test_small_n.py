@@ -115,7 +115,8 @@ def test_curvature_start_is_exact_for_a_linear_curvature():
 def test_graded_pass_from_the_curvature_start_same_equilibrium_fewer_iterations(model):
     """On the cliff bench's loads, N = 2 to 32: the second pass from the curvature start ends
     at the second pass's equilibrium from the remapped start (the shipped one before), and
-    takes fewer Newton iterations in all at every N."""
+    takes fewer Newton iterations in all at every N (solve_fam uses it up to N = 16: beyond,
+    the fewer iterations did not make the median faster)."""
     bz = model == 'bezier'
     for n in (2, 3, 4, 8, 16, 32):
         its = {True: 0, False: 0}
@@ -183,9 +184,10 @@ def test_the_small_paths_are_taken_up_to_small_n_only():
 
 
 def test_graded_solves_take_the_curvature_start_for_circular_and_bezier_arcs(monkeypatch):
-    """solve_fam's second pass starts from the curvature for circular and Bezier arcs, from
-    the tangent-angle curve (remap) for clothoid arcs (from the curvature start clothoid arcs
-    took more iterations at N = 3-8: package README, round 6)."""
+    """solve_fam's second pass starts from the curvature for circular and Bezier arcs on up to
+    fast._CURVATURE_MAX_N arcs, from the tangent-angle curve (remap) for clothoid arcs (from
+    the curvature start they took more iterations at N = 3-8) and beyond (no time saved
+    there: package README, round 6)."""
     seen = []
     orig = fast.fast_grade
 
@@ -193,8 +195,11 @@ def test_graded_solves_take_the_curvature_start_for_circular_and_bezier_arcs(mon
         seen.append(curvature)
         return orig(phi, F, follower, curvature)
     monkeypatch.setattr(fast, 'fast_grade', spy)
-    for model, want in (('exact', True), ('bezier', True), ('clothoid', False)):
+    big = fast._CURVATURE_MAX_N + 1
+    for model, n, want in (('exact', 6, True), ('bezier', 6, True), ('clothoid', 6, False),
+                           ('exact', big, False), ('bezier', big, False),
+                           ('exact', fast._CURVATURE_MAX_N, True)):
         seen.clear()
-        sh = solve_fam(BLAZER, Loads(tip_force=(0.1, 0.2)), n_arcs=6, arc_model=model,
+        sh = solve_fam(BLAZER, Loads(tip_force=(0.1, 0.2)), n_arcs=n, arc_model=model,
                        spacing='graded')
-        assert sh.converged and seen == [want], (model, seen)
+        assert sh.converged and seen == [want], (model, n, seen)

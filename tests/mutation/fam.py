@@ -294,7 +294,7 @@ MUTANTS = [
            '    fp[0] = k[0]',
            'curvature start: the base curvature not extrapolated (O(l) off at the base)'),
     Mutant('M65', P + 'fast.py',
-           'curvature=not cl)',
-           'curvature=True)',
+           'curvature=not cl and n <= _CURVATURE_MAX_N)',
+           'curvature=n <= _CURVATURE_MAX_N)',
            'graded pass: clothoid arcs from the curvature start (more iterations at N = 3-8)'),
 ]
