@@ -32,8 +32,9 @@ def _case(rng, n, force=3.0):
 @pytest.mark.parametrize('follower', [False, True])
 @pytest.mark.parametrize('clothoid', [False, True])
 def test_small_jacobian_equals_the_array_form(n, follower, clothoid, monkeypatch):
-    """The Jacobian (far from and near a solution: clothoid arcs with and without the rates'
-    terms) and the Newton iterates equal those of the array form to rounding."""
+    """The residual, tip and rates, the Jacobian (far from and near a solution: clothoid arcs
+    with and without the rates' terms) and the Newton iterates equal those of the array form
+    to rounding."""
     K = fast_newton.SMALL_N
     assert K >= 4
     rng = np.random.default_rng(10 * n + 2 * follower + clothoid)
@@ -50,11 +51,16 @@ def test_small_jacobian_equals_the_array_form(n, follower, clothoid, monkeypatch
             J = fast_newton.jacobian_at(phi, l, w, F, m, follower, clothoid)
             it = fast_newton.fast_tip_newton(n, l, w, F, m, follower, phi, 3, rtol=0.0,
                                              clothoid=clothoid)
-            out[small] = J, it[0]
-        (J1, p1), (J0, p0) = out[K], out[0]
+            out[small] = (J, it[0])
+            out[small] += fast_newton.fast_tip_newton(n, l, w, F, m, follower, phi, 0,
+                                                      clothoid=clothoid)[3:]
+        (J1, p1, r1, tip1, _, rho1), (J0, p0, r0, tip0, _, rho0) = out[K], out[0]
         assert np.max(np.abs(J1 - J0)) <= 1e-14 * max(1.0, np.max(np.abs(J0)))
         assert np.max(np.abs(p1 - p0)) <= 1e-12 * max(1.0, np.max(np.abs(p0)))
-        r0 = fast_newton.fast_tip_newton(n, l, w, F, m, follower, phi, 0, clothoid=clothoid)[3]
+        # the residual, the tip and the clothoid rates at phi
+        assert abs(r1 - r0) <= 1e-15 * max(1.0, r0) and abs(tip1 - tip0) <= 1e-15
+        assert (rho0 is None) == (rho1 is None) == (not clothoid)
+        assert clothoid is False or np.max(np.abs(rho1 - rho0)) <= 1e-15
         terms_seen.add(clothoid and (r0 < fast_newton.QUASI_ABOVE or n < 3))
     if clothoid and n >= 3:
         assert terms_seen == {False, True}
