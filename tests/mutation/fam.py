@@ -280,7 +280,7 @@ MUTANTS = [
     Mutant('M61', P + 'fast_newton.py',
            '    few = n <= SMALL_N\n',
            '    few = False\n',
-           'kernel: the Python-float residual and Jacobian never used (few arcs as slow as before)'),
+           'kernel: the Python-float residual and Jacobian never used (few arcs slow again)'),
     Mutant('M62', P + 'fast_bezier.py',
            '                x -= cr',
            '                x += cr',
