@@ -45,6 +45,8 @@ _FFT = 512
 _K0 = 72                  # terms kept about 0 (enough for |phi| = _SPLIT: tail < 1e-17)
 _KS = 64                  # terms kept about +-_SIDE (|phi -+ _SIDE| <= 1.3)
 _COLS = 18                # complex: h (4), dh (4), H_k (4), dH_k (4), g, g'
+#: up to this N the Newton step's Jacobian is built in Python floats (``_small_step``)
+SMALL_N = 4
 
 
 def _unit_funcs(z: np.ndarray, t: np.ndarray):
@@ -204,6 +206,16 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
                 break
             continue
         res_prev = res_jac = res
+        if dense and n <= SMALL_N:
+            out = _small_step(BB.tolist(), T.tolist(), a.tolist(), f.tolist(), RF.tolist(),
+                              lE.tolist(), RG.tolist(), r.tolist(), w.tolist(), cF, follower)
+            if out is None:
+                break
+            J, lu, piv, dx, lu_scaled = out
+            phi = limited_step(phi, dx, step_limit)
+            if phi is None:
+                break
+            continue
         W = sc * w                  # -dr/dM: the Jacobian's row weights (linsolve's w)
         if not _MINR(np.abs(W)) > 0:
             break
@@ -270,3 +282,71 @@ def bezier_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float
     if not res < math.inf:
         phi, tip = np.zeros(n), complex(float(np.sum(l)))
     return phi, res <= 1e-13 + 1e-12 * _MAXR(np.abs(phi)), it, res, tip, J, None
+
+
+def _small_step(BB: list, T: list, a: list, f: list, RF: list, lE: list, RG: list, r: list,
+                w: list, cF: complex, follower: bool):
+    """The dense Newton step of ``bezier_tip_newton`` for few arcs (N <= SMALL_N) with the
+    Jacobian built in Python floats (numpy's per-call overhead is most of the cost of its ~40
+    array operations on one to four arcs): the same formulas in the same order. Arguments:
+    the loop's arrays as lists. Returns J (unscaled, as the loop keeps it), the LU factors and
+    pivots of the matrix solved, the step dx, whether it was the scaled (r / s) system; None
+    when a row weight -dr/dM vanishes (the loop stops)."""
+    n = len(w)
+    sc = [-BB[i][0][0] for i in range(n)]
+    W = [sc[i] * w[i] for i in range(n)]
+    if not all(abs(x) > 0 for x in W):
+        return None
+    A = [0.0] * n
+    e = [0.0] * n
+    Bd = [0.0] * n
+    Mcol = [0.0] * n
+    for i in range(n):
+        ig = -1.0 / W[i]
+        Ti = T[i]
+        ai = a[i][0]
+        Kn = BB[i][0][1] + 1j * BB[i][0][2] + (ai[0] * Ti[0] + ai[1] * Ti[1] + ai[2] * Ti[2]
+                                               + ai[3] * Ti[3])
+        kK = (Kn.conjugate() * f[i]).real
+        Mlow = -RF[i].real
+        Mcol[i] = Mlow - (lE[i] * Ti[17] * cF).imag
+        gP1 = RG[i][1] - 1.0
+        if follower:
+            e[i] = kK * ig - Mlow
+            Bd[i] = (gP1 + kK) * ig
+        else:
+            A[i] = Mlow - kK * ig
+            Bd[i] = gP1 * ig + Mlow
+    J = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        Ji = J[i]
+        mw = -W[i]
+        for j in range(n):
+            if j < i:
+                Ji[j] = 0.0 if follower else A[i] * mw
+            elif j > i:
+                Ji[j] = (Mcol[j] + e[i]) * mw
+        Ji[i] = Bd[i] * mw + 1.0
+    scaled = min(sc) > 0.1
+    if not scaled:
+        D = np.array(J)
+        lu, piv, dx, _ = _dgesv(D, np.array(r))
+        return D, lu, piv, dx, False
+    rt = [0.0] * n
+    Jt = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        isc = 1.0 / sc[i]
+        rt[i] = r[i] * isc
+        c = rt[i] * isc
+        cr = c * (T[i][0].conjugate() * f[i]).real
+        Ji, Jti = J[i], Jt[i]
+        for j in range(n):
+            x = Ji[j] * isc
+            if follower and j >= i:
+                x += cr
+            elif not follower and j < i:
+                x -= cr
+            Jti[j] = x
+        Jti[i] += c * BB[i][1][0]
+    lu, piv, dx, _ = _dgesv(np.array(Jt), np.array(rt))
+    return np.array(J), lu, piv, dx, True

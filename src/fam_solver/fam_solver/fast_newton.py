@@ -31,6 +31,11 @@ FAST_DENSE_MAX_N = 64
 QUASI_ABOVE = 1e-2
 #: ... and from the first step below this N (the rates, ~ load / N^2, are large there)
 _QUASI_MIN_N = 3
+#: up to this N the Newton step's Jacobian is built in Python floats (``_small_jacobian``)
+SMALL_N = 4
+#: ... while every arc is turned by less than this (rad; beyond, the array form: it gives NaN
+#: where Python's math raises)
+_SMALL_PMAX = 1e6
 #: a damped step may turn the tip by at least this much (rad) whatever N: the per-arc limit
 #: (0.3 rad) times 4 arcs, so N = 1-3 arcs are damped no more than N = 4. Not for Bezier
 #: arcs: few long Bezier arcs have extra equilibria near the start, and larger steps reached
@@ -146,34 +151,45 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
     lu = piv = None                # LU factors of the last Jacobian (dense), for chord steps
     res_prev = res_jac = math.inf
     chord = False
+    few = n <= SMALL_N
+    if few:
+        ll, wl, wrl = l.tolist(), w.tolist(), w_r.tolist()
     for it in range(max_iter + 1):
-        th_end = acc(phi)
-        lE = l * np.exp(1j * (th_end - phi))
         pmax = _MAXR(np.abs(phi))
-        R = _arc_values(phi, pmax, V, coef)  # (N, 4 or 8): g, q, g', q' (, k, k-km, k', (k-km)')
-        R *= lE[:, None]                     # l e^{i theta_start} times those
-        if follower:
-            t = float(th_end[-1])
-            cF = cF0 * complex(math.cos(t), -math.sin(t))
+        small = few and pmax < _SMALL_PMAX
+        if small:       # the same residual in Python floats (_small_residual; its Jacobian too)
+            Rl = _arc_values(phi, pmax, V, coef).tolist()
+            E, cF, rel, ZF, rl, Pn, th_r = _small_residual(phi.tolist(), Rl, ll, wl, wrl, cF0,
+                                                           m, follower, clothoid)
+            r = np.array(rl)
         else:
-            cF = cF0
-        if clothoid:
-            z0 = R[:, 0] * cF
-            th_r = np.tanh(w_r * z0.imag)     # clothoid_rates: w (chord x -F), saturated
-            c = th_r * iR
-            P = acc(R[:, 0] + c * R[:, 4])
-            lever = R[:, 1] + c * R[:, 5]
-        else:
-            P = acc(R[:, 0])
-            lever = R[:, 1]
-        rel = P[-1] - P
-        ZF = (rel + lever) * cF
-        r = phi - w * (m - ZF.imag)
+            th_end = acc(phi)
+            lE = l * np.exp(1j * (th_end - phi))
+            R = _arc_values(phi, pmax, V, coef)  # (N, 4|8): g, q, g', q' (, k, k-km, k', (k-km)')
+            R *= lE[:, None]                     # l e^{i theta_start} times those
+            if follower:
+                t = float(th_end[-1])
+                cF = cF0 * complex(math.cos(t), -math.sin(t))
+            else:
+                cF = cF0
+            if clothoid:
+                z0 = R[:, 0] * cF
+                th_r = np.tanh(w_r * z0.imag)     # clothoid_rates: w (chord x -F), saturated
+                c = th_r * iR
+                P = acc(R[:, 0] + c * R[:, 4])
+                lever = R[:, 1] + c * R[:, 5]
+            else:
+                P = acc(R[:, 0])
+                lever = R[:, 1]
+            Pn = P[-1]
+            rel = Pn - P
+            ZF = (rel + lever) * cF
+            r = phi - w * (m - ZF.imag)
         res = _MAXR(np.abs(r))
         if not res < math.inf:
             res = math.inf
         if res < best[1]:
-            best = (phi, res, complex(P[-1]), th_r)
+            best = (phi, res, complex(Pn), th_r)
         tol = 1e-13 + rtol * pmax
         if res <= tol or it == max_iter or \
                 (it >= patience and res > QUASI_ABOVE and res > 0.1 * hist[(it - 2) % 3]):
@@ -187,14 +203,23 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
                 break
             continue
         res_prev = res_jac = res
+        # clothoid arcs: with the rates' own derivatives (see clothoid_terms), quadratic
+        # convergence; far from the solution the circular-arc factors do as well, cheaper
+        terms = clothoid and (res < QUASI_ABOVE or n < _QUASI_MIN_N)
+        if small:
+            J = _small_jacobian(Rl, E, rel, ZF, wl, cF, follower, terms, th_r)
+            lu, piv, dx, _ = _dgesv(J, r)
+            phi = limited_step(phi, dx, step_limit)
+            if phi is None:
+                break
+            continue
         # -dMbar/dphi = D: D_ij = a_i (j < i), d_i (j = i), c_j + e_i (j > i); J = I + W D
         Y = R[:, 2:] * cF                      # g', q' (, k, k-km, k', (k-km)') terms
         irc = (1j * rel * cF).imag
         d = irc + Y[:, 1].imag
         c = irc + Y[:, 0].imag
         e = None
-        if clothoid and (res < QUASI_ABOVE or n < _QUASI_MIN_N):
-            # with the rates' own derivatives (see clothoid_terms): quadratic convergence
+        if terms:
             rho_ = RHO_MAX * th_r
             Yr = Y.real
             lo_, dg_, up_, row_ = clothoid_terms(z0.real, Y[:, 0].imag, Yr[:, 2], Yr[:, 3],
@@ -227,11 +252,121 @@ def fast_tip_newton(n: int, l: np.ndarray, w: np.ndarray, F: complex, m: float, 
         if phi is None:
             break
     phi, res, tip, th_r = best
-    rho = None if th_r is None else RHO_MAX * th_r
+    rho = None if th_r is None else RHO_MAX * np.asarray(th_r)
     if not res < math.inf:
         phi, tip, rho = np.zeros(n), complex(float(np.sum(l))), None
     pmax = _MAXR(np.abs(phi))
     return phi, res <= 1e-13 + 1e-12 * pmax, it, res, tip, J, rho
+
+
+def _small_residual(phi: list, R: list, l: list, w: list, w_r: list, cF0: complex, m: float,
+                    follower: bool, clothoid: bool):
+    """The residual of ``fast_tip_newton`` for few arcs (N <= SMALL_N) in Python floats, from
+    the arc functions R (N rows, unscaled: g, q, g', q' (, k, k - km, k', (k - km)')): the same
+    formulas as the array form (numpy's per-call overhead is most of its cost on 1-4 arcs).
+    Returns E = l e^{i theta_start} per arc, cF (conj F, turned with the tip for a follower
+    force), rel = P_N - P_i, ZF = (rel + lever) cF, r, the tip P_N and the clothoid rates'
+    tanh(rho / RHO_MAX) (None for circular arcs), all lists but P_N."""
+    n = len(phi)
+    E = [0j] * n
+    th = 0.0
+    for i in range(n):
+        E[i] = l[i] * complex(math.cos(th), math.sin(th))
+        th += phi[i]
+    cF = cF0 * complex(math.cos(th), -math.sin(th)) if follower else cF0
+    th_r = [0.0] * n if clothoid else None
+    lever = [0j] * n
+    Ps = [0j] * n
+    P = 0j
+    iR = 1j * RHO_MAX
+    for i in range(n):
+        Ri, e = R[i], E[i]
+        if clothoid:        # clothoid_rates: w (chord x -F), saturated
+            t = math.tanh(w_r[i] * (Ri[0] * e * cF).imag)
+            th_r[i] = t
+            c = t * iR
+            P += (Ri[0] + c * Ri[4]) * e
+            lever[i] = (Ri[1] + c * Ri[5]) * e
+        else:
+            P += Ri[0] * e
+            lever[i] = Ri[1] * e
+        Ps[i] = P
+    rel = [P - x for x in Ps]
+    ZF = [(rel[i] + lever[i]) * cF for i in range(n)]
+    r = [phi[i] - w[i] * (m - ZF[i].imag) for i in range(n)]
+    return E, cF, rel, ZF, r, P, th_r
+
+
+def _small_jacobian(R: list, E: list, rel: list, ZF: list, w: list, cF: complex,
+                    follower: bool, terms: bool, th_r: Optional[list]) -> np.ndarray:
+    """The dense Jacobian J = I + W D of ``fast_tip_newton``'s Newton step for few arcs
+    (N <= SMALL_N), in Python floats: on one or two arcs numpy's per-call overhead is most of
+    the cost of the ~40 array operations of the general form (and all of it for the clothoid
+    rates' terms, which N < _QUASI_MIN_N adds at every step). The same formulas in the same
+    order (``clothoid_terms`` for the rates); R: N rows (g, q, g', q' (, k, k - km, k',
+    (k - km)')), to be scaled by E (l e^{i theta_start} per arc); rel = P_N - P_i;
+    ZF = (rel + lever) cF; terms: add the rates' derivatives (th_r = tanh(rho / RHO_MAX))."""
+    n = len(w)
+    a = [0.0] * n
+    c = [0.0] * n
+    d = [0.0] * n
+    e = [0.0] * n
+    eF = [E[i] * cF for i in range(n)]
+    for i in range(n):
+        Ri = R[i]
+        irc = (rel[i] * cF).real
+        zr = ZF[i].real
+        y0 = (Ri[2] * eF[i]).imag
+        c[i] = irc + y0
+        d[i] = irc + (Ri[3] * eF[i]).imag
+        if follower:
+            d[i] -= zr
+            e[i] = -zr
+        else:
+            a[i] = zr
+    if terms:
+        # clothoid_terms: sigma_j = w'_j sg_j, tau_j = w'_j tg_j, u_j = a_j sigma_j
+        cs = 0.0
+        us = [0.0] * n
+        for i in range(n):
+            Ri, ef = R[i], eF[i]
+            t = th_r[i]
+            ws = w[i] * (1.0 - t * t)
+            sig = ws * (Ri[0] * ef).real
+            tau = ws * (Ri[2] * ef).imag
+            ka = (Ri[4] * ef).real
+            kb = (Ri[5] * ef).real
+            rho = RHO_MAX * t
+            ap = rho * (Ri[6] * ef).real
+            bp = rho * (Ri[7] * ef).real
+            u = ka * sig
+            us[i] = (u, ka, kb, sig, tau, ap, bp)
+        if follower:
+            for i in range(n):
+                u, ka, kb, sig, tau, ap, bp = us[i]
+                cs += u                           # sum over j <= i
+                d[i] += kb * (tau - sig) + bp
+                c[i] += ka * (tau - sig) - (cs - u) + ap
+                e[i] += cs - kb * sig
+        else:
+            S = 0.0
+            for i in range(n - 1, -1, -1):        # S: sum over j > i
+                u, ka, kb, sig, tau, ap, bp = us[i]
+                a[i] += S + kb * sig
+                d[i] += S + kb * tau + bp
+                c[i] += S + ka * tau + ap
+                S += u
+    J = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        wi = w[i]
+        Ji = J[i]
+        for j in range(n):
+            if j < i:
+                Ji[j] = 0.0 if follower else wi * a[i]
+            elif j > i:
+                Ji[j] = wi * (c[j] + e[i])
+        Ji[i] = wi * d[i] + 1.0
+    return np.array(J)
 
 
 def jacobian_at(phi: np.ndarray, l: np.ndarray, w: np.ndarray, F: complex, m: float,

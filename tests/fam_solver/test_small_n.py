@@ -1,0 +1,211 @@
+"""Issue 15, round 6: few arcs (N <= 4) cost no more than more arcs. The Newton step's Jacobian
+built in Python floats for N <= SMALL_N equals the array form (which the kernel tests check
+against central differences and the general path), and the graded second pass's curvature
+start reaches the same equilibrium as the remapped start, in fewer Newton iterations (counted:
+the timing is ``tests/bench/bench_fam_cliffs.py``)."""
+import math
+
+import numpy as np
+import pytest
+
+from fam_solver import Catheter, Loads, fast, fast_bezier, fast_newton, mesh
+from fam_solver import solve_fam, solve_fam_batch
+
+BLAZER = Catheter(length=0.065, ei=6e-5)
+THESIS = Catheter(length=0.040, ei=7.5e-4)
+#: the cliff bench's load sets (tests/bench/bench_fam.py), tip forces with and without moments
+BENCH = [(THESIS, Loads(tip_force=(F * math.cos(math.radians(d)), F * math.sin(math.radians(d))),
+                        tip_moment=m))
+         for F, d, m in [(1.0, 90, 0.0), (4.0, 60, 0.0), (9.8, 90, 0.0), (5.0, 135, 0.01),
+                         (2.0, -90, 0.02), (6.0, 30, -0.015), (3.0, 170, 0.0)]] + \
+        [(BLAZER, Loads(tip_force=(F * math.cos(b), F * math.sin(b))))
+         for F in (0.1, 0.2, 0.3) for b in (math.pi / 4, math.pi / 2, 3 * math.pi / 4)]
+
+
+def _case(rng, n, force=3.0):
+    l = rng.uniform(0.2, 1.0, n)
+    w = l / rng.uniform(0.5, 2.0)
+    return l, w, complex(*rng.normal(0, force, 2)), float(rng.normal(0, 1))
+
+
+@pytest.mark.parametrize('n', [1, 2, 3, 4])
+@pytest.mark.parametrize('follower', [False, True])
+@pytest.mark.parametrize('clothoid', [False, True])
+def test_small_jacobian_equals_the_array_form(n, follower, clothoid, monkeypatch):
+    """The residual, tip and rates, the Jacobian (far from and near a solution: clothoid arcs
+    with and without the rates' terms) and the Newton iterates equal those of the array form
+    to rounding."""
+    K = fast_newton.SMALL_N
+    assert K >= 4
+    rng = np.random.default_rng(10 * n + 2 * follower + clothoid)
+    terms_seen = set()
+    for trial in range(6):
+        l, w, F, m = _case(rng, n)
+        sol = fast_newton.fast_tip_newton(n, l, w, F, m, follower, np.zeros(n), 40,
+                                          clothoid=clothoid)
+        far = trial < 3 or not sol[1]
+        phi = rng.normal(0, 0.8, n) if far else sol[0] + rng.normal(0, 1e-4, n)
+        out = {}
+        for small in (K, 0):
+            monkeypatch.setattr(fast_newton, 'SMALL_N', small)
+            J = fast_newton.jacobian_at(phi, l, w, F, m, follower, clothoid)
+            it = fast_newton.fast_tip_newton(n, l, w, F, m, follower, phi, 3, rtol=0.0,
+                                             clothoid=clothoid)
+            out[small] = (J, it[0])
+            out[small] += fast_newton.fast_tip_newton(n, l, w, F, m, follower, phi, 0,
+                                                      clothoid=clothoid)[3:]
+        (J1, p1, r1, tip1, _, rho1), (J0, p0, r0, tip0, _, rho0) = out[K], out[0]
+        assert np.max(np.abs(J1 - J0)) <= 1e-14 * max(1.0, np.max(np.abs(J0)))
+        assert np.max(np.abs(p1 - p0)) <= 1e-12 * max(1.0, np.max(np.abs(p0)))
+        # the residual, the tip and the clothoid rates at phi
+        assert abs(r1 - r0) <= 1e-15 * max(1.0, r0) and abs(tip1 - tip0) <= 1e-15
+        assert (rho0 is None) == (rho1 is None) == (not clothoid)
+        assert clothoid is False or np.max(np.abs(rho1 - rho0)) <= 1e-15
+        terms_seen.add(clothoid and (r0 < fast_newton.QUASI_ABOVE or n < 3))
+    if clothoid and n >= 3:
+        assert terms_seen == {False, True}
+
+
+@pytest.mark.parametrize('n', [1, 2, 3, 4])
+@pytest.mark.parametrize('follower', [False, True])
+def test_small_bezier_step_equals_the_array_form(n, follower, monkeypatch):
+    """The Bezier kernel's dense Jacobian and iterates (the scaled residual's step, and the
+    plain one where the scale s is small: long arcs) equal those of the array form."""
+    K = fast_bezier.SMALL_N
+    assert K >= 4
+    rng = np.random.default_rng(20 * n + follower)
+    scaled = []
+    orig = fast_bezier._small_step
+
+    def spy(*a, **k):
+        out = orig(*a, **k)
+        scaled.append(None if out is None else out[4])
+        return out
+    for trial in range(12):
+        l, w, F, m = _case(rng, n, 10.0)       # large forces: the scale s is small on some
+        phi = rng.normal(0, 0.8, n) if trial < 6 else rng.uniform(2.5, 4.8, n)
+        out = {}
+        for small in (K, 0):
+            monkeypatch.setattr(fast_bezier, 'SMALL_N', small)
+            monkeypatch.setattr(fast_bezier, '_small_step', spy)
+            a = fast_bezier.bezier_tip_newton(n, l, w, F, m, follower, phi, 1, math.inf, -1.0)
+            b = fast_bezier.bezier_tip_newton(n, l, w, F, m, follower, phi, 3, math.inf, 0.0)
+            out[small] = a[5], b[0]
+        (J1, p1), (J0, p0) = out[K], out[0]
+        assert J0 is not None and J1 is not None
+        assert np.max(np.abs(J1 - J0)) <= 1e-13 * max(1.0, np.max(np.abs(J0)))
+        assert np.max(np.abs(p1 - p0)) <= 1e-11 * max(1.0, np.max(np.abs(p0)))
+    assert True in scaled and False in scaled
+
+
+def test_curvature_start_is_exact_for_a_linear_curvature():
+    """Equal-arc angles of a curvature linear in s (the small-deflection FAM under a tip
+    load): the start on any arcs is each arc's length times the curvature at its midpoint."""
+    rng = np.random.default_rng(5)
+    for n in (2, 3, 7, 40):
+        a, b = rng.normal(size=2)
+        phi = (a + b * (np.arange(n) + 0.5) / n) / n
+        f = rng.uniform(0.2, 1.0, n)
+        f /= f.sum()
+        ends = np.concatenate([[0.0], np.cumsum(f)])
+        ends[-1] = 1.0
+        s = mesh.curvature_start(phi, ends, f)
+        ref = f * (a + b * 0.5 * (ends[1:] + ends[:-1]))
+        assert np.max(np.abs(s - ref)) < 1e-14
+        # remap (the tangent angle linear in each equal arc) is off by O(1/n) relative
+        r = mesh.remap(phi[None], f[None])[0]
+        assert np.max(np.abs(r - ref)) > 1e-3 * np.max(np.abs(ref)) or n > 7
+
+
+@pytest.mark.parametrize('model', ['exact', 'bezier'])
+def test_graded_pass_from_the_curvature_start_same_equilibrium_fewer_iterations(model):
+    """On the cliff bench's loads, N = 2 to 32: the second pass from the curvature start ends
+    at the second pass's equilibrium from the remapped start (the shipped one before), and
+    takes fewer Newton iterations in all at every N (solve_fam uses it up to N = 16: beyond,
+    the fewer iterations did not make the median faster)."""
+    bz = model == 'bezier'
+    for n in (2, 3, 4, 8, 16, 32):
+        its = {True: 0, False: 0}
+        for cat, ld in BENCH:
+            F = complex(*ld.tip_force)
+            eq = solve_fam(cat, ld, n_arcs=n, arc_model=model)
+            sols = {}
+            for curv in (True, False):
+                f, start = mesh.fast_grade(eq.arc_angles, F, False, curvature=curv)
+                lg = cat.length * f
+                p, conv, it = fast_newton.fast_tip_newton(n, lg, lg / cat.ei, F, ld.tip_moment,
+                                                          False, start, 12, bezier=bz)[:3]
+                assert conv
+                sols[curv] = p
+                its[curv] += it
+            assert np.max(np.abs(sols[True] - sols[False])) < 1e-11, (n, ld)
+        assert its[True] < its[False], (n, its)
+
+
+@pytest.mark.parametrize('model', ['exact', 'bezier', 'clothoid'])
+@pytest.mark.parametrize('n', [2, 3, 4, 8])
+def test_few_graded_arcs_single_equals_batch(model, n):
+    """The fast path (curvature start, Python-float Jacobian) and the batch's general path
+    (remapped start, array Jacobian) give the same graded arcs and shape. To ~1e-10 L, not
+    1e-12 as at N = 12: the first pass stops at 1e-9 (it only places the arcs), and with few
+    arcs the graded solution moves more with the arcs (measured before this round on these
+    loads: arc lengths up to 8.9e-11 L apart at N = 3, tips 6.5e-12 L; unchanged by it)."""
+    cases = [ld for cat, ld in BENCH if cat is BLAZER]
+    F = np.array([ld.tip_force for ld in cases])
+    M = np.array([ld.tip_moment for ld in cases])
+    bt = solve_fam_batch(BLAZER, F, M, n_arcs=n, arc_model=model, spacing='graded')
+    assert bt.converged.all()
+    for b, ld in enumerate(cases):
+        sh = solve_fam(BLAZER, ld, n_arcs=n, arc_model=model, spacing='graded')
+        assert sh.converged and np.ptp(sh.arc_lengths) > 0.1 * BLAZER.length / n
+        assert np.max(np.abs(sh.arc_lengths - bt.arc_lengths[b])) < 2e-10 * BLAZER.length
+        assert np.max(np.abs(sh.tip - bt.tips[b])) < 2e-11 * BLAZER.length
+
+
+def test_the_small_paths_are_taken_up_to_small_n_only():
+    """N <= SMALL_N uses the Python-float Jacobian, N = SMALL_N + 1 the array form (the
+    switch both kernels document)."""
+    calls = []
+    orig = fast_newton._small_jacobian
+    orig_b = fast_bezier._small_step
+
+    def spy(*a, **k):
+        calls.append(len(a[3]))
+        return orig(*a, **k)
+
+    def spy_b(*a, **k):
+        calls.append(len(a[8]))
+        return orig_b(*a, **k)
+    fast_newton._small_jacobian, fast_bezier._small_step = spy, spy_b
+    try:
+        for model in ('exact', 'clothoid', 'bezier'):
+            for n in (fast_newton.SMALL_N, fast_newton.SMALL_N + 1):
+                calls.clear()
+                sh = solve_fam(BLAZER, Loads(tip_force=(0.1, 0.2)), n_arcs=n, arc_model=model)
+                assert sh.converged
+                assert bool(calls) == (n <= fast_newton.SMALL_N), (model, n)
+    finally:
+        fast_newton._small_jacobian, fast_bezier._small_step = orig, orig_b
+    assert fast.FAST_DENSE_MAX_N >= fast_newton.SMALL_N == fast_bezier.SMALL_N
+
+
+def test_graded_solves_take_the_curvature_start_for_circular_and_bezier_arcs(monkeypatch):
+    """solve_fam's second pass starts from the curvature for circular and Bezier arcs on up to
+    fast._CURVATURE_MAX_N arcs, from the tangent-angle curve (remap) for clothoid arcs (from
+    the curvature start they took more iterations at N = 3-8) and beyond (no time saved
+    there: package README, round 6)."""
+    seen = []
+    orig = fast.fast_grade
+
+    def spy(phi, F, follower, curvature=False):
+        seen.append(curvature)
+        return orig(phi, F, follower, curvature)
+    monkeypatch.setattr(fast, 'fast_grade', spy)
+    big = fast._CURVATURE_MAX_N + 1
+    for model, n, want in (('exact', 6, True), ('bezier', 6, True), ('clothoid', 6, False),
+                           ('exact', big, False), ('bezier', big, False),
+                           ('exact', fast._CURVATURE_MAX_N, True)):
+        seen.clear()
+        sh = solve_fam(BLAZER, Loads(tip_force=(0.1, 0.2)), n_arcs=n, arc_model=model,
+                       spacing='graded')
+        assert sh.converged and seen == [want], (model, n, seen)
