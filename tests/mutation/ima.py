@@ -165,6 +165,23 @@ MUTANTS = [
            '        u = 1.0 if fs >= 0.0 else 0.0',
            "beyond the data the slope's direction switches hard with the sign of the edge's "
            'force (a jump where it crosses 0)'),
+    # -- sixth round of issue 12: the elastic share kept at a first outward reversal
+    Mutant('I38', IM + 'support.py',
+           '        u = (x - self.margin - self.x_lo) / BIN',
+           '        u = (x - self.x_lo) / BIN',
+           "the friction trend is fitted up to the depth asked (the wall's rise in it)"),
+    Mutant('I39', IM + 'anchoring.py',
+           '    e_model = m.force(x, 0.0, 0.0, (0.0, 0.0))',
+           '    e_model = 0.0',
+           "the elastic estimate is added to the model's own static force, not a floor"),
+    Mutant('I40', IM + 'anchoring.py',
+           '    w = sup.n_half / (n + sup.n_half)',
+           '    w = 1.0',
+           'the flip is cut where the slave has moved outward too (the data know better)'),
+    Mutant('I41', IM + 'rendering.py',
+           '                                     + new.force(a.x, 0.0, 0.0, za), a.z1)',
+           '                                     + new.force(a.x, a.xd, a.xdd, za), a.z1)',
+           'the drag is left in the forces the friction trend is fitted to'),
     # -- operator and vessel families (issue 12)
     Mutant('I16', IM + 'operator.py',
            '        self._amp = min((self.x_hi - self.x_lo) / span if span > 0 else math.inf,',
