@@ -187,3 +187,18 @@ def test_a_first_reversal_in_friction_alone_flips_it_all():
     x = 0.054
     on = _pull_back(_inserted(wall=False))
     assert on == pytest.approx(-_force(x, False) - DRAG * 0.01, abs=2e-3)
+
+
+def test_share_fades_in_continuously_as_the_shallow_bins_reach_min_bins():
+    # bins 8..20 mm (the minimum-jerk operators start at 8 mm): at x = 25 mm the trend
+    # has 3 bins (8-10 mm) - a hard threshold stepped the rendered force by 0.036 N in one
+    # ms (stenosis x minjerk 300, retracting through 26 mm)
+    e = ElasticShare(0.0, 0.1, min_bins=3)
+    for i in range(13):
+        x = 0.008 + 0.001 * i
+        e.add(x, 0.01, MU * x)
+    f = 0.2
+    xs = [0.022 + 1e-5 * i for i in range(401)]            # 22-26 mm
+    s = [e.share(x, f) for x in xs]
+    assert s[0] == 0.0 and s[-1] == pytest.approx(1.0 - MU * 0.026 / f)
+    assert max(abs(b - a) for a, b in zip(s, s[1:], strict=False)) < 0.01

@@ -182,6 +182,10 @@ MUTANTS = [
            '                                     + new.force(a.x, 0.0, 0.0, za), a.z1)',
            '                                     + new.force(a.x, a.xd, a.xdd, za), a.z1)',
            'the drag is left in the forces the friction trend is fitted to'),
+    Mutant('I42', IM + 'support.py',
+           '        ramp = min(1.0, max(0.0, nb[i] + t * (nb[j] - nb[i]) - (self.min_bins - 1)))',
+           '        ramp = 1.0 if nb[i] >= self.min_bins else 0.0',
+           'the share switches on at min_bins bins (a step of the rendered force in depth)'),
     # -- operator and vessel families (issue 12)
     Mutant('I16', IM + 'operator.py',
            '        self._amp = min((self.x_hi - self.x_lo) / span if span > 0 else math.inf,',

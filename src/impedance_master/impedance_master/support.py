@@ -282,10 +282,11 @@ class ElasticShare:
         self._dirty = True
         return True
 
-    def rate(self, x: float) -> Optional[float]:
-        """N/m, the friction trend mu at depth x (m): the least-squares slope through the
-        entry of the binned forces at least `margin` shallower, or None (fewer than
-        `min_bins` bins there)."""
+    def _trend(self, x: float) -> Tuple[Optional[float], float]:
+        """(mu, ramp): the friction trend at depth x (None: no bins at least `margin`
+        shallower) and the weight of the share there, min(1, bins - (min_bins - 1))
+        counted continuously in x (a hard threshold stepped the rendered force as the
+        master crossed it)."""
         fx, nxx, nb = self._cum
         if self._dirty:
             self._dirty = False
@@ -300,22 +301,32 @@ class ElasticShare:
                 fx[i], nxx[i], nb[i] = a, b, c
         u = (x - self.margin - self.x_lo) / BIN
         if not u >= 0.0:
-            return None
+            return None, 0.0
         i = int(u)
         if i >= len(nb) - 1:
             i, u = len(nb) - 1, float(len(nb) - 1)
-        if nb[i] < self.min_bins or not nxx[i] > 0.0:
-            return None
         t = u - i if i + 1 < len(nb) else 0.0     # linear between bins: continuous in x
         j = min(i + 1, len(nb) - 1)
-        return (fx[i] + t * (fx[j] - fx[i])) / (nxx[i] + t * (nxx[j] - nxx[i]))
+        den = nxx[i] + t * (nxx[j] - nxx[i])
+        if not den > 0.0:
+            return None, 0.0
+        ramp = min(1.0, max(0.0, nb[i] + t * (nb[j] - nb[i]) - (self.min_bins - 1)))
+        return (fx[i] + t * (fx[j] - fx[i])) / den, ramp
+
+    def rate(self, x: float) -> Optional[float]:
+        """N/m, the friction trend mu at depth x (m): the least-squares slope through the
+        entry of the binned forces at least `margin` shallower, or None (fewer than
+        `min_bins` bins there)."""
+        mu, ramp = self._trend(x)
+        return mu if ramp >= 1.0 else None
 
     def share(self, x: float, f: float) -> float:
         """The elastic share (in [0, 1]) of an inserting force f (N) at depth x (m): 0 where
-        there is no friction trend yet or f is not positive."""
+        there is no friction trend yet or f is not positive (faded in over one bin as the
+        bins shallower than x - margin reach `min_bins`)."""
         if not f > 0.0:
             return 0.0
-        mu = self.rate(x)
-        if mu is None:
+        mu, ramp = self._trend(x)
+        if mu is None or ramp <= 0.0:
             return 0.0
-        return min(1.0, max(0.0, 1.0 - max(0.0, mu) * max(0.0, x) / f))
+        return ramp * min(1.0, max(0.0, 1.0 - max(0.0, mu) * max(0.0, x) / f))
