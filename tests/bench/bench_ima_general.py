@@ -26,7 +26,8 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
   Seen from the sixth round on.
 * ``fresh5``: the sixth round's held-out worlds (`drawn_cases(FRESH5_SEEDS)`, seeds
   500-504, the same families and operators, 90 worlds), committed before the sixth
-  round's design work, to be run once after its design is final. Not part of ``all``.
+  round's design work and run once, after its design was final. Not part of ``all``.
+  Seen from the seventh round on.
 * ``fresh6``: the seventh round's held-out worlds (`drawn_cases(FRESH6_SEEDS)`, seeds
   600-604, the same families and operators, 90 worlds), committed during the sixth round
   before its blind run, to be run once after the seventh round's design is final. Not
@@ -140,7 +141,7 @@ def main(argv=None):
     ap.add_argument('--draw-seeds', default=None,
                     help='comma-separated seeds: the randomised section on these seeds '
                          'instead of the fresh ones (development draws, never the held-out '
-                         '500-504 or 600-604)')
+                         '600-604)')
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     if a.section in ('dev', 'all'):
@@ -158,8 +159,8 @@ def main(argv=None):
         title, note = 'fresh held-out worlds', ''
         if a.draw_seeds:
             seeds = [int(s) for s in a.draw_seeds.split(',')]
-            if set(seeds) & (set(FRESH5_SEEDS) | set(FRESH6_SEEDS)):
-                ap.error('--draw-seeds must not name the held-out seeds 500-504 or 600-604')
+            if set(seeds) & set(FRESH6_SEEDS):
+                ap.error('--draw-seeds must not name the held-out seeds 600-604')
             title = f'development draws (seeds {seeds})'
         sections.append((seeds, title, note))
     for name, all_seeds, title, note in (
@@ -170,7 +171,7 @@ def main(argv=None):
             ('fresh4', FRESH4_SEEDS, 'fourth fresh held-out worlds',
              "; held out from the fifth round's design work (seen in the sixth's)"),
             ('fresh5', FRESH5_SEEDS, 'fifth fresh held-out worlds',
-             "; held out from the sixth round's design work"),
+             "; held out from the sixth round's design work (seen in the seventh's)"),
             ('fresh6', FRESH6_SEEDS, 'sixth fresh held-out worlds',
              "; held out from the seventh round's design work")):
         if a.section == name:
