@@ -73,14 +73,15 @@ def test_without_data_support_the_default_renders_the_anchored_force():
 
 def _learned(k, offset=0.05, miss=0.02, lo=0.02, hi=0.04, xd=0.01):
     """A renderer that has received models (a linear model k x + offset + 2 x', the
-    measurement `miss` above it) anchored every 0.5 mm from lo to hi m, inserting."""
+    measurement `miss` above it, and so the identifier's low-passed residual too: a held
+    model renders the same miss) anchored every 0.5 mm from lo to hi m, inserting."""
     ima = ImaRenderer(blend_time=0.0, max_rate=1e9)
     imp = None
     for x in [lo + 0.0005 * i for i in range(int(round((hi - lo) / 0.0005)) + 1)]:
         base = Impedance(0.0, 2.0, k, offset)
         z1, z2 = steady_states(xd, base.v_s, base.beta)
         imp = Impedance(0.0, 2.0, k, offset,
-                        anchor=(x, xd, 0.0, z1, z2, base.force(x, xd, 0.0) + miss, 0.0))
+                        anchor=(x, xd, 0.0, z1, z2, base.force(x, xd, 0.0) + miss, miss))
         assert ima.set_impedance(imp)
         ima.desired_force(x, xd, 0.0)
     return ima, imp
@@ -174,14 +175,14 @@ def _learned_gap(miss=0.02, xd=0.01):
     """A renderer with data at 10-13 mm and 25-28 mm (inserting), none between, the last
     anchor at 28 mm; the model k x + offset + 2 x' with a large offset (the old extension
     from the NEAREST seen depth jumped at the gap's middle: in proportion to the depth from
-    25 mm, with the slope from 13 mm)."""
+    25 mm, with the slope from 13 mm). The low-passed residual is the miss too."""
     ima = ImaRenderer(blend_time=0.0, max_rate=1e9)
     base = Impedance(0.0, 2.0, 5.0, 0.2)
     z1, z2 = steady_states(xd, base.v_s, base.beta)
     imp = None
     for x in [0.010 + 0.0005 * i for i in range(7)] + [0.025 + 0.0005 * i for i in range(7)]:
         imp = Impedance(0.0, 2.0, 5.0, 0.2,
-                        anchor=(x, xd, 0.0, z1, z2, base.force(x, xd, 0.0) + miss, 0.0))
+                        anchor=(x, xd, 0.0, z1, z2, base.force(x, xd, 0.0) + miss, miss))
         assert ima.set_impedance(imp)
         ima.desired_force(x, xd, 0.0)
     return ima, imp

@@ -1,4 +1,4 @@
-"""How the model's miss at its anchor reaches the master's state (issue 12, rounds 2-5).
+"""How the model's miss at its anchor reaches the master's state (issue 12, rounds 2-6).
 
 Every model carries its `Anchor`: the slave's state and measured force at the sample it was
 made at. `AnchorTerm` is what the renderer keeps of it: the anchor's depth, its friction
@@ -10,7 +10,10 @@ states and the model's miss there (rho = measured force - model force at the anc
   (third round): where the support c near the master's depth is thin the model is
   extended from the nearest seen depth (weight 1 - c; deeper with the steeper of the
   model's and the MEASURED slope, fourth round) and the anchor's miss is kept with weight
-  (1 - c)^2; with full support the miss fades with the depth difference and at a reversal.
+  (1 - c)^2; with full support the miss fades with the depth difference and at a reversal;
+  where the master turns outward at depths the slave has only moved inward at, the flip
+  of the friction keeps the elastic share the measured force's growth in depth shows
+  (`elastic_keep`, sixth round).
 
 Pure functions of (model, friction states, master state, anchor term, support): the
 renderer evaluates them on the master's state, the online score (`scoring`) on the
@@ -22,7 +25,7 @@ import math
 from typing import NamedTuple, Optional
 
 from impedance_master.impedance import Impedance
-from impedance_master.support import SLOPE_STEP, DepthSlope, Support
+from impedance_master.support import SLOPE_STEP, DepthSlope, ElasticShare, Support
 
 
 #: the share of the anchor's miss kept after a full reversal of the friction direction
@@ -79,9 +82,30 @@ def measured_slope(depth_slope: Optional[DepthSlope], max_slope: float, slope: f
     return min(slope, max(b, -max_slope))
 
 
+def elastic_keep(m: Impedance, x: float, za, sup: Support, elastic: ElasticShare,
+                 gain: float) -> float:
+    """The factor (in [0, 1]) of the model's flip of the friction kept where the master
+    turns outward at a depth the slave has not moved outward at (sixth round): the elastic
+    part of the inserting force (a wall) does not reverse. The model already keeps its
+    static force there (f(x, z = 0)); where `gain` x the measured elastic estimate
+    (`ElasticShare`) of its inserting force f_ins is larger, the flip is cut so that the
+    force left after a full reversal keeps that estimate, weighed by how unseen the outward
+    direction is there (n_half / (n + n_half) of the outward anchors near x)."""
+    n = sup.count(x, -1.0)
+    w = sup.n_half / (n + sup.n_half)
+    f_ins = m.force(x, 0.0, 0.0, za)
+    e_model = m.force(x, 0.0, 0.0, (0.0, 0.0))
+    fr = f_ins - e_model
+    e_est = gain * elastic.share(x, f_ins) * f_ins
+    if not (fr > 0.0 and e_est > e_model):
+        return 1.0
+    return 1.0 - w * min(1.0, (e_est - e_model) / fr)
+
+
 def supported_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorTerm,
                     anchor_length: float, sup: Support, depth_slope: Optional[DepthSlope],
-                    max_slope: float) -> float:
+                    max_slope: float, elastic: Optional[ElasticShare] = None,
+                    elastic_gain: float = 0.0) -> float:
     """'local' anchoring where the model has data; beyond its data (the support `c` near x
     is thin) the model's tables are its priors' guess: extend the model from the nearest
     depth with data instead (weight 1 - c) and keep more of the anchor's measured force
@@ -89,6 +113,8 @@ def supported_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorT
     za = (a.z1, a.z2)
     hold = m.force(x, xd, xdd, za)          # the anchor's direction of friction
     flip = m.force(x, xd, xdd, z) - hold    # the model's change of direction
+    if elastic is not None and flip < 0.0 and a.z1 > 0.0:
+        flip *= elastic_keep(m, x, za, sup, elastic, elastic_gain)
     c = sup.anywhere(x)
     lo, hi = sup.bracket(x) if c < 1.0 else (None, None)
     if lo is not None and hi is not None:

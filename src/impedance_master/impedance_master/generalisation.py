@@ -48,7 +48,14 @@ every other vessel x operator x seed, cold start.
   on the seeds 100-104, 200-204 and 300-304. Seen from now on.
 * Fifth fresh held-out worlds (`drawn_cases(FRESH5_SEEDS)`, seeds 500-504, the same
   families and operators, 90 worlds): defined and committed before the sixth round's
-  design work, to be run once after its design is final: the sixth round's blind figure.
+  design work, run once after its design was final (b084621): the sixth round's blind
+  figure. The sixth round's changes (the elastic share kept at a first outward reversal,
+  the held low-passed miss) were developed on the seeds 100-104, 200-204, 300-304 and
+  400-404. Seen from now on.
+* Sixth fresh held-out worlds (`drawn_cases(FRESH6_SEEDS)`, seeds 600-604, the same
+  families and operators, 90 worlds): defined and committed during the sixth round, before
+  its blind run and before the seventh round's design work, to be run once after that
+  round's design is final: the seventh round's blind figure.
 """
 from __future__ import annotations
 
@@ -72,8 +79,10 @@ FRESH2_SEEDS = (200, 201, 202, 203, 204)
 FRESH3_SEEDS = (300, 301, 302, 303, 304)
 #: seeds of the fifth round's held-out worlds (run once, after its design is final)
 FRESH4_SEEDS = (400, 401, 402, 403, 404)
-#: seeds of the sixth round's held-out worlds (run once, after its design is final)
+#: seeds of the sixth round's held-out worlds (run once, after its design was final)
 FRESH5_SEEDS = (500, 501, 502, 503, 504)
+#: seeds of the seventh round's held-out worlds (run once, after its design is final)
+FRESH6_SEEDS = (600, 601, 602, 603, 604)
 
 
 @dataclass(frozen=True)

@@ -45,14 +45,18 @@ from impedance_master.safety import (ERROR, OK, SAFE_MAX_RATE, WARN,  # noqa: F4
 from impedance_master.anchoring import (AnchorTerm, anchor_term, anchored_force,
                                        supported_force)
 from impedance_master.scoring import SCORE_LAG, SCORE_RATE, OnlineScore
-from impedance_master.support import (MAX_SLOPE, SLOPE_LENGTH, SLOPE_STEP,  # noqa: F401
-                                     SUPPORT_HALF, SUPPORT_WIDTH, DepthSlope, Support)
+from impedance_master.support import (ELASTIC_GAIN, MAX_SLOPE, SLOPE_LENGTH,  # noqa: F401
+                                     SLOPE_STEP, SUPPORT_HALF, SUPPORT_WIDTH, DepthSlope,
+                                     ElasticShare, Support)
 
 ANCHORING = ('none', 'full', 'residual', 'local')
 #: m, default reach in depth of the 'local' anchor correction (see ImaRenderer)
 LOCAL_ANCHOR_LENGTH = 0.005
 #: s, smallest time constant of the take-over from the fallback to the model's force
 RECOVER_TIME = 0.05
+#: s, while the model is held (a link outage) the anchor's miss moves over this time from
+#: the latest sample's to the identifier's low-passed one (and back after; sixth round)
+HELD_LOWPASS = 0.3
 
 
 def _same(a: Impedance, b: Optional[Impedance]) -> bool:
@@ -148,6 +152,23 @@ class ImaRenderer(_Rendered):
             (`scoring.OnlineScore`, forgetting time constant `score_memory`, horizon
             `score_lag` s, weight slew `score_rate` 1/s; fifth round). None (default):
             off; it did not pay on the seen worlds (README, Benchmark).
+        elastic_gain: with the support weighing: where the master turns outward at depths
+            the slave has only moved inward at (a first reversal), the model's flip of the
+            friction keeps `elastic_gain` x the elastic share of the inserting force that
+            the MEASURED force's growth in depth shows (`support.ElasticShare`: the force
+            above the least-squares line through the entry fitted to the forces met at
+            least 15 mm shallower; a wall does not reverse, friction does), where that is
+            more than the model's own static force there (`anchoring.elastic_keep`, sixth
+            round of issue 12; default 0.5: the line through the entry reads a friction
+            growing faster than the length as elastic too). None: off (the fifth round).
+        held_lowpass: s, with the support weighing: while the model is held (not received
+            for `stale_time`: a link outage) the anchor's miss is moved, linearly over
+            `held_lowpass` s, from the latest sample's (measured force minus the model:
+            one sample's sensor noise, 5-20 mN, held for the whole outage) to the
+            identifier's low-passed residual at the anchor (`Anchor.r`, 0.1 s), and back
+            over the same time once models arrive again (continuous: a switch's bumpless
+            term sees the same blend before and after; sixth round of issue 12; default
+            HELD_LOWPASS = 0.3 s). None: off (the fifth round).
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
     (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
     `n_bad_input`, `n_clamped`, `energy` (J, observer), `n_passivity` (steps with added
@@ -164,7 +185,9 @@ class ImaRenderer(_Rendered):
                  support_width: float = SUPPORT_WIDTH,
                  slope_length: Optional[float] = SLOPE_LENGTH, max_slope: float = MAX_SLOPE,
                  score_memory: Optional[float] = None, score_lag: float = SCORE_LAG,
-                 score_rate: float = SCORE_RATE):
+                 score_rate: float = SCORE_RATE,
+                 elastic_gain: Optional[float] = ELASTIC_GAIN,
+                 held_lowpass: Optional[float] = HELD_LOWPASS):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -197,8 +220,11 @@ class ImaRenderer(_Rendered):
         self.depth_slope: Optional[DepthSlope] = None
         self.max_slope = positive('max_slope', max_slope)
         self.score: Optional[OnlineScore] = None
+        self.elastic: Optional[ElasticShare] = None
         if support_half is not None and anchoring == 'local':
             self.support = Support(lo, hi, support_width, support_half)
+            if elastic_gain is not None:
+                self.elastic = ElasticShare(lo, hi)
             if slope_length is not None:
                 self.depth_slope = DepthSlope(positive('slope_length', slope_length))
             if score_memory is not None:
@@ -207,6 +233,12 @@ class ImaRenderer(_Rendered):
                     None if slope_length is None else DepthSlope(slope_length),
                     self.anchor_length, self.max_slope, self._out.dt, score_lag,
                     score_memory, score_rate)
+        self.held_lowpass = (None if held_lowpass is None
+                             else positive('held_lowpass', held_lowpass))
+        self._rho_lp = 0.0
+        self._q = 0.0
+        self.elastic_gain = (0.0 if elastic_gain is None
+                             else positive('elastic_gain', elastic_gain))
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
         self._bump = 0.0
@@ -294,11 +326,14 @@ class ImaRenderer(_Rendered):
         baseline by the online score's weight (if scoring)."""
         m = self.model
         z = self._z if self._state is not None else steady_states(xd, m.v_s, m.beta)
-        f = supported_force(m, z, x, xd, xdd, self._term, self.anchor_length, self.support,
-                            self.depth_slope, self.max_slope)
+        term = self._term
+        if self._q > 0.0:
+            term = term._replace(rho=term.rho + self._q * (self._rho_lp - term.rho))
+        f = supported_force(m, z, x, xd, xdd, term, self.anchor_length, self.support,
+                            self.depth_slope, self.max_slope, self.elastic, self.elastic_gain)
         w = self.score.weight * self.support.anywhere(x) if self.score is not None else 0.0
         if w > 0.0:
-            f += w * (anchored_force(m, z, x, xd, xdd, self._term) - f)
+            f += w * (anchored_force(m, z, x, xd, xdd, term) - f)
         return f
 
     def _switch(self, x: float, xd: float, xdd: float) -> None:
@@ -324,10 +359,15 @@ class ImaRenderer(_Rendered):
             self._rho_set = True
             term = self._term = anchor_term(new, self.anchoring)
             self._xa, self._za, self._za2, self._rho = term
+            self._rho_lp = a.r
             if self.support is not None:
                 self.support.add(a.x, a.xd)
                 if self.depth_slope is not None:
                     self.depth_slope.add(a.x, a.xd, a.f, a.z1)
+                if self.elastic is not None:
+                    za = (a.z1, a.z2)
+                    self.elastic.add(a.x, a.xd, a.f - new.force(a.x, a.xd, a.xdd, za)
+                                     + new.force(a.x, 0.0, 0.0, za), a.z1)
                 if self.score is not None:
                     self.score.observe(new, term, a)
         self.model = new
@@ -376,6 +416,10 @@ class ImaRenderer(_Rendered):
         self._xd = xd
         if self.score is not None:
             self.score.tick(self._age)
+        if self.held_lowpass is not None:
+            step = self.dt / self.held_lowpass
+            self._q = (min(1.0, self._q + step) if self._age > self.stale_time
+                       else max(0.0, self._q - step))
         if self._state is not None:
             self._z = self._state.update(x, xd)
         if self._pending is not None:

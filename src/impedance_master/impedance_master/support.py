@@ -19,6 +19,10 @@ least n_half anchors (the edge of the data to extend the model from). Counts onl
 slave's latest few millimetres of path, per direction: how steeply the force rose where
 the data end (the model's tables flatten there toward their priors).
 
+`ElasticShare` (sixth round): the part of the force met while inserting that rose above
+the trend of the force met shallower (friction grows with the length from the entry): a
+wall's, which does not reverse when the catheter is pulled back.
+
 No rclpy, no numpy: O(kernel) per anchor, O(1) per query (a bisection for `nearest`).
 """
 from __future__ import annotations
@@ -44,6 +48,14 @@ SLOPE_LENGTH = 0.005
 #: friction growth of the drawn vessels (about 40 N/m at 10 mm/s); a steeper rise is a local
 #: bump (a stenosis: up to 230 N/m over half a millimetre), not to be extended
 MAX_SLOPE = 50.0
+#: m, the elastic share's friction trend is fitted to the forces met at least this much
+#: shallower than the depth it is asked at (`ElasticShare`)
+ELASTIC_MARGIN = 0.015
+#: the share of the estimated elastic force a first outward reversal keeps (`ImaRenderer`
+#: elastic_gain): 0.5, the largest of 0.5 / 0.7 / 1.0 that keeps the project's
+#: vessel's Experiment II outage within 10 % (the estimate reads a friction growing
+#: faster than the length, the phantom's capstan, partly as elastic)
+ELASTIC_GAIN = 0.5
 
 
 class Support:
@@ -216,3 +228,105 @@ class DepthSlope:
         if not var >= self.min_spread ** 2:
             return None
         return (wxf / w - mx * wf / w) / var
+
+
+class ElasticShare:
+    """How much of the force met while inserting is elastic (a wall: it does not reverse
+    at a reversal) rather than friction (it does), from the shape of the MEASURED force
+    over depth (sixth round of issue 12).
+
+    Friction and drag grow with the inserted length from 0 at the entry, about in
+    proportion to it; a wall adds a force that rises from its onset on. The anchors
+    moving inward (at least `min_speed`, friction state turned) are binned by depth
+    (1 mm) with their measured force less the model's velocity terms (drag, mass) at
+    that sample. At depth x the friction trend is the least-squares line through the
+    entry, f = mu x, over the binned anchors at least `margin` shallower than x (and at
+    least `min_depth` deep; at least `min_bins` bins): what the force did well before x.
+    The elastic share of an inserting force f there is s = 1 - mu x / f, in [0, 1]: the
+    part of the force above the shallow trend. A friction growing faster than in
+    proportion to the length (a capstan, a square law) reads partly as elastic.
+    """
+
+    __slots__ = ('x_lo', 'margin', 'min_depth', 'min_bins', 'min_speed', 'min_state', '_n',
+                 '_f', '_cum', '_dirty')
+
+    def __init__(self, x_lo: float = -0.07, x_hi: float = 0.25, margin: float = ELASTIC_MARGIN,
+                 min_depth: float = 0.005, min_bins: int = 3, min_speed: float = 0.005,
+                 min_state: float = 0.95):
+        if not x_lo < x_hi:
+            raise ValueError(f'x_lo must be below x_hi, got {x_lo!r}, {x_hi!r}')
+        self.x_lo = float(x_lo)
+        self.margin = positive('margin', margin)
+        self.min_depth = positive('min_depth', min_depth)
+        self.min_bins = int(positive('min_bins', min_bins))
+        self.min_speed = positive('min_speed', min_speed)
+        self.min_state = float(min_state)
+        n = int(math.ceil((x_hi - x_lo) / BIN)) + 1
+        self._n = [0.0] * n
+        self._f = [0.0] * n
+        self._cum = ([0.0] * n, [0.0] * n, [0] * n)    # running sums of f x, n x^2, bins
+        self._dirty = False
+
+    def add(self, x: float, xd: float, f: float, z1: float = 1.0) -> bool:
+        """Count an anchor at depth x (m) moving at xd (m/s) whose force less the model's
+        velocity terms is f (N), friction state z1; False if not counted (not inserting at
+        min_speed with a turned friction state, not finite, or outside the range)."""
+        if not (math.isfinite(x) and math.isfinite(xd) and math.isfinite(f)
+                and math.isfinite(z1)) or xd < self.min_speed or z1 < self.min_state:
+            return False
+        i = int(round((x - self.x_lo) / BIN))
+        if not 0 <= i < len(self._n):
+            return False
+        self._n[i] += 1.0
+        self._f[i] += f
+        self._dirty = True
+        return True
+
+    def _trend(self, x: float) -> Tuple[Optional[float], float]:
+        """(mu, ramp): the friction trend at depth x (None: no bins at least `margin`
+        shallower) and the weight of the share there, min(1, bins - (min_bins - 1))
+        counted continuously in x (a hard threshold stepped the rendered force as the
+        master crossed it)."""
+        fx, nxx, nb = self._cum
+        if self._dirty:
+            self._dirty = False
+            a = b = 0.0
+            c = 0
+            for i, n in enumerate(self._n):
+                xb = self.x_lo + i * BIN
+                if n > 0.0 and xb >= self.min_depth:
+                    a += self._f[i] * xb
+                    b += n * xb * xb
+                    c += 1
+                fx[i], nxx[i], nb[i] = a, b, c
+        u = (x - self.margin - self.x_lo) / BIN
+        if not u >= 0.0:
+            return None, 0.0
+        i = int(u)
+        if i >= len(nb) - 1:
+            i, u = len(nb) - 1, float(len(nb) - 1)
+        t = u - i if i + 1 < len(nb) else 0.0     # linear between bins: continuous in x
+        j = min(i + 1, len(nb) - 1)
+        den = nxx[i] + t * (nxx[j] - nxx[i])
+        if not den > 0.0:
+            return None, 0.0
+        ramp = min(1.0, max(0.0, nb[i] + t * (nb[j] - nb[i]) - (self.min_bins - 1)))
+        return (fx[i] + t * (fx[j] - fx[i])) / den, ramp
+
+    def rate(self, x: float) -> Optional[float]:
+        """N/m, the friction trend mu at depth x (m): the least-squares slope through the
+        entry of the binned forces at least `margin` shallower, or None (fewer than
+        `min_bins` bins there)."""
+        mu, ramp = self._trend(x)
+        return mu if ramp >= 1.0 else None
+
+    def share(self, x: float, f: float) -> float:
+        """The elastic share (in [0, 1]) of an inserting force f (N) at depth x (m): 0 where
+        there is no friction trend yet or f is not positive (faded in over one bin as the
+        bins shallower than x - margin reach `min_bins`)."""
+        if not f > 0.0:
+            return 0.0
+        mu, ramp = self._trend(x)
+        if mu is None or ramp <= 0.0:
+            return 0.0
+        return ramp * min(1.0, max(0.0, 1.0 - max(0.0, mu) * max(0.0, x) / f))
