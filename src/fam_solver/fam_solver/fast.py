@@ -47,13 +47,6 @@ _PATIENCE = 4
 #: a coarse solution that only starts a finer model is solved to this relative tolerance:
 #: resampled onto the fine arcs it is ~1e-3 off anyway (Newton's last step saved)
 _START_RTOL = 1e-7
-#: the graded second pass of circular and Bezier arcs starts from the curvature of the
-#: equal-arc solution (``mesh.curvature_start``) up to this N, where remap's O(l) error per arc
-#: dominates the start's distance; beyond, both starts are O(h^2) off and the curvature start
-#: saved no time (Blazer loads, N = 40-48: 5-9 % slower median, a Newton step in place of a
-#: chord step; package README, round 6). Clothoid arcs keep remap: from the curvature start
-#: their first steps, without the rates' terms, contracted slowly (N = 3-8: more iterations)
-_CURVATURE_MAX_N = 16
 
 
 def _equal_arcs(n: int, L: float, EI: float):
@@ -273,10 +266,9 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
     if graded and np.any(phi):
         # second pass on graded arcs from this equal-arc solution (see graded_fractions);
         # the stability check below then uses the graded Jacobian
-        # (circular and Bezier arcs on up to _CURVATURE_MAX_N arcs start from the equal arcs'
-        # curvature, see mesh.curvature_start; clothoid arcs and more arcs from the
-        # tangent-angle curve: design record, round 6)
-        f, start = fast_grade(phi, F, follower, curvature=not cl and n <= _CURVATURE_MAX_N)
+        # (from the equal arcs' tangent angle interpolated by local cubics, mesh.cubic_start:
+        # every arc model and N; package README, round 7)
+        f, start = fast_grade(phi, F, follower, 'cubic')
         lg = L * f
         p2, c2, it2, r2, tip2, J2, rho2 = fast_tip_newton(n, lg, lg / EI, F, m, follower, start,
                                                           mi, clothoid=cl, bezier=bezier)
