@@ -254,9 +254,10 @@ def test_the_small_paths_are_taken_up_to_small_n_only():
     assert fast.FAST_DENSE_MAX_N >= fast_newton.SMALL_N == fast_bezier.SMALL_N
 
 
-def test_graded_solves_take_the_cubic_start(monkeypatch):
-    """solve_fam's second pass starts from the cubic start for every arc model and N (dense
-    and banded; package README, round 7)."""
+def test_graded_solves_take_the_cubic_start_between_its_bounds(monkeypatch):
+    """solve_fam's second pass starts from the cubic start on fast._CUBIC_MIN_N (clothoid arcs:
+    3) to fast._CUBIC_MAX_N arcs, from the curvature start on fewer (on 2 the same parabola)
+    and from remap on more (package README, round 7)."""
     seen = []
     orig = fast.fast_grade
 
@@ -264,9 +265,14 @@ def test_graded_solves_take_the_cubic_start(monkeypatch):
         seen.append(start)
         return orig(phi, F, follower, start)
     monkeypatch.setattr(fast, 'fast_grade', spy)
+    lo, top = fast._CUBIC_MIN_N, fast._CUBIC_MAX_N
+    assert 3 < lo < top
     for model in ('exact', 'bezier', 'clothoid'):
-        for n in (2, 6, 17, 100):
+        cl = model == 'clothoid'
+        for n, want in ((2, 'curvature'), (3, 'cubic' if cl else 'curvature'),
+                        (lo - 1, 'cubic' if cl else 'curvature'), (lo, 'cubic'), (top, 'cubic'),
+                        (top + 1, 'remap'), (100, 'remap')):
             seen.clear()
             sh = solve_fam(BLAZER, Loads(tip_force=(0.1, 0.2)), n_arcs=n, arc_model=model,
                            spacing='graded')
-            assert sh.converged and seen == ['cubic'], (model, n, seen)
+            assert sh.converged and seen == [want], (model, n, seen)

@@ -48,6 +48,18 @@ _PATIENCE = 4
 #: resampled onto the fine arcs it is ~1e-3 off anyway (Newton's last step saved)
 _START_RTOL = 1e-7
 
+#: the graded second pass starts from the equal-arc solution's tangent angle interpolated by
+#: local cubics (``mesh.cubic_start``) on up to this many arcs; beyond, from the tangent angle
+#: linear in each equal arc (``remap``): there the cubic start saved a chord step where N - 8
+#: saved none (clothoid arcs: N = 24 -> 32, a new 1-3 % drop) and, for circular and Bezier
+#: arcs, no step on the median load (package README, round 7)
+_CUBIC_MAX_N = 16
+#: ... and on at least this many arcs for circular and Bezier arcs (3 for clothoid arcs); on
+#: fewer from the curvature (``mesh.curvature_start``; on 2 arcs it is the same parabola,
+#: computed in fewer operations): on 3-4 circular or Bezier arcs the cubic start saved no
+#: step on the median load and cost 2-6 % more (its ~20 array operations)
+_CUBIC_MIN_N = 5
+
 
 def _equal_arcs(n: int, L: float, EI: float):
     key = (n, L, EI)
@@ -266,9 +278,11 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
     if graded and np.any(phi):
         # second pass on graded arcs from this equal-arc solution (see graded_fractions);
         # the stability check below then uses the graded Jacobian
-        # (from the equal arcs' tangent angle interpolated by local cubics, mesh.cubic_start:
-        # every arc model and N; package README, round 7)
-        f, start = fast_grade(phi, F, follower, 'cubic')
+        # (from the equal arcs' tangent angle interpolated by local cubics up to _CUBIC_MAX_N
+        # arcs, mesh.cubic_start; beyond, linear in each equal arc, remap: design record,
+        # round 7)
+        f, start = fast_grade(phi, F, follower, 'remap' if n > _CUBIC_MAX_N else 'cubic'
+                              if n >= (3 if cl else _CUBIC_MIN_N) else 'curvature')
         lg = L * f
         p2, c2, it2, r2, tip2, J2, rho2 = fast_tip_newton(n, lg, lg / EI, F, m, follower, start,
                                                           mi, clothoid=cl, bezier=bezier)

@@ -9,8 +9,8 @@ equal-arc solution (shorter arcs at the base for a lateral tip force, mid-length
 post-buckled compression; equal arcs for a pure moment or no load; arc-length ratio <= 5.1);
 ``regrade`` solves again from the first solution mapped onto them (``remap``; the fast
 path's ``fast_grade`` starts from the first solution's tangent angle interpolated by local
-cubics instead, ``cubic_start``; ``curvature_start`` is round 6's start, kept as an option). It stays a FAM (N arcs, the same equations with per-arc l_i,
-still second order). Stability and the
+cubics instead, ``cubic_start``, or from its curvature, ``curvature_start``). It stays a FAM
+(N arcs, the same equations with per-arc l_i, still second order). Stability and the
 branch checks use the equal-arc solution; the graded one is accepted only if its tip angle
 is within 0.5 rad of it (a failed graded pass keeps the equal arcs). Follower tip forces keep
 equal arcs (the follower's coupling of the shape to the tip angle is not in the monitor).
