@@ -117,29 +117,94 @@ def test_curvature_start_is_exact_for_a_linear_curvature():
         assert np.max(np.abs(r - ref)) > 1e-3 * np.max(np.abs(ref)) or n > 7
 
 
-@pytest.mark.parametrize('model', ['exact', 'bezier'])
-def test_graded_pass_from_the_curvature_start_same_equilibrium_fewer_iterations(model):
-    """On the cliff bench's loads, N = 2 to 32: the second pass from the curvature start ends
-    at the second pass's equilibrium from the remapped start (the shipped one before), and
-    takes fewer Newton iterations in all at every N (solve_fam uses it up to N = 16: beyond,
-    the fewer iterations did not make the median faster)."""
-    bz = model == 'bezier'
-    for n in (2, 3, 4, 8, 16, 32):
-        its = {True: 0, False: 0}
+def _local_cubic_reference(phi, x):
+    """Theta at x (fractions of L) by numpy's polyfit through the four equal-arc ends nearest
+    each x's arc (one-sided at the first and last arc; N = 2: the parabola through all
+    three): an independent reference for mesh.cubic_start."""
+    n = phi.size
+    Th = np.concatenate([[0.0], np.cumsum(phi)])
+    nodes = np.arange(n + 1) / n
+    out = np.empty(x.size)
+    for i, xi in enumerate(x):
+        k = min(int(xi * n), n - 1)
+        lo = min(max(k - 1, 0), max(n - 3, 0))
+        sel = slice(lo, min(lo + 4, n + 1))
+        out[i] = np.polyfit((nodes[sel] - xi) * n, Th[sel], sel.stop - sel.start - 1)[-1]
+    return out
+
+
+def test_cubic_start_matches_local_cubic_interpolation_and_is_exact_for_a_cubic_theta():
+    """mesh.cubic_start: each new arc's angle is the difference of the tangent angle at its
+    ends, interpolated by the cubic through the four nearest equal-arc ends (polyfit
+    reference); a cubic tangent angle (a parabola for N = 2) is reproduced exactly; for a
+    smooth tangent angle the error falls ~16x per halving of the arcs (fourth order), remap's
+    ~4x (second order)."""
+    rng = np.random.default_rng(11)
+    for n in (2, 3, 4, 7, 40):
+        phi = rng.normal(size=n) / n
+        f = rng.uniform(0.2, 1.0, n)
+        f /= f.sum()
+        ends = np.concatenate([[0.0], np.cumsum(f)])
+        ends[-1] = 1.0
+        s = mesh.cubic_start(phi, np.cumsum(phi), ends)
+        assert np.max(np.abs(s - np.diff(_local_cubic_reference(phi, ends)))) < 1e-13, n
+        c = rng.normal(size=4) if n > 2 else np.r_[0.0, rng.normal(size=3)]
+        Th = np.polyval(c, np.arange(n + 1) / n) - np.polyval(c, 0.0)
+        s = mesh.cubic_start(np.diff(Th), Th[1:], ends)
+        ref = np.diff(np.polyval(c, ends))
+        assert np.max(np.abs(s - ref)) < 1e-13, n
+    err = {'cubic': [], 'remap': []}
+    for n in (8, 16, 32):
+        nodes = np.arange(n + 1) / n
+        Th = np.sin(2.0 * nodes) + 0.3 * nodes ** 2
+        f = np.diff(np.linspace(0.0, 1.0, n + 1) ** 1.5)
+        ends = np.concatenate([[0.0], np.cumsum(f)])
+        ends[-1] = 1.0
+        ref = np.diff(np.sin(2.0 * ends) + 0.3 * ends ** 2)
+        err['cubic'].append(np.max(np.abs(mesh.cubic_start(np.diff(Th), Th[1:], ends) - ref)))
+        err['remap'].append(np.max(np.abs(mesh.remap(np.diff(Th)[None], f[None])[0] - ref)))
+    for a, b in zip(err['cubic'][:-1], err['cubic'][1:], strict=True):
+        assert 10.0 < a / b < 40.0, err
+    for a, b in zip(err['remap'][:-1], err['remap'][1:], strict=True):
+        assert 2.5 < a / b < 6.0, err
+
+
+def test_fast_grade_rejects_an_unknown_start():
+    with pytest.raises(ValueError, match='start'):
+        mesh.fast_grade(np.array([0.1, 0.2]), 0.5j, False, 'quadratic')
+
+
+@pytest.mark.parametrize('model', ['exact', 'bezier', 'clothoid'])
+def test_graded_pass_from_the_cubic_start_same_equilibrium_fewer_iterations(model):
+    """On the cliff bench's loads, N = 2 to 64: the second pass from the cubic start (the
+    shipped one), from the curvature start (round 6's, circular and Bezier arcs up to N = 16)
+    and from the remapped start (round 6's otherwise) end at the same equilibrium; from the
+    cubic start it takes fewer Newton iterations in all than from remap at every N, and than
+    from the curvature start summed over the N (measured in round 7: e.g. exact arcs
+    N = 8: 33 / 39 / 45, clothoid N = 64: 16 / 32 / 33; Bezier N = 3: 46 / 45 / 50)."""
+    bz, cl = model == 'bezier', model == 'clothoid'
+    total = {'cubic': 0, 'curvature': 0, 'remap': 0}
+    for n in (2, 3, 4, 8, 16, 32, 64):
+        its = {k: 0 for k in total}
         for cat, ld in BENCH:
             F = complex(*ld.tip_force)
             eq = solve_fam(cat, ld, n_arcs=n, arc_model=model)
             sols = {}
-            for curv in (True, False):
-                f, start = mesh.fast_grade(eq.arc_angles, F, False, curvature=curv)
+            for st in its:
+                f, start = mesh.fast_grade(eq.arc_angles, F, False, st)
                 lg = cat.length * f
                 p, conv, it = fast_newton.fast_tip_newton(n, lg, lg / cat.ei, F, ld.tip_moment,
-                                                          False, start, 12, bezier=bz)[:3]
+                                                          False, start, 12, bezier=bz,
+                                                          clothoid=cl)[:3]
                 assert conv
-                sols[curv] = p
-                its[curv] += it
-            assert np.max(np.abs(sols[True] - sols[False])) < 1e-11, (n, ld)
-        assert its[True] < its[False], (n, its)
+                sols[st] = p
+                its[st] += it
+            for st in ('cubic', 'curvature'):
+                assert np.max(np.abs(sols[st] - sols['remap'])) < 1e-11, (n, ld, st)
+        assert its['cubic'] < its['remap'], (n, its)
+        for k in total:
+            total[k] += its[k]
+    assert total['cubic'] < total['curvature'], total
 
 
 @pytest.mark.parametrize('model', ['exact', 'bezier', 'clothoid'])
@@ -189,23 +254,25 @@ def test_the_small_paths_are_taken_up_to_small_n_only():
     assert fast.FAST_DENSE_MAX_N >= fast_newton.SMALL_N == fast_bezier.SMALL_N
 
 
-def test_graded_solves_take_the_curvature_start_for_circular_and_bezier_arcs(monkeypatch):
-    """solve_fam's second pass starts from the curvature for circular and Bezier arcs on up to
-    fast._CURVATURE_MAX_N arcs, from the tangent-angle curve (remap) for clothoid arcs (from
-    the curvature start they took more iterations at N = 3-8) and beyond (no time saved
-    there: package README, round 6)."""
+def test_graded_solves_take_the_cubic_start_between_its_bounds(monkeypatch):
+    """solve_fam's second pass starts from the cubic start on fast._CUBIC_MIN_N (clothoid arcs:
+    3) to fast._CUBIC_MAX_N arcs, from the curvature start on fewer (on 2 the same parabola)
+    and from remap on more (package README, round 7)."""
     seen = []
     orig = fast.fast_grade
 
-    def spy(phi, F, follower, curvature=False):
-        seen.append(curvature)
-        return orig(phi, F, follower, curvature)
+    def spy(phi, F, follower, start='remap'):
+        seen.append(start)
+        return orig(phi, F, follower, start)
     monkeypatch.setattr(fast, 'fast_grade', spy)
-    big = fast._CURVATURE_MAX_N + 1
-    for model, n, want in (('exact', 6, True), ('bezier', 6, True), ('clothoid', 6, False),
-                           ('exact', big, False), ('bezier', big, False),
-                           ('exact', fast._CURVATURE_MAX_N, True)):
-        seen.clear()
-        sh = solve_fam(BLAZER, Loads(tip_force=(0.1, 0.2)), n_arcs=n, arc_model=model,
-                       spacing='graded')
-        assert sh.converged and seen == [want], (model, n, seen)
+    lo, top = fast._CUBIC_MIN_N, fast._CUBIC_MAX_N
+    assert 3 < lo < top
+    for model in ('exact', 'bezier', 'clothoid'):
+        cl = model == 'clothoid'
+        for n, want in ((2, 'curvature'), (3, 'cubic' if cl else 'curvature'),
+                        (lo - 1, 'cubic' if cl else 'curvature'), (lo, 'cubic'), (top, 'cubic'),
+                        (top + 1, 'remap'), (100, 'remap')):
+            seen.clear()
+            sh = solve_fam(BLAZER, Loads(tip_force=(0.1, 0.2)), n_arcs=n, arc_model=model,
+                           spacing='graded')
+            assert sh.converged and seen == [want], (model, n, seen)

@@ -47,13 +47,18 @@ _PATIENCE = 4
 #: a coarse solution that only starts a finer model is solved to this relative tolerance:
 #: resampled onto the fine arcs it is ~1e-3 off anyway (Newton's last step saved)
 _START_RTOL = 1e-7
-#: the graded second pass of circular and Bezier arcs starts from the curvature of the
-#: equal-arc solution (``mesh.curvature_start``) up to this N, where remap's O(l) error per arc
-#: dominates the start's distance; beyond, both starts are O(h^2) off and the curvature start
-#: saved no time (Blazer loads, N = 40-48: 5-9 % slower median, a Newton step in place of a
-#: chord step; package README, round 6). Clothoid arcs keep remap: from the curvature start
-#: their first steps, without the rates' terms, contracted slowly (N = 3-8: more iterations)
-_CURVATURE_MAX_N = 16
+
+#: the graded second pass starts from the equal-arc solution's tangent angle interpolated by
+#: local cubics (``mesh.cubic_start``) on up to this many arcs; beyond, from the tangent angle
+#: linear in each equal arc (``remap``): there the cubic start saved a chord step where N - 8
+#: saved none (clothoid arcs: N = 24 -> 32, a new 1-3 % drop) and, for circular and Bezier
+#: arcs, no step on the median load (package README, round 7)
+_CUBIC_MAX_N = 16
+#: ... and on at least this many arcs for circular and Bezier arcs (3 for clothoid arcs); on
+#: fewer from the curvature (``mesh.curvature_start``; on 2 arcs it is the same parabola,
+#: computed in fewer operations): on 3-4 circular or Bezier arcs the cubic start saved no
+#: step on the median load and cost 2-6 % more (its ~20 array operations)
+_CUBIC_MIN_N = 5
 
 
 def _equal_arcs(n: int, L: float, EI: float):
@@ -273,10 +278,11 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
     if graded and np.any(phi):
         # second pass on graded arcs from this equal-arc solution (see graded_fractions);
         # the stability check below then uses the graded Jacobian
-        # (circular and Bezier arcs on up to _CURVATURE_MAX_N arcs start from the equal arcs'
-        # curvature, see mesh.curvature_start; clothoid arcs and more arcs from the
-        # tangent-angle curve: design record, round 6)
-        f, start = fast_grade(phi, F, follower, curvature=not cl and n <= _CURVATURE_MAX_N)
+        # (from the equal arcs' tangent angle interpolated by local cubics up to _CUBIC_MAX_N
+        # arcs, mesh.cubic_start; beyond, linear in each equal arc, remap: design record,
+        # round 7)
+        f, start = fast_grade(phi, F, follower, 'remap' if n > _CUBIC_MAX_N else 'cubic'
+                              if n >= (3 if cl else _CUBIC_MIN_N) else 'curvature')
         lg = L * f
         p2, c2, it2, r2, tip2, J2, rho2 = fast_tip_newton(n, lg, lg / EI, F, m, follower, start,
                                                           mi, clothoid=cl, bezier=bezier)

@@ -8,9 +8,9 @@ equal share of the monitor rho = sqrt(kappa'^2 + (GRADE_FLOOR max|kappa'|)^2) of
 equal-arc solution (shorter arcs at the base for a lateral tip force, mid-length for a
 post-buckled compression; equal arcs for a pure moment or no load; arc-length ratio <= 5.1);
 ``regrade`` solves again from the first solution mapped onto them (``remap``; the fast
-path's ``fast_grade`` can start circular and Bezier arcs from the first solution's curvature
-instead, ``curvature_start``). It stays a FAM (N arcs, the same equations with per-arc l_i,
-still second order). Stability and the
+path's ``fast_grade`` starts from the first solution's tangent angle interpolated by local
+cubics instead, ``cubic_start``, or from its curvature, ``curvature_start``). It stays a FAM
+(N arcs, the same equations with per-arc l_i, still second order). Stability and the
 branch checks use the equal-arc solution; the graded one is accepted only if its tip angle
 is within 0.5 rad of it (a failed graded pass keeps the equal arcs). Follower tip forces keep
 equal arcs (the follower's coupling of the shape to the tip angle is not in the monitor).
@@ -133,16 +133,21 @@ def regrade(prob: Problem, phi: np.ndarray, arc_model: str) -> tuple:
 
 
 _U_CACHE = {}
+_STARTS = ('remap', 'curvature', 'cubic')
 
 
 def fast_grade(phi: np.ndarray, F: complex, follower: bool,
-               curvature: bool = False) -> Tuple[np.ndarray, np.ndarray]:
-    """graded_fractions and remap for one case with 1-D arrays (few numpy calls):
-    fractions (N,) and the start angles (N,) on those arcs.
+               start: str = 'remap') -> Tuple[np.ndarray, np.ndarray]:
+    """graded_fractions and the start of the second pass for one case with 1-D arrays (few
+    numpy calls): fractions (N,) and the start angles (N,) on those arcs.
 
-    curvature: the start angles from the curvature instead (``curvature_start``: exact for a
-    curvature linear in s, as the small-deflection FAM has; remap's piecewise-constant
-    curvature is off by O(l) per arc there)."""
+    start: 'remap' (the tangent angle linear in each equal arc, as ``remap``), 'curvature'
+    (``curvature_start``: exact for a curvature linear in s, as the small-deflection FAM has;
+    remap's piecewise-constant curvature is off by O(l) per arc there) or 'cubic'
+    (``cubic_start``: the tangent angle by a local cubic through the equal arcs' ends, the
+    fast path's start: package README, round 7)."""
+    if start not in _STARTS:
+        raise ValueError(f"fast_grade: start must be one of {_STARTS}, got {start!r}")
     n = phi.size
     u = _U_CACHE.get(n)
     if u is None:
@@ -163,7 +168,9 @@ def fast_grade(phi: np.ndarray, F: complex, follower: bool,
     C /= C[-1]
     b = np.interp(u, C, u)
     b[0], b[-1] = 0.0, 1.0
-    if curvature and n > 1:
+    if start == 'cubic' and n > 1:
+        return np.diff(b), cubic_start(phi, th_end, b)
+    if start == 'curvature' and n > 1:
         f = np.diff(b)
         return f, curvature_start(phi, b, f)
     Th = np.empty(n + 1)
@@ -196,3 +203,47 @@ def curvature_start(phi: np.ndarray, b: np.ndarray, f: np.ndarray) -> np.ndarray
     fp[0] = 1.5 * k[0] - 0.5 * k[1]
     fp[-1] = 1.5 * k[-1] - 0.5 * k[-2]
     return f * np.interp(0.5 * (b[1:] + b[:-1]), xp, fp)
+
+
+def cubic_start(phi: np.ndarray, th_end: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Start angles (N,) on arcs with ends b (N + 1,) (fractions of L, b[0] = 0, b[-1] = 1)
+    from the equal-arc solution phi (N >= 2; th_end: its tangent angles at the arc ends,
+    cumsum(phi)): the tangent angle theta(s), known at the equal arcs' ends j/N (0, th_end),
+    interpolated in each equal arc by the cubic through the four nearest ends (the one-sided
+    cubic in the first and last arc; N = 2: the parabola through the three), and each new
+    arc's angle the difference of theta at its ends. Exact for a cubic theta (a curvature
+    quadratic in s); remap (theta linear in each equal arc) is off by O(l^2) per arc and the
+    curvature start (``curvature_start``) by O(l^3) where the moment is not linear in s. In
+    Newton form on the arc k holding x = b N = k + t: theta = Th_k + t phi_k
+    + t (t - 1) ((2 - t) D_k + (1 + t) D_{k+1}) / 6 with D_j = phi_j - phi_{j-1} the second
+    difference of Th at the end j (linearly extrapolated to the ends 0 and N)."""
+    n = phi.size
+    D = np.empty(n + 2)
+    np.subtract(phi[1:], phi[:-1], out=D[1:-2])
+    if n > 2:
+        D[0] = 2.0 * D[1] - D[2]
+        D[n] = 2.0 * D[n - 1] - D[n - 2]
+    else:
+        D[0] = D[2] = D[1]
+    D[n + 1] = 0.0
+    # per arc k (and a padding entry for x = N): theta = c0 + t phi + t (t - 1) (A + t B)
+    c0 = np.empty(n + 1)
+    c0[0] = 0.0
+    c0[1:] = th_end
+    ph = np.empty(n + 1)
+    ph[:n] = phi
+    ph[n] = 0.0
+    A = D[:-1] * (1.0 / 3.0)
+    A += D[1:] * (1.0 / 6.0)
+    B = np.subtract(D[1:], D[:-1])
+    B *= 1.0 / 6.0
+    x = b * n
+    k = x.astype(np.intp)
+    t = x - k
+    th = B[k]
+    th *= t
+    th += A[k]
+    th *= t * (t - 1.0)
+    th += c0[k]
+    th += t * ph[k]
+    return np.diff(th)
