@@ -46,7 +46,13 @@ def test_latency_stats_hand_checked():
 def test_link_loss_counts_inside_the_common_window():
     sent = list(range(0, 100))
     taken = [s for s in sent if s >= 10 and s not in (40, 41, 77)]   # started late, lost 3
-    assert R.link_loss(sent, taken) == {'sent': 90, 'taken': 87, 'lost': 3}
+    # stamps in ns: the run 40-41 starts 30 ns after the window's start (10)
+    assert R.link_loss(sent, taken) == {'sent': 90, 'taken': 87, 'lost': 3,
+                                        'longest_run': 2, 'run_at_s': pytest.approx(30e-9)}
+    # a burst (a stalled or stopping receiver that takes one late sample) is one long run
+    burst = R.link_loss(sent, [s for s in sent if not 90 <= s <= 98])
+    assert (burst['lost'], burst['longest_run']) == (9, 9)
+    assert burst['run_at_s'] == pytest.approx(90e-9)
     # the receiver stopped early: what it never waited for is not lost
     assert R.link_loss(sent, sent[:50])['lost'] == 0
     assert R.link_loss(sent, [])['lost'] == 100
@@ -62,6 +68,10 @@ def test_link_loss_invariants(sent, drop):
     r = R.link_loss(sent, taken)
     assert 0 <= r['lost'] <= len(drop)
     assert r['taken'] + r['lost'] == r['sent'] <= len(sent)
+    # the longest run of lost stamps: no longer than the losses, and there when any is
+    assert (r['longest_run'] > 0) == (r['lost'] > 0)
+    assert r['longest_run'] <= r['lost']
+    assert r['run_at_s'] >= 0.0
     # duplicates delivered twice do not hide a loss
     assert R.link_loss(sent, taken + taken) == r
 

@@ -332,16 +332,30 @@ def link_loss(sent_ns, taken_ns) -> Dict[str, int]:
     publisher sent and those the subscriber took: counted inside the window both were
     running, [max(first sent, first taken), min(last sent, last taken)], so a process that
     started or stopped earlier is not charged. Returns sent, taken (distinct stamps of the
-    window that were sent) and lost."""
+    window that were sent), lost, and where the losses are: `longest_run` (the most
+    consecutive sent stamps lost) and `run_at_s` (its first stamp, s after the window's start;
+    0.0 when nothing was lost) - a burst at the window's end is a process's shutdown, spread
+    single losses are DDS dropping samples."""
     import numpy as np
     s = np.asarray(sent_ns, dtype=np.int64)
     t = np.asarray(taken_ns, dtype=np.int64)
     if s.ndim != 1 or t.ndim != 1:
         raise ValueError('sent_ns and taken_ns must be 1-D sequences of stamps')
     if s.size == 0 or t.size == 0:
-        return {'sent': int(s.size), 'taken': int(t.size), 'lost': int(s.size) if t.size == 0
-                else 0}
+        lost = int(s.size) if t.size == 0 else 0
+        return {'sent': int(s.size), 'taken': int(t.size), 'lost': lost,
+                'longest_run': lost, 'run_at_s': 0.0}
     lo, hi = max(s.min(), t.min()), min(s.max(), t.max())
     sw = np.unique(s[(s >= lo) & (s <= hi)])
     tw = np.intersect1d(np.unique(t[(t >= lo) & (t <= hi)]), sw)
-    return {'sent': int(sw.size), 'taken': int(tw.size), 'lost': int(sw.size - tw.size)}
+    missing = ~np.isin(sw, tw)
+    longest, at = 0, 0.0
+    if missing.any():
+        # runs of consecutive missing stamps: starts where missing begins, ends where it stops
+        m = np.concatenate([[False], missing, [False]]).astype(np.int8)
+        d = np.diff(m)
+        starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+        k = int(np.argmax(ends - starts))
+        longest, at = int(ends[k] - starts[k]), float((sw[starts[k]] - lo) * 1e-9)
+    return {'sent': int(sw.size), 'taken': int(tw.size), 'lost': int(sw.size - tw.size),
+            'longest_run': longest, 'run_at_s': at}
