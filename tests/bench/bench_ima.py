@@ -231,26 +231,6 @@ def sweep_figure(table, path):
     print(f'(figure: {path})')
 
 
-def _experiment_inputs(**cfg):
-    """The default identifier's inputs (x, x', x'', f) in a closed-loop experiment."""
-    import impedance_master.experiment as experiment
-    from impedance_master.history import HistoryIdentifier
-    got = []
-
-    class Rec(HistoryIdentifier):
-        def update(self, x, xd, xdd, f):
-            got.append((x, xd, xdd, f))
-            return super().update(x, xd, xdd, f)
-
-    orig = experiment.make_identifier
-    experiment.make_identifier = lambda **kw: Rec(**kw)
-    try:
-        run_experiment(ExperimentConfig(**cfg))
-    finally:
-        experiment.make_identifier = orig
-    return got
-
-
 def _same_models(data, new_cls, ref_cls):
     """(models, selections, largest relative difference of any model number) of the two
     identifiers fed the same samples; AssertionError if they ever differ in kind (one has a
@@ -281,15 +261,16 @@ def refit_tail(rounds=5):
     sys.path.insert(0, str(ROOT / 'tests' / 'impedance_master'))
     try:
         from history_reference import BatchHistoryIdentifier
+        from streams import experiment_inputs
     finally:
         sys.path.pop(0)
     from impedance_master.generalisation import drawn_cases
     from impedance_master.history import HistoryIdentifier
     worlds = [c for c in drawn_cases((300,))
               if c[:2] in (('soft', 'human'), ('stribeck_kv', 'sines'), ('stiff_wall', 'minjerk'))]
-    streams = [(f'Exp. II seed {s}', _experiment_inputs(experiment='II', seed=s))
+    streams = [(f'Exp. II seed {s}', experiment_inputs(experiment='II', seed=s))
                for s in (0, 1, 2)]
-    streams += [(f'{v} x {op} {seed}', _experiment_inputs(
+    streams += [(f'{v} x {op} {seed}', experiment_inputs(
         experiment='II', vessel=v, operator=op, seed=seed, vessel_params=vp))
         for v, op, seed, vp in worlds]
     print('\n## Identification: the published models against the pre-rework re-fit (issue 15)')

@@ -38,8 +38,12 @@ for pkg in ('impedance_master', 'sim_slave', 'catheter_common'):
 from impedance_master.envelope import DEFAULT_ENVELOPE  # noqa: E402
 from impedance_master.identification import make_identifier  # noqa: E402
 from impedance_master.impedance import Impedance  # noqa: E402
-from impedance_master.operator import experiment_trajectory  # noqa: E402
 from impedance_master.rendering import DfrRenderer, ImaRenderer  # noqa: E402
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / 'impedance_master'))
+from streams import phantom_samples  # noqa: E402
+
+sys.path.pop(0)
 
 EXTREME = np.array([1e308, -1e308, 1.7e308, -1.7e308, 1e300, -1e300, 5e-324, 1e6, -1e6,
                     math.nan, math.inf, -math.inf])
@@ -112,18 +116,6 @@ def fuzz_renderers(n, seed=0):
                 crashes += 1
         rows.append((name, sent, refused, nonfinite, over, crashes))
     return rows
-
-
-def phantom_samples(seconds=12.0, seed=0):
-    from sim_slave.robot import SlaveRobot
-    from sim_slave.slave import SlaveSimulation
-    traj = experiment_trajectory('II', seed=seed)
-    sl = SlaveSimulation(robot=SlaveRobot(x0=traj.sample(0.0)[0]))
-    out = []
-    for k in range(int(seconds * 1000)):
-        s = sl.step(k * 1e-3, traj.sample(k * 1e-3)[0])
-        out.append((s.x, s.xd, s.xdd, s.f_meas))
-    return out
 
 
 def fuzz_identifier(n, seed=0):

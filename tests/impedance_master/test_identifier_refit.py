@@ -17,6 +17,7 @@ from impedance_master.history import HistoryIdentifier, _spd_solve
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from history_reference import BatchHistoryIdentifier  # noqa: E402
+from streams import experiment_inputs, phantom_samples  # noqa: E402
 
 sys.path.pop(0)
 
@@ -67,19 +68,6 @@ def _batch_reference(ident, rows, batches):
     return A, b
 
 
-def _slave_stream(seconds, seed=0):
-    from impedance_master.operator import experiment_trajectory
-    from sim_slave.robot import SlaveRobot
-    from sim_slave.slave import SlaveSimulation
-    traj = experiment_trajectory('II', seed=seed)
-    sl = SlaveSimulation(robot=SlaveRobot(x0=traj.sample(0.0)[0]))
-    out = []
-    for k in range(int(seconds * 1000)):
-        s = sl.step(k * 1e-3, traj.sample(k * 1e-3)[0])
-        out.append((s.x, s.xd, s.xdd, s.f_meas))
-    return out
-
-
 def _close(a, b, rtol):
     scale = max(float(np.abs(b).max()), 1e-300)
     return float(np.abs(a - b).max()) <= rtol * scale
@@ -87,7 +75,7 @@ def _close(a, b, rtol):
 
 def test_the_accumulated_normal_equations_are_the_batch_sums_of_the_rows():
     ident = _Recording()
-    for smp in _slave_stream(3.0):
+    for smp in phantom_samples(3.0):
         ident.update(*smp)
     assert len(ident.rec_rows) > 1500 and ident.n_solves > 50
     A, b = _batch_reference(ident, ident.rec_rows, ident.rec_batches)
@@ -167,7 +155,7 @@ def _replay_same(stream, rtol=1e-9):
 
 
 def test_the_models_are_the_batch_references_on_the_slave_data():
-    n, ident = _replay_same(_slave_stream(6.0))
+    n, ident = _replay_same(phantom_samples(6.0))
     assert n > 200 and ident.n_selections == 0
 
 
@@ -177,7 +165,7 @@ def test_the_models_are_the_batch_references_on_the_slave_data():
     dict(x_min=0.02, x_max=0.05, n_nodes=9, select_margin=0.0),   # data beyond the grid
 ])
 def test_other_settings_give_the_batch_references_models_too(params):
-    stream = _slave_stream(4.0)
+    stream = phantom_samples(4.0)
     new, ref = HistoryIdentifier(**params), BatchHistoryIdentifier(**params)
     n = 0
     for i, smp in enumerate(stream):
@@ -193,29 +181,11 @@ def test_other_settings_give_the_batch_references_models_too(params):
         assert ref.n_selections >= 2
 
 
-def _experiment_stream(**cfg):
-    """The identifier's inputs in a closed-loop experiment."""
-    got = []
-
-    class Rec(HistoryIdentifier):
-        def update(self, x, xd, xdd, f):
-            got.append((x, xd, xdd, f))
-            return super().update(x, xd, xdd, f)
-
-    orig = experiment.make_identifier
-    experiment.make_identifier = lambda **kw: Rec(**kw)
-    try:
-        run_experiment(ExperimentConfig(**cfg))
-    finally:
-        experiment.make_identifier = orig
-    return got
-
-
 def test_the_models_and_selections_are_the_batch_references_in_a_switching_world():
     """soft x human (seed 300, a seen world): the presliding length is switched 3 times
     in the first 6 s - the selection's skipped clamp rounds change no decision."""
     v, op, seed, vp = [c for c in drawn_cases((300,)) if c[:2] == ('soft', 'human')][0]
-    stream = _experiment_stream(vessel=v, operator=op, seed=seed, vessel_params=vp)
+    stream = experiment_inputs(vessel=v, operator=op, seed=seed, vessel_params=vp)
     n, ident = _replay_same(stream[:6000])
     assert n > 150 and ident.n_selections == 3
 
@@ -252,7 +222,7 @@ def test_the_spd_solve_matches_numpy_and_falls_back_on_an_indefinite_matrix():
 def test_a_candidate_that_cannot_win_skips_only_its_clamp_rounds():
     """The bound returns the unconstrained objective, never above the clamped one."""
     ident = HistoryIdentifier()
-    for smp in _slave_stream(3.0):
+    for smp in phantom_samples(3.0):
         ident.update(*smp)
     for k in range(3):
         theta, obj = ident._solve_candidate(k)

@@ -1,0 +1,44 @@
+"""Identifier input streams shared by the identifier's tests and the ima benchmarks
+(tests/bench/bench_ima.py, bench_ima_fuzz.py): one place for how they are recorded."""
+from __future__ import annotations
+
+from typing import List, Tuple
+
+Sample = Tuple[float, float, float, float]
+
+
+def phantom_samples(seconds: float = 12.0, seed: int = 0) -> List[Sample]:
+    """(x m, x' m/s, x'' m/s^2, measured f N) of the slave on the phantom following
+    Experiment II's operator (seed `seed`) open loop at 1 kHz for `seconds` s."""
+    from impedance_master.operator import experiment_trajectory
+    from sim_slave.robot import SlaveRobot
+    from sim_slave.slave import SlaveSimulation
+    traj = experiment_trajectory('II', seed=seed)
+    sl = SlaveSimulation(robot=SlaveRobot(x0=traj.sample(0.0)[0]))
+    out = []
+    for k in range(int(seconds * 1000)):
+        s = sl.step(k * 1e-3, traj.sample(k * 1e-3)[0])
+        out.append((s.x, s.xd, s.xdd, s.f_meas))
+    return out
+
+
+def experiment_inputs(**cfg) -> List[Sample]:
+    """The default identifier's inputs (x, x', x'', f) in a closed-loop experiment
+    (`run_experiment(ExperimentConfig(**cfg))`, mode ima), recorded by a subclass swapped in
+    for `experiment.make_identifier` during the run."""
+    import impedance_master.experiment as experiment
+    from impedance_master.history import HistoryIdentifier
+    got: List[Sample] = []
+
+    class Rec(HistoryIdentifier):
+        def update(self, x, xd, xdd, f):
+            got.append((x, xd, xdd, f))
+            return super().update(x, xd, xdd, f)
+
+    orig = experiment.make_identifier
+    experiment.make_identifier = lambda **kw: Rec(**kw)
+    try:
+        experiment.run_experiment(experiment.ExperimentConfig(**cfg))
+    finally:
+        experiment.make_identifier = orig
+    return got
