@@ -75,16 +75,22 @@ def test_identifier_node_publishes_typed_models_and_survives_bad_messages(ros):
     assert node.diag.get('bad_messages') >= 2
 
 
-def test_identifier_node_converts_a_model_once_and_resends_it_restamped(ros):
-    """The 1 kHz re-send of a held model reuses its message (new stamp, the model's current
-    status); a new model object is converted anew, anchor included."""
+def _identifier_and_its_messages(ros, probe_name):
+    """An identifier node with a subscriber, and the list every message it publishes is
+    copied into (intercepted at publish: the node may refill its message afterwards)."""
     from catheter_bringup.rclpy_adapter import intercept_publish
     node = ros.add(ImpedanceIdentifierNode(context=ros.context))
-    probe = ros.node('probe_ident_cache')
-    collect(probe, ImpedanceModel, SLAVE_IMPEDANCE)
+    collect(ros.node(probe_name), ImpedanceModel, SLAVE_IMPEDANCE)
     assert ros.spin_until(lambda: node.pub.get_subscription_count() > 0, 10.0)
     out = []
     intercept_publish(node.pub, lambda m: out.append(copy.deepcopy(m)))
+    return node, out
+
+
+def test_identifier_node_converts_a_model_once_and_resends_it_restamped(ros):
+    """The 1 kHz re-send of a held model reuses its message (new stamp, the model's current
+    status); a new model object is converted anew, anchor included."""
+    node, out = _identifier_and_its_messages(ros, 'probe_ident_cache')
     node.model = Impedance(0.1, 2.0, 3.0, 0.5, status='ok', anchor=(0.03, 0.01, 0, 1, 1.2,
                                                                     0.2, 0.01))
     node._publish()
@@ -358,13 +364,7 @@ def test_fill_table_msg_leaves_everything_else_to_impedance_msg():
 
 
 def test_identifier_node_writes_a_new_table_model_into_its_message(ros):
-    from catheter_bringup.rclpy_adapter import intercept_publish
-    node = ros.add(ImpedanceIdentifierNode(context=ros.context))
-    probe = ros.node('probe_ident_fill')
-    collect(probe, ImpedanceModel, SLAVE_IMPEDANCE)
-    assert ros.spin_until(lambda: node.pub.get_subscription_count() > 0, 10.0)
-    out = []
-    intercept_publish(node.pub, lambda m: out.append(copy.deepcopy(m)))
+    node, out = _identifier_and_its_messages(ros, 'probe_ident_fill')
     a = Impedance(0.01, 2.0, 3.0, 0.5, S=[0.1, 0.2, 0.3], F=[0.0] * 3, B=[0.1] * 3,
                   C=[1.0] * 3, status='ok', anchor=(0.03, 0.01, 0, 1, 1.2, 0.2, 0.01))
     b = a.copy(c=2.5, S=[0.3, 0.2, 0.1], anchor=(0.04, 0.0, 0, -1, -1.2, -0.2, 0.0))
