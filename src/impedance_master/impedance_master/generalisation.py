@@ -56,6 +56,10 @@ every other vessel x operator x seed, cold start.
   families and operators, 90 worlds): defined and committed during the sixth round, before
   its blind run and before the seventh round's design work, to be run once after that
   round's design is final: the seventh round's blind figure.
+* Seventh fresh held-out worlds (`drawn_cases(FRESH7_SEEDS)`, seeds 700-704, the same
+  families and operators, 90 worlds): defined and committed during the seventh round,
+  before its blind run of fresh6 and before the eighth round's design work, to be run once
+  after that round's design is final: the eighth round's blind figure.
 """
 from __future__ import annotations
 
@@ -83,6 +87,8 @@ FRESH4_SEEDS = (400, 401, 402, 403, 404)
 FRESH5_SEEDS = (500, 501, 502, 503, 504)
 #: seeds of the seventh round's held-out worlds (run once, after its design is final)
 FRESH6_SEEDS = (600, 601, 602, 603, 604)
+#: seeds of the eighth round's held-out worlds (run once, after its design is final)
+FRESH7_SEEDS = (700, 701, 702, 703, 704)
 
 
 @dataclass(frozen=True)
