@@ -45,7 +45,7 @@ from impedance_master.safety import (ERROR, OK, SAFE_MAX_RATE, WARN,  # noqa: F4
 from impedance_master.anchoring import (AnchorTerm, anchor_term, anchored_force,
                                        supported_force)
 from impedance_master.scoring import SCORE_LAG, SCORE_RATE, OnlineScore
-from impedance_master.support import (ELASTIC_GAIN, ELASTIC_TREND, MAX_SLOPE, SLOPE_LENGTH,  # noqa: F401
+from impedance_master.support import (ELASTIC_GAIN, MAX_SLOPE, SLOPE_LENGTH,  # noqa: F401
                                      SLOPE_STEP, SUPPORT_HALF, SUPPORT_WIDTH, DepthSlope,
                                      ElasticShare, Support)
 
@@ -159,12 +159,8 @@ class ImaRenderer(_Rendered):
             above the least-squares line through the entry fitted to the forces met at
             least 15 mm shallower; a wall does not reverse, friction does), where that is
             more than the model's own static force there (`anchoring.elastic_keep`, sixth
-            round of issue 12; default 1 with the 'quad' trend, seventh round; the sixth
-            round's 0.5 with 'line': the line reads a friction growing faster than the
-            length as elastic too). None: off (the fifth round).
-        elastic_trend: the elastic share's friction trend through the entry, 'quad'
-            (default, f = mu x + nu x^2, mu, nu >= 0; seventh round) or 'line' (f = mu x,
-            the sixth round; `support.ElasticShare`).
+            round of issue 12; default 0.5: the line through the entry reads a friction
+            growing faster than the length as elastic too). None: off (the fifth round).
         held_lowpass: s, with the support weighing: while the model is held (not received
             for `stale_time`: a link outage) the anchor's miss is moved, linearly over
             `held_lowpass` s, from the latest sample's (measured force minus the model:
@@ -191,8 +187,7 @@ class ImaRenderer(_Rendered):
                  score_memory: Optional[float] = None, score_lag: float = SCORE_LAG,
                  score_rate: float = SCORE_RATE,
                  elastic_gain: Optional[float] = ELASTIC_GAIN,
-                 held_lowpass: Optional[float] = HELD_LOWPASS,
-                 elastic_trend: str = ELASTIC_TREND):
+                 held_lowpass: Optional[float] = HELD_LOWPASS):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -229,7 +224,7 @@ class ImaRenderer(_Rendered):
         if support_half is not None and anchoring == 'local':
             self.support = Support(lo, hi, support_width, support_half)
             if elastic_gain is not None:
-                self.elastic = ElasticShare(lo, hi, trend=elastic_trend)
+                self.elastic = ElasticShare(lo, hi)
             if slope_length is not None:
                 self.depth_slope = DepthSlope(positive('slope_length', slope_length))
             if score_memory is not None:

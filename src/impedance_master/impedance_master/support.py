@@ -52,14 +52,10 @@ MAX_SLOPE = 50.0
 #: shallower than the depth it is asked at (`ElasticShare`)
 ELASTIC_MARGIN = 0.015
 #: the share of the estimated elastic force a first outward reversal keeps (`ImaRenderer`
-#: elastic_gain): 1, the estimate as it is, with the quadratic trend (seventh round; with
-#: the sixth round's line 0.5 was the largest that kept the project's vessel's Experiment
-#: II outage within 10 %: the line read the phantom's capstan friction partly as elastic)
-ELASTIC_GAIN = 1.0
-#: the renderer's friction trend of `ElasticShare`: 'quad', f = mu x + nu x^2 through the
-#: entry with mu, nu >= 0 (seventh round: a friction growing with the square of the
-#: length is friction, not a wall); 'line', f = mu x (sixth round)
-ELASTIC_TREND = 'quad'
+#: elastic_gain): 0.5, the largest of 0.5 / 0.7 / 1.0 that keeps the project's
+#: vessel's Experiment II outage within 10 % (the estimate reads a friction growing
+#: faster than the length, the phantom's capstan, partly as elastic)
+ELASTIC_GAIN = 0.5
 
 
 class Support:
@@ -244,27 +240,21 @@ class ElasticShare:
     moving inward (at least `min_speed`, friction state turned) are binned by depth
     (1 mm) with their measured force less the model's velocity terms (drag, mass) at
     that sample. At depth x the friction trend is the least-squares line through the
-    entry, f = mu x (`trend` 'line'), or the parabola f = mu x + nu x^2 with mu, nu >= 0
-    ('quad', seventh round), over the binned anchors at least `margin` shallower than x
-    (and at least `min_depth` deep; at least `min_bins` bins): what the force did well
-    before x. The elastic share of an inserting force f there is s = 1 - trend(x) / f, in
-    [0, 1]: the part of the force above the shallow trend. With the line a friction
-    growing faster than in proportion to the length (a capstan, a square law) reads
-    partly as elastic; the parabola takes a square law as friction, and also the rise of
-    a wall that began within the fitted bins.
+    entry, f = mu x, over the binned anchors at least `margin` shallower than x (and at
+    least `min_depth` deep; at least `min_bins` bins): what the force did well before x.
+    The elastic share of an inserting force f there is s = 1 - mu x / f, in [0, 1]: the
+    part of the force above the shallow trend. A friction growing faster than in
+    proportion to the length (a capstan, a square law) reads partly as elastic.
     """
 
     __slots__ = ('x_lo', 'margin', 'min_depth', 'min_bins', 'min_speed', 'min_state', '_n',
-                 '_f', '_cum', '_dirty', 'trend')
+                 '_f', '_cum', '_dirty')
 
     def __init__(self, x_lo: float = -0.07, x_hi: float = 0.25, margin: float = ELASTIC_MARGIN,
                  min_depth: float = 0.005, min_bins: int = 3, min_speed: float = 0.005,
-                 min_state: float = 0.95, trend: str = 'line'):
+                 min_state: float = 0.95):
         if not x_lo < x_hi:
             raise ValueError(f'x_lo must be below x_hi, got {x_lo!r}, {x_hi!r}')
-        if trend not in ('line', 'quad'):
-            raise ValueError(f"trend must be 'line' or 'quad', got {trend!r}")
-        self.trend = trend
         self.x_lo = float(x_lo)
         self.margin = positive('margin', margin)
         self.min_depth = positive('min_depth', min_depth)
@@ -274,8 +264,7 @@ class ElasticShare:
         n = int(math.ceil((x_hi - x_lo) / BIN)) + 1
         self._n = [0.0] * n
         self._f = [0.0] * n
-        # running sums of f x, n x^2, bins, f x^2, n x^3, n x^4
-        self._cum = ([0.0] * n, [0.0] * n, [0] * n, [0.0] * n, [0.0] * n, [0.0] * n)
+        self._cum = ([0.0] * n, [0.0] * n, [0] * n)    # running sums of f x, n x^2, bins
         self._dirty = False
 
     def add(self, x: float, xd: float, f: float, z1: float = 1.0) -> bool:
@@ -294,14 +283,14 @@ class ElasticShare:
         return True
 
     def _trend(self, x: float) -> Tuple[Optional[float], float]:
-        """(mu, ramp): the friction trend's rate at depth x, trend(x) / x (None: no bins
-        at least `margin` shallower) and the weight of the share there,
-        min(1, bins - (min_bins - 1)) counted continuously in x (a hard threshold stepped
-        the rendered force as the master crossed it)."""
-        fx, nxx, nb, fx2, nx3, nx4 = self._cum
+        """(mu, ramp): the friction trend at depth x (None: no bins at least `margin`
+        shallower) and the weight of the share there, min(1, bins - (min_bins - 1))
+        counted continuously in x (a hard threshold stepped the rendered force as the
+        master crossed it)."""
+        fx, nxx, nb = self._cum
         if self._dirty:
             self._dirty = False
-            a = b = d = e = g = 0.0
+            a = b = 0.0
             c = 0
             for i, n in enumerate(self._n):
                 xb = self.x_lo + i * BIN
@@ -309,10 +298,7 @@ class ElasticShare:
                     a += self._f[i] * xb
                     b += n * xb * xb
                     c += 1
-                    d += self._f[i] * xb * xb
-                    e += n * xb ** 3
-                    g += n * xb ** 4
-                fx[i], nxx[i], nb[i], fx2[i], nx3[i], nx4[i] = a, b, c, d, e, g
+                fx[i], nxx[i], nb[i] = a, b, c
         u = (x - self.margin - self.x_lo) / BIN
         if not u >= 0.0:
             return None, 0.0
@@ -325,28 +311,12 @@ class ElasticShare:
         if not den > 0.0:
             return None, 0.0
         ramp = min(1.0, max(0.0, nb[i] + t * (nb[j] - nb[i]) - (self.min_bins - 1)))
-        a = fx[i] + t * (fx[j] - fx[i])
-        if self.trend == 'line':
-            return a / den, ramp
-        # f = mu x + nu x^2 through the entry, mu, nu >= 0 (a square-law friction is not
-        # a wall): the rate at x is mu + nu x
-        b = fx2[i] + t * (fx2[j] - fx2[i])
-        s3 = nx3[i] + t * (nx3[j] - nx3[i])
-        s4 = nx4[i] + t * (nx4[j] - nx4[i])
-        det = den * s4 - s3 * s3
-        if det > 1e-9 * den * s4:
-            mu = (a * s4 - b * s3) / det
-            nu = (den * b - s3 * a) / det
-            if nu >= 0.0 and mu >= 0.0:
-                return mu + nu * max(0.0, x), ramp
-            if nu >= 0.0 and b > 0.0:
-                return b / s4 * max(0.0, x), ramp
-        return a / den, ramp
+        return (fx[i] + t * (fx[j] - fx[i])) / den, ramp
 
     def rate(self, x: float) -> Optional[float]:
-        """N/m, the friction trend's rate trend(x) / x at depth x (m) (the line's slope
-        mu; the parabola's mu + nu x), fitted through the entry to the binned forces at
-        least `margin` shallower, or None (fewer than `min_bins` bins there)."""
+        """N/m, the friction trend mu at depth x (m): the least-squares slope through the
+        entry of the binned forces at least `margin` shallower, or None (fewer than
+        `min_bins` bins there)."""
         mu, ramp = self._trend(x)
         return mu if ramp >= 1.0 else None
 
