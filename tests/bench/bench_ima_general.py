@@ -30,8 +30,8 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
   Seen from the seventh round on.
 * ``fresh6``: the seventh round's held-out worlds (`drawn_cases(FRESH6_SEEDS)`, seeds
   600-604, the same families and operators, 90 worlds), committed during the sixth round
-  before its blind run, to be run once after the seventh round's design is final. Not
-  part of ``all``.
+  before its blind run, and run once, after the seventh round's design was final. Not
+  part of ``all``. Seen from the eighth round on.
 * ``fresh7``: the eighth round's held-out worlds (`drawn_cases(FRESH7_SEEDS)`, seeds
   700-704, the same families and operators, 90 worlds), committed during the seventh round
   before its blind run of fresh6, to be run once after the eighth round's design is final.
@@ -145,7 +145,7 @@ def main(argv=None):
     ap.add_argument('--draw-seeds', default=None,
                     help='comma-separated seeds: the randomised section on these seeds '
                          'instead of the fresh ones (development draws, never the held-out '
-                         '600-604 or 700-704)')
+                         '700-704)')
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     if a.section in ('dev', 'all'):
@@ -163,8 +163,8 @@ def main(argv=None):
         title, note = 'fresh held-out worlds', ''
         if a.draw_seeds:
             seeds = [int(s) for s in a.draw_seeds.split(',')]
-            if set(seeds) & (set(FRESH6_SEEDS) | set(FRESH7_SEEDS)):
-                ap.error('--draw-seeds must not name the held-out seeds 600-604 or 700-704')
+            if set(seeds) & set(FRESH7_SEEDS):
+                ap.error('--draw-seeds must not name the held-out seeds 700-704')
             title = f'development draws (seeds {seeds})'
         sections.append((seeds, title, note))
     for name, all_seeds, title, note in (
@@ -177,7 +177,7 @@ def main(argv=None):
             ('fresh5', FRESH5_SEEDS, 'fifth fresh held-out worlds',
              "; held out from the sixth round's design work (seen in the seventh's)"),
             ('fresh6', FRESH6_SEEDS, 'sixth fresh held-out worlds',
-             "; held out from the seventh round's design work"),
+             "; held out from the seventh round's design work (seen in the eighth's)"),
             ('fresh7', FRESH7_SEEDS, 'seventh fresh held-out worlds',
              "; held out from the eighth round's design work")):
         if a.section == name:
