@@ -54,8 +54,15 @@ every other vessel x operator x seed, cold start.
   400-404. Seen from now on.
 * Sixth fresh held-out worlds (`drawn_cases(FRESH6_SEEDS)`, seeds 600-604, the same
   families and operators, 90 worlds): defined and committed during the sixth round, before
-  its blind run and before the seventh round's design work, to be run once after that
-  round's design is final: the seventh round's blind figure.
+  its blind run and before the seventh round's design work, run once after that round's
+  design was final (0327a0c, the elastic share's parabola): the seventh round's blind
+  figure; that change, screened on the seeds 100-104, 200-204, 300-304, 400-404 and
+  500-504, did worse there than the sixth round's renderer and was reverted. Seen from
+  now on.
+* Seventh fresh held-out worlds (`drawn_cases(FRESH7_SEEDS)`, seeds 700-704, the same
+  families and operators, 90 worlds): defined and committed during the seventh round,
+  before its blind run of fresh6 and before the eighth round's design work, to be run once
+  after that round's design is final: the eighth round's blind figure.
 """
 from __future__ import annotations
 
@@ -81,8 +88,10 @@ FRESH3_SEEDS = (300, 301, 302, 303, 304)
 FRESH4_SEEDS = (400, 401, 402, 403, 404)
 #: seeds of the sixth round's held-out worlds (run once, after its design was final)
 FRESH5_SEEDS = (500, 501, 502, 503, 504)
-#: seeds of the seventh round's held-out worlds (run once, after its design is final)
+#: seeds of the seventh round's held-out worlds (run once, after its design was final)
 FRESH6_SEEDS = (600, 601, 602, 603, 604)
+#: seeds of the eighth round's held-out worlds (run once, after its design is final)
+FRESH7_SEEDS = (700, 701, 702, 703, 704)
 
 
 @dataclass(frozen=True)
