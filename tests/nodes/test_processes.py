@@ -78,8 +78,13 @@ def test_namespaced_graph_stops_cleanly_on_signal(ros, tmp_path, sig):
         for name, p in procs.items():
             try:
                 p.wait(timeout=30)
-            finally:
-                outs[name] = (p.returncode, p.stdout.read())
+            except subprocess.TimeoutExpired:
+                # still running 30 s after the signal: kill it, so its log can be read (reading
+                # a live process's pipe blocked until pytest's 300 s timeout) and the assertion
+                # below names it (exit -9) with what it printed
+                p.kill()
+                p.wait()
+            outs[name] = (p.returncode, p.stdout.read())
     finally:
         _stop_all(procs)
     for name, (code, out) in outs.items():
