@@ -61,6 +61,15 @@ _CUBIC_MAX_N = 16
 _CUBIC_MIN_N = 5
 
 
+def _graded_start(n: int, clothoid: bool) -> str:
+    """The graded second pass's start on n arcs (``mesh.fast_grade``'s `start`): 'remap'
+    beyond _CUBIC_MAX_N arcs, 'cubic' from _CUBIC_MIN_N (clothoid arcs from 3), else
+    'curvature'."""
+    if n > _CUBIC_MAX_N:
+        return 'remap'
+    return 'cubic' if n >= (3 if clothoid else _CUBIC_MIN_N) else 'curvature'
+
+
 def _equal_arcs(n: int, L: float, EI: float):
     key = (n, L, EI)
     c = _EQUAL_CACHE.get(key)
@@ -281,8 +290,7 @@ def fast_solve(n: int, L: float, EI: float, F: complex, m: float, follower: bool
         # (from the equal arcs' tangent angle interpolated by local cubics up to _CUBIC_MAX_N
         # arcs, mesh.cubic_start; beyond, linear in each equal arc, remap: design record,
         # round 7)
-        f, start = fast_grade(phi, F, follower, 'remap' if n > _CUBIC_MAX_N else 'cubic'
-                              if n >= (3 if cl else _CUBIC_MIN_N) else 'curvature')
+        f, start = fast_grade(phi, F, follower, _graded_start(n, cl))
         lg = L * f
         p2, c2, it2, r2, tip2, J2, rho2 = fast_tip_newton(n, lg, lg / EI, F, m, follower, start,
                                                           mi, clothoid=cl, bezier=bezier)
