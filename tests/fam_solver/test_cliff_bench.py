@@ -179,6 +179,10 @@ def test_median_drops_lists_every_drop_from_the_largest_median_before():
     assert d[0][2] == pytest.approx(0.05) and d[0][3] == pytest.approx(0.03)
     assert d[1][2] == pytest.approx(1.0 - 2.05 / 2.1) and d[1][3] == pytest.approx(0.07)
     assert bfc.median_drops([1.0, 1.0, 1.5], noise, [1, 2, 4]) == []
+    # from the largest median before, not the previous one: 2.0 -> 1.9 -> 1.95 drops twice
+    d = bfc.median_drops([1.0, 2.0, 1.9, 1.95], noise, [1, 2, 4, 8])
+    assert [(k, j) for k, j, _, _ in d] == [(1, 2), (1, 3)]
+    assert d[1][2] == pytest.approx(0.025) and d[1][3] == pytest.approx(0.04)
 
 
 NS = [12, 48, 64, 80, 81, 100]
