@@ -72,7 +72,7 @@ CLIFF_NS = [1, 2, 4, 8, 12, 16, 24, 32, 48, 64, 65, 80, 81, 100, 200, 500, 1000]
 CLIFF_ROUNDS = (9, 3)      # rounds for N <= 100, for N > 100
 #: the follow-up of a drop larger than the coarse noise figure: paired rounds of the two N
 #: (``paired_ratios``; --quick: a third) and the confidence of the sign-test interval
-FOLLOW_ROUNDS = 81
+FOLLOW_ROUNDS = 121
 FOLLOW_CONF = 0.95
 
 
