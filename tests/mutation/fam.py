@@ -8,6 +8,9 @@ from mutate import Mutant
 TESTS = ['tests/fam_solver', '-k', 'not test_node']
 
 P = 'src/fam_solver/fam_solver/'
+#: the cliff bench (issue 15's timing; its follow-up logic is tested in tests/fam_solver)
+B = 'tests/bench/bench_fam_cliffs.py'
+BT = ('tests/fam_solver/test_cliff_bench.py',)
 
 MUTANTS = [
     # -- issue 14's survivor: the buckling check beyond 64 arcs runs on a 32-arc model
@@ -331,4 +334,38 @@ MUTANTS = [
            '    if start not in _STARTS:',
            '    if False:',
            'fast_grade: an unknown start silently taken as remap'),
+    # -- issue 15, round 8: the cliff bench's follow-up of a drop beyond the coarse noise
+    Mutant('M74', B, 'math.sqrt(np.median(qr[m]) * np.median(qr[~m]))', 'np.median(qr)',
+           'follow-up: the median over all cases (the second-call effect not cancelled)',
+           tests=BT),
+    Mutant('M75', B,
+           '(np.arange(rounds)[:, None] + np.arange(n_jobs)[None, :]) % 2 == 0',
+           'np.ones((rounds, n_jobs), dtype=bool)',
+           'follow-up: a always runs first (the second-call effect taken for a drop)',
+           tests=BT),
+    Mutant('M76', B,
+           'ta[r, i], tb[r, i] = (c1 - c0, c2 - c1) if af else (c2 - c1, c1 - c0)',
+           'ta[r, i], tb[r, i] = (c1 - c0, c2 - c1)',
+           'follow-up: the times of a pair run in the order (b, a) swapped', tests=BT),
+    Mutant('M77', B,
+           'return float(x[l_ - 1]), float(x[n - l_]), 1.0 - 2.0 * cdf',
+           'return float(x[l_]), float(x[n - l_ - 1]), 1.0 - 2.0 * cdf',
+           'sign_interval: an order statistic too far in (too narrow: noise confirmed as a drop)',
+           tests=BT),
+    Mutant('M78', B, '        if cdf + p > alpha:', '        if cdf + p > 2.0 * alpha:',
+           'sign_interval: the two-sided level taken one-sided (too narrow)', tests=BT),
+    Mutant('M79', B,
+           '    if lo > 1.0 - drop:\n        return',
+           '    if True:\n        return',
+           'follow_verdict: an interval that cannot exclude the coarse drop clears it', tests=BT),
+    Mutant('M80', B, '    if hi < 1.0:', '    if hi < 1.0 - drop:',
+           'follow_verdict: a drop confirmed only if at least the coarse drop', tests=BT),
+    Mutant('M81', B, '        k = int(np.argmax(meds[:j]))', '        k = j - 1',
+           'median_drops: drops from the previous N only (a slow slide past a peak unseen)',
+           tests=BT),
+    Mutant('M82', B, "    verdict = max(final, key=rank.get, default='yes')",
+           "    verdict = max(coarse, key=rank.get, default='yes')",
+           'cliff_report: the follow-up\'s verdict ignored', tests=BT),
+    Mutant('M83', B, "            if coarse[q] == 'NO':", '            if True:',
+           'cliff_report: drops within the coarse noise followed up too', tests=BT),
 ]
