@@ -347,6 +347,19 @@ def test_worker_cpus_places_master_first_vision_last_only_when_both_run():
     assert R.worker_cpus('master', ['master', 'slave'], {0, 1}) is None
 
 
+def _thread_affinities():
+    """(tid, CPU set) of this process's threads, skipping a thread that ends between the
+    listing and the query (threads of earlier tests' executors end at their own pace: the
+    clean-up's ProcessLookupError seen once under load)."""
+    out = []
+    for tid in os.listdir('/proc/self/task'):
+        try:
+            out.append((int(tid), os.sched_getaffinity(int(tid))))
+        except ProcessLookupError:
+            pass
+    return out
+
+
 def test_pin_process_pins_every_thread_and_says_when_it_cannot(monkeypatch):
     import threading
     before = os.sched_getaffinity(0)
@@ -361,8 +374,8 @@ def test_pin_process_pins_every_thread_and_says_when_it_cannot(monkeypatch):
             assert os.sched_getaffinity(0) == {cpu}
             assert os.sched_getaffinity(t.native_id) == before
         assert R.pin_process(os.getpid(), {cpu}, logs.append)
-        for tid in os.listdir('/proc/self/task'):
-            assert os.sched_getaffinity(int(tid)) == {cpu}
+        for tid, cpus in _thread_affinities():
+            assert cpus == {cpu}, tid
         assert not logs
         # a CPU that does not exist: refused, one log line
         assert not R.pin_process(os.getpid(), {4096}, logs.append)
@@ -372,8 +385,11 @@ def test_pin_process_pins_every_thread_and_says_when_it_cannot(monkeypatch):
     finally:
         stop.set()
         t.join()
-        for tid in os.listdir('/proc/self/task'):
-            os.sched_setaffinity(int(tid), before)
+        for tid, _ in _thread_affinities():
+            try:
+                os.sched_setaffinity(tid, before)
+            except ProcessLookupError:   # ended since it was listed
+                pass
 
 
 def test_workers_pin_the_split_layouts_master_and_vision(monkeypatch):
