@@ -34,8 +34,8 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
   part of ``all``. Seen from the eighth round on.
 * ``fresh7``: the eighth round's held-out worlds (`drawn_cases(FRESH7_SEEDS)`, seeds
   700-704, the same families and operators, 90 worlds), committed during the seventh round
-  before its blind run of fresh6, to be run once after the eighth round's design is final.
-  Not part of ``all``.
+  before its blind run of fresh6, and run once, after the eighth round's design was final.
+  Not part of ``all``. Seen from the ninth round on.
 * ``fresh8``: the ninth round's held-out worlds (`drawn_cases(FRESH8_SEEDS)`, seeds
   800-804, the same families and operators, 90 worlds), committed during the eighth round
   before its blind run of fresh7, to be run once after the ninth round's design is final.
@@ -151,7 +151,7 @@ def main(argv=None):
     ap.add_argument('--draw-seeds', default=None,
                     help='comma-separated seeds: the randomised section on these seeds '
                          'instead of the fresh ones (development draws, never the held-out '
-                         '700-704 or 800-804)')
+                         '800-804)')
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     if a.section in ('dev', 'all'):
@@ -169,8 +169,8 @@ def main(argv=None):
         title, note = 'fresh held-out worlds', ''
         if a.draw_seeds:
             seeds = [int(s) for s in a.draw_seeds.split(',')]
-            if set(seeds) & (set(FRESH7_SEEDS) | set(FRESH8_SEEDS)):
-                ap.error('--draw-seeds must not name the held-out seeds 700-704 or 800-804')
+            if set(seeds) & set(FRESH8_SEEDS):
+                ap.error('--draw-seeds must not name the held-out seeds 800-804')
             title = f'development draws (seeds {seeds})'
         sections.append((seeds, title, note))
     for name, all_seeds, title, note in (
@@ -185,7 +185,7 @@ def main(argv=None):
             ('fresh6', FRESH6_SEEDS, 'sixth fresh held-out worlds',
              "; held out from the seventh round's design work (seen in the eighth's)"),
             ('fresh7', FRESH7_SEEDS, 'seventh fresh held-out worlds',
-             "; held out from the eighth round's design work"),
+             "; held out from the eighth round's design work (seen in the ninth's)"),
             ('fresh8', FRESH8_SEEDS, 'eighth fresh held-out worlds',
              "; held out from the ninth round's design work")):
         if a.section == name:
