@@ -34,15 +34,20 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
   part of ``all``. Seen from the eighth round on.
 * ``fresh7``: the eighth round's held-out worlds (`drawn_cases(FRESH7_SEEDS)`, seeds
   700-704, the same families and operators, 90 worlds), committed during the seventh round
-  before its blind run of fresh6, to be run once after the eighth round's design is final.
+  before its blind run of fresh6, and run once, after the eighth round's design was final.
+  Not part of ``all``. Seen from the ninth round on.
+* ``fresh8``: the ninth round's held-out worlds (`drawn_cases(FRESH8_SEEDS)`, seeds
+  800-804, the same families and operators, 90 worlds), committed during the eighth round
+  before its blind run of fresh7, to be run once after the ninth round's design is final.
   Not part of ``all``.
 
 Tables per section: every case (MAE normal / outage / max, N); per vessel and per operator;
 the count of cases where the default beats DFR (normal MAE < DFR's, outage MAE < DFR's /
 2, max < DFR's) and where its mean error ('all' intervals) is no worse than the anchored
 baseline's; the averages over cases with the ratios to DFR.
-Options: --section dev|fresh|fresh2|fresh3|fresh4|fresh5|fresh6|fresh7|all (default all
-= dev and fresh), --quick (one seed), --jobs N (cases run in N processes; default 1).
+Options: --section dev|fresh|fresh2|fresh3|fresh4|fresh5|fresh6|fresh7|fresh8|all
+(default all = dev and fresh), --quick (one seed), --jobs N (cases run in N processes;
+default 1).
 """
 from __future__ import annotations
 
@@ -61,7 +66,8 @@ for pkg in ('impedance_master', 'sim_slave', 'catheter_common'):
 
 from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS,  # noqa: E402
                                              FRESH3_SEEDS, FRESH4_SEEDS, FRESH5_SEEDS, FRESH6_SEEDS,
-                                             FRESH7_SEEDS, FRESH_SEEDS, MODES, TUNING,
+                                             FRESH7_SEEDS, FRESH8_SEEDS, FRESH_SEEDS, MODES,
+                                             TUNING,
                                              beats_dfr, cases, drawn_cases, run_case)
 
 LABEL = {'ima': 'IMA default', 'ima_thesis': 'IMA thesis', 'dfr': 'DFR',
@@ -139,13 +145,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--section', default='all',
                     choices=('dev', 'fresh', 'fresh2', 'fresh3', 'fresh4', 'fresh5', 'fresh6',
-                             'fresh7', 'all'))
+                             'fresh7', 'fresh8', 'all'))
     ap.add_argument('--quick', action='store_true', help='one seed per section')
     ap.add_argument('--jobs', type=int, default=1, help='processes (cases in parallel)')
     ap.add_argument('--draw-seeds', default=None,
                     help='comma-separated seeds: the randomised section on these seeds '
                          'instead of the fresh ones (development draws, never the held-out '
-                         '700-704)')
+                         '800-804)')
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     if a.section in ('dev', 'all'):
@@ -163,8 +169,8 @@ def main(argv=None):
         title, note = 'fresh held-out worlds', ''
         if a.draw_seeds:
             seeds = [int(s) for s in a.draw_seeds.split(',')]
-            if set(seeds) & set(FRESH7_SEEDS):
-                ap.error('--draw-seeds must not name the held-out seeds 700-704')
+            if set(seeds) & set(FRESH8_SEEDS):
+                ap.error('--draw-seeds must not name the held-out seeds 800-804')
             title = f'development draws (seeds {seeds})'
         sections.append((seeds, title, note))
     for name, all_seeds, title, note in (
@@ -179,7 +185,9 @@ def main(argv=None):
             ('fresh6', FRESH6_SEEDS, 'sixth fresh held-out worlds',
              "; held out from the seventh round's design work (seen in the eighth's)"),
             ('fresh7', FRESH7_SEEDS, 'seventh fresh held-out worlds',
-             "; held out from the eighth round's design work")):
+             "; held out from the eighth round's design work (seen in the ninth's)"),
+            ('fresh8', FRESH8_SEEDS, 'eighth fresh held-out worlds',
+             "; held out from the ninth round's design work")):
         if a.section == name:
             sections.append((list(all_seeds)[:1 if a.quick else None], title, note))
     for seeds, title, note in sections:

@@ -1,14 +1,15 @@
 """Issue 12's second to fourth rounds: the renderer's 'local' anchor correction, its
-weighing by the data support and the measured slope beyond the data, the default
-(hand-checked values)."""
+weighing by the data support and the measured slope beyond the data (the model's own
+slope capped there: eighth round), the default (hand-checked values)."""
 import math
 
 import pytest
 
 from impedance_master import ImaRenderer, Impedance
 from impedance_master.impedance import steady_states
-from impedance_master.anchoring import SIGN_BAND
-from impedance_master.rendering import LOCAL_ANCHOR_LENGTH, MAX_SLOPE, SUPPORT_HALF
+from impedance_master.anchoring import SIGN_BAND, measured_slope
+from impedance_master.rendering import (LOCAL_ANCHOR_LENGTH, MAX_MODEL_SLOPE, MAX_SLOPE,
+                                        SUPPORT_HALF)
 
 
 def _anchored_model(miss=0.1, x=0.03, xd=0.01):
@@ -167,6 +168,39 @@ def test_the_measured_slope_is_capped_and_never_flattens_a_steeper_model():
         ImaRenderer(max_slope=0.0)
     with pytest.raises(ValueError, match='slope_length'):
         ImaRenderer(slope_length=-1.0)
+
+
+# ------------------------------------------- eighth round: the model's own slope is capped
+
+def test_beyond_the_data_a_steep_model_slope_is_capped_and_a_steep_measured_one_is_not():
+    assert ImaRenderer().max_model_slope == MAX_MODEL_SLOPE == 10.0
+    # the model rises 30 N/m at the edge of its data (its fit of a bump), the measured
+    # force only 30 - 25 = 5 N/m: the extension rises at the cap, 10 N/m
+    ima, imp = _learned_rising(rise=-25.0, k=30.0)
+    assert ima.depth_slope.slope(1.0) == pytest.approx(5.0)
+    xs = ima.support.nearest_any(0.06)
+    assert ima.support.anywhere(0.06) == 0.0
+    miss = -25.0 * (0.04 - 0.02)
+    want = imp.force(xs, 0.01, 0.0) + MAX_MODEL_SLOPE * (0.06 - xs) + miss
+    assert want < ima.limit
+    assert ima.desired_force(0.06, 0.01, 0.0) == pytest.approx(want)
+    # uncapped (the seventh round): the model's own 30 N/m
+    old, imp = _learned_rising(rise=-25.0, k=30.0, max_model_slope=None)
+    assert old.max_model_slope == math.inf
+    assert old.desired_force(0.06, 0.01, 0.0) == pytest.approx(
+        imp.force(xs, 0.01, 0.0) + 30.0 * (0.06 - xs) + miss)
+    # a MEASURED slope steeper than the cap (a wall) still extends the force: 40 N/m
+    ima, imp = _learned_rising(rise=30.0, k=10.0)
+    assert ima.depth_slope.slope(1.0) == pytest.approx(40.0)
+    miss = 30.0 * (0.04 - 0.02)
+    want = imp.force(xs, 0.01, 0.0) + 40.0 * (0.055 - xs) + miss
+    assert want < ima.limit
+    assert ima.desired_force(0.055, 0.01, 0.0) == pytest.approx(want)
+    # retracting past the data with a force below 0: the model's fall is capped alike
+    assert measured_slope(None, MAX_SLOPE, -30.0, False, MAX_MODEL_SLOPE) == -10.0
+    assert measured_slope(None, MAX_SLOPE, 7.0, True, MAX_MODEL_SLOPE) == 7.0
+    with pytest.raises(ValueError, match='max_model_slope'):
+        ImaRenderer(max_model_slope=0.0)
 
 
 # ------------------------------------------- fifth round: continuous across a gap in the data

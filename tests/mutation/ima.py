@@ -102,9 +102,9 @@ MUTANTS = [
            '    pass',
            "without data support the anchor's miss fades anyway (the prior's guess is rendered)"),
     Mutant('I23', IM + 'anchoring.py',
-           '                                                       False)) * (x - lo)\n'
+           ' False, max_model_slope)) * (x - lo)\n'
            '        hold += (1.0 - c) * (ext - hold)',
-           '                                                       False)) * (x - lo)',
+           ' False, max_model_slope)) * (x - lo)',
            "beyond the data the model's own tables are rendered, not the extension"),
     Mutant('I24', IM + 'support.py',
            '        row = self._w[1 if direction > 0.0 else 0]',
@@ -232,6 +232,15 @@ MUTANTS = [
            '            step = self.dt / self.held_lowpass',
            '            step = 1.0',
            'the held miss switches in one period (a step at the hand)'),
+    # -- eighth round: the model's own slope beyond the data capped (MAX_MODEL_SLOPE)
+    Mutant('I45', IM + 'anchoring.py',
+           '    slope = min(max_model_slope, max(-max_model_slope, slope))',
+           '    pass',
+           "the model's fit of a bump at the edge of its data is thrown ahead uncapped"),
+    Mutant('I46', IM + 'anchoring.py',
+           '        return max(slope, min(b, max_slope))',
+           '        return min(max_model_slope, max(slope, min(b, max_slope)))',
+           'a steep MEASURED slope (a wall) is capped at the model slope cap too'),
     # -- operator and vessel families (issue 12)
     Mutant('I16', IM + 'operator.py',
            '        self._amp = min((self.x_hi - self.x_lo) / span if span > 0 else math.inf,',

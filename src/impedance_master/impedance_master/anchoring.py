@@ -9,11 +9,11 @@ states and the model's miss there (rho = measured force - model force at the anc
 * `supported_force`: the default IMA's 'local' anchoring weighed by the data support
   (third round): where the support c near the master's depth is thin the model is
   extended from the nearest seen depth (weight 1 - c; deeper with the steeper of the
-  model's and the MEASURED slope, fourth round) and the anchor's miss is kept with weight
-  (1 - c)^2; with full support the miss fades with the depth difference and at a reversal;
-  where the master turns outward at depths the slave has only moved inward at, the flip
-  of the friction keeps the elastic share the measured force's growth in depth shows
-  (`elastic_keep`, sixth round).
+  model's, at most MAX_MODEL_SLOPE (eighth round), and the MEASURED slope, fourth
+  round) and the anchor's miss is kept with weight (1 - c)^2; with full support the miss
+  fades with the depth difference and at a reversal; where the master turns outward at
+  depths the slave has only moved inward at, the flip of the friction keeps the elastic
+  share the measured force's growth in depth shows (`elastic_keep`, sixth round).
 
 Pure functions of (model, friction states, master state, anchor term, support): the
 renderer evaluates them on the master's state, the online score (`scoring`) on the
@@ -68,10 +68,12 @@ def anchored_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorTe
 
 
 def measured_slope(depth_slope: Optional[DepthSlope], max_slope: float, slope: float,
-                   pushing: bool) -> float:
+                   pushing: bool, max_model_slope: float = math.inf) -> float:
     """The steeper of the model's slope at the edge of its data (its tables flatten
-    toward their priors there) and the measured one (`DepthSlope`, inserting if
-    `pushing`), at most max_slope."""
+    toward their priors there), at most `max_model_slope` in magnitude (eighth round:
+    a steeper model slope is its fit of a local bump, not data), and the measured one
+    (`DepthSlope`, inserting if `pushing`), at most max_slope."""
+    slope = min(max_model_slope, max(-max_model_slope, slope))
     if depth_slope is None:
         return slope
     b = depth_slope.slope(1.0 if pushing else -1.0)
@@ -105,11 +107,12 @@ def elastic_keep(m: Impedance, x: float, za, sup: Support, elastic: ElasticShare
 def supported_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorTerm,
                     anchor_length: float, sup: Support, depth_slope: Optional[DepthSlope],
                     max_slope: float, elastic: Optional[ElasticShare] = None,
-                    elastic_gain: float = 0.0) -> float:
+                    elastic_gain: float = 0.0, max_model_slope: float = math.inf) -> float:
     """'local' anchoring where the model has data; beyond its data (the support `c` near x
     is thin) the model's tables are its priors' guess: extend the model from the nearest
     depth with data instead (weight 1 - c) and keep more of the anchor's measured force
-    (weight (1 - c)^2): toward the anchored baseline. z: the friction states at x."""
+    (weight (1 - c)^2): toward the anchored baseline. z: the friction states at x.
+    Deeper than the data the model's own slope counts up to `max_model_slope` N/m."""
     za = (a.z1, a.z2)
     hold = m.force(x, xd, xdd, za)          # the anchor's direction of friction
     flip = m.force(x, xd, xdd, z) - hold    # the model's change of direction
@@ -138,10 +141,10 @@ def supported_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorT
         ext = fs
         if u > 0.0:
             ext += u * max(0.0, measured_slope(depth_slope, max_slope, model_slope,
-                                               True)) * (x - lo)
+                                               True, max_model_slope)) * (x - lo)
         if u < 1.0:
             ext += (1.0 - u) * min(0.0, measured_slope(depth_slope, max_slope, model_slope,
-                                                       False)) * (x - lo)
+                                                       False, max_model_slope)) * (x - lo)
         hold += (1.0 - c) * (ext - hold)
     d = abs(x - a.x)
     g = (math.exp(-d / anchor_length) if d else 1.0)

@@ -61,8 +61,14 @@ every other vessel x operator x seed, cold start.
   now on.
 * Seventh fresh held-out worlds (`drawn_cases(FRESH7_SEEDS)`, seeds 700-704, the same
   families and operators, 90 worlds): defined and committed during the seventh round,
-  before its blind run of fresh6 and before the eighth round's design work, to be run once
-  after that round's design is final: the eighth round's blind figure.
+  before its blind run of fresh6 and before the eighth round's design work, run once after
+  that round's design was final (6980c21, the model's slope beyond the data capped at
+  10 N/m, screened on the seeds 100-104 to 600-604): the eighth round's blind figure. Seen
+  from now on.
+* Eighth fresh held-out worlds (`drawn_cases(FRESH8_SEEDS)`, seeds 800-804, the same
+  families and operators, 90 worlds): defined and committed during the eighth round,
+  before its blind run of fresh7 and before the ninth round's design work, to be run once
+  after that round's design is final: the ninth round's blind figure.
 """
 from __future__ import annotations
 
@@ -90,8 +96,10 @@ FRESH4_SEEDS = (400, 401, 402, 403, 404)
 FRESH5_SEEDS = (500, 501, 502, 503, 504)
 #: seeds of the seventh round's held-out worlds (run once, after its design was final)
 FRESH6_SEEDS = (600, 601, 602, 603, 604)
-#: seeds of the eighth round's held-out worlds (run once, after its design is final)
+#: seeds of the eighth round's held-out worlds (run once, after its design was final)
 FRESH7_SEEDS = (700, 701, 702, 703, 704)
+#: seeds of the ninth round's held-out worlds (run once, after its design is final)
+FRESH8_SEEDS = (800, 801, 802, 803, 804)
 
 
 @dataclass(frozen=True)

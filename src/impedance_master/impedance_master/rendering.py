@@ -45,9 +45,9 @@ from impedance_master.safety import (ERROR, OK, SAFE_MAX_RATE, WARN,  # noqa: F4
 from impedance_master.anchoring import (AnchorTerm, anchor_term, anchored_force,
                                        supported_force)
 from impedance_master.scoring import SCORE_LAG, SCORE_RATE, OnlineScore
-from impedance_master.support import (ELASTIC_GAIN, MAX_SLOPE, SLOPE_LENGTH,  # noqa: F401
-                                     SLOPE_STEP, SUPPORT_HALF, SUPPORT_WIDTH, DepthSlope,
-                                     ElasticShare, Support)
+from impedance_master.support import (ELASTIC_GAIN, MAX_MODEL_SLOPE,  # noqa: F401
+                                     MAX_SLOPE, SLOPE_LENGTH, SLOPE_STEP, SUPPORT_HALF,
+                                     SUPPORT_WIDTH, DepthSlope, ElasticShare, Support)
 
 ANCHORING = ('none', 'full', 'residual', 'local')
 #: m, default reach in depth of the 'local' anchor correction (see ImaRenderer)
@@ -147,6 +147,12 @@ class ImaRenderer(_Rendered):
             (the third round). Between two seen depths (a gap in the data) the model is
             interpolated between its values there (fifth round; the extension from the
             NEAREST seen depth jumped at the gap's middle: `anchoring.supported_force`).
+        max_model_slope: N/m, with the support weighing: deeper than the data the MODEL's
+            own slope at the edge counts at most this steeply (eighth round of issue 12;
+            default MAX_MODEL_SLOPE = 10 N/m): a steeper rise there is the tables' fit
+            of a local bump (a stenosis the slave stopped on threw 0.5 N ahead); the
+            measured slope, up to `max_slope`, still extends a wall. None: uncapped (the
+            seventh round).
         score_memory: s, with the support weighing: blend the anchored baseline into the
             rendered force by the online score's least-squares weight
             (`scoring.OnlineScore`, forgetting time constant `score_memory`, horizon
@@ -184,6 +190,7 @@ class ImaRenderer(_Rendered):
                  support_half: Optional[float] = SUPPORT_HALF,
                  support_width: float = SUPPORT_WIDTH,
                  slope_length: Optional[float] = SLOPE_LENGTH, max_slope: float = MAX_SLOPE,
+                 max_model_slope: Optional[float] = MAX_MODEL_SLOPE,
                  score_memory: Optional[float] = None, score_lag: float = SCORE_LAG,
                  score_rate: float = SCORE_RATE,
                  elastic_gain: Optional[float] = ELASTIC_GAIN,
@@ -219,6 +226,8 @@ class ImaRenderer(_Rendered):
         self.support: Optional[Support] = None
         self.depth_slope: Optional[DepthSlope] = None
         self.max_slope = positive('max_slope', max_slope)
+        self.max_model_slope = (math.inf if max_model_slope is None
+                                else positive('max_model_slope', max_model_slope))
         self.score: Optional[OnlineScore] = None
         self.elastic: Optional[ElasticShare] = None
         if support_half is not None and anchoring == 'local':
@@ -330,7 +339,8 @@ class ImaRenderer(_Rendered):
         if self._q > 0.0:
             term = term._replace(rho=term.rho + self._q * (self._rho_lp - term.rho))
         f = supported_force(m, z, x, xd, xdd, term, self.anchor_length, self.support,
-                            self.depth_slope, self.max_slope, self.elastic, self.elastic_gain)
+                            self.depth_slope, self.max_slope, self.elastic, self.elastic_gain,
+                            self.max_model_slope)
         w = self.score.weight * self.support.anywhere(x) if self.score is not None else 0.0
         if w > 0.0:
             f += w * (anchored_force(m, z, x, xd, xdd, term) - f)

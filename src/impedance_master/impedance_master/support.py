@@ -48,6 +48,13 @@ SLOPE_LENGTH = 0.005
 #: friction growth of the drawn vessels (about 40 N/m at 10 mm/s); a steeper rise is a local
 #: bump (a stenosis: up to 230 N/m over half a millimetre), not to be extended
 MAX_SLOPE = 50.0
+#: N/m, the steepest slope of the MODEL's own tables at the edge of its data that the
+#: extension beyond the data keeps (eighth round of issue 12): above the friction growth
+#: with length of the drawn vessels (a few N/m), below their walls; a steeper rise of
+#: the model there (its fit of a stenosis' bump, 30-50 N/m, where the slave stopped on
+#: it) is thrown ahead only as far as the MEASURED slope (`DepthSlope`, at most
+#: MAX_SLOPE) shows it
+MAX_MODEL_SLOPE = 10.0
 #: m, the elastic share's friction trend is fitted to the forces met at least this much
 #: shallower than the depth it is asked at (`ElasticShare`)
 ELASTIC_MARGIN = 0.015
