@@ -1,6 +1,7 @@
 """catheter_common.stop_signals and node_entry: the stop handlers installed before a node's
 module is imported, a signal noted (never raised, never lost) from then on, the previous
 handlers restored at the end."""
+import faulthandler
 import os
 import signal
 import sys
@@ -66,7 +67,7 @@ def test_a_malformed_entry_name_is_refused(bad):
 def test_the_entry_installs_the_handlers_before_importing_the_node_module(
         tmp_path, monkeypatch, clean_handlers):
     """The node module sees the stop handlers installed while it is imported (a signal then is
-    noted) and its main gets the call."""
+    noted), its main gets the call, and SIGUSR1 dumps the stacks (faulthandler)."""
     pkg = tmp_path / 'entry_probe_pkg'
     pkg.mkdir()
     (pkg / '__init__.py').write_text('')
@@ -84,5 +85,6 @@ def test_the_entry_installs_the_handlers_before_importing_the_node_module(
     main = node_entry.entry_probe_pkg__slow_node
     installed, seen, args = main(['x'])
     assert installed and seen == signal.SIGINT and args == ['x']
+    assert faulthandler.unregister(signal.SIGUSR1)      # kill -USR1: the stacks of a live node
     sys.modules.pop('entry_probe_pkg.slow_node', None)
     sys.modules.pop('entry_probe_pkg', None)
