@@ -158,7 +158,8 @@ def test_a_signal_while_a_node_still_starts_stops_it(tmp_path):
     nohup starts them), each executable gets its signal while still starting and exits 0
     within 15 s without a traceback. The stop handlers are in place before rclpy is even
     imported (before issue 15's fix they came with run_node, after the node module's imports:
-    a SIGINT then was discarded and the node ran until killed)."""
+    a SIGINT then was discarded and the node ran until killed). The recorder leaves no bag or
+    a complete one."""
     old = signal.signal(signal.SIGINT, signal.SIG_IGN)      # inherited by the children
     procs = {}
     try:
@@ -203,3 +204,8 @@ def test_a_signal_while_a_node_still_starts_stops_it(tmp_path):
         assert 'Traceback' not in out and 'FATAL' not in out, f'{name}:\n{out[-3000:]}'
         if delay == 0.0:
             assert before_rclpy[name], f'{name}: its stop handler came after rclpy was imported'
+    # the recorder stopped while starting: no bag if it had not started, else a complete one
+    bag = tmp_path / 'early.mcap'
+    if bag.exists():
+        from catheter_bringup.recorder import read_run_metadata
+        assert read_run_metadata(bag)['status'] == 'complete'
