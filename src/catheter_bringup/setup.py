@@ -25,8 +25,8 @@ setup(
     entry_points={
         'console_scripts': [
             'run_scenario = catheter_bringup.run_scenario:main',
-            'recorder_node = catheter_bringup.recorder_node:main',
-            'force_source_node = catheter_bringup.force_source_node:main',
+            'recorder_node = catheter_common.node_entry:catheter_bringup__recorder_node',
+            'force_source_node = catheter_common.node_entry:catheter_bringup__force_source_node',
             'recover_bag = catheter_bringup.bagfile:main',
             'catheter_topic = catheter_bringup.topic_tool:main',
         ],

@@ -19,7 +19,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'shape_node = catheter_shape.shape_node:main',
+            'shape_node = catheter_common.node_entry:catheter_shape__shape_node',
         ],
     },
 )

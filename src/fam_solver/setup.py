@@ -19,7 +19,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'fam_solver_node = fam_solver.fam_solver_node:main',
+            'fam_solver_node = catheter_common.node_entry:fam_solver__fam_solver_node',
         ],
     },
 )

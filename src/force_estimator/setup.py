@@ -26,7 +26,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'force_estimator_node = force_estimator.force_estimator_node:main',
+            ('force_estimator_node = '
+             'catheter_common.node_entry:force_estimator__force_estimator_node'),
         ],
     },
 )

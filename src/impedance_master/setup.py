@@ -19,9 +19,10 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'impedance_identifier_node = impedance_master.impedance_identifier_node:main',
-            'ima_master_node = impedance_master.ima_master_node:main',
-            'sim_haptic_node = impedance_master.sim_haptic_node:main',
+            ('impedance_identifier_node = '
+             'catheter_common.node_entry:impedance_master__impedance_identifier_node'),
+            'ima_master_node = catheter_common.node_entry:impedance_master__ima_master_node',
+            'sim_haptic_node = catheter_common.node_entry:impedance_master__sim_haptic_node',
         ],
     },
 )

@@ -19,8 +19,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'sim_slave_node = sim_slave.sim_slave_node:main',
-            'camera_node = sim_slave.camera_node:main',
+            'sim_slave_node = catheter_common.node_entry:sim_slave__sim_slave_node',
+            'camera_node = catheter_common.node_entry:sim_slave__camera_node',
         ],
     },
 )

@@ -250,9 +250,10 @@ def realtime(duration):
         sent = sum(c['sent'] for c in link.values())
         lost = sum(c['lost'] for c in link.values())
         for name, c in sorted(link.items()):
-            note(f'  link {name}: DDS sent / taken / lost (longest run of lost, at s)',
+            note(f'  link {name}: DDS sent / taken / lost (longest run of lost, at s; '
+                 'DDS reported lost)',
                  f"{c['sent']} / {c['taken']} / {c['lost']} ({c.get('longest_run', 0)}, "
-                 f"{c.get('run_at_s', 0.0):.2f})")
+                 f"{c.get('run_at_s', 0.0):.2f}; {c.get('dds_reported')})")
         if sent:
             row('lost by DDS on the link topics (target 0) vs injected link loss',
                 100.0 * lost / sent, 100.0 * INJECTED_LOSS, ' %', fmt='{:.2f}')

@@ -51,6 +51,8 @@ def test_link_topics_flow_between_the_processes(split_run):
     for name, c in link.items():
         # a second of 1 kHz at least, and most of it arrived (best effort; 2 loaded cores)
         assert c['sent'] > 1000 and c['taken'] > 0.9 * c['sent'], (name, c)
+        # the receiving subscription was watched for what DDS itself reports lost
+        assert isinstance(c['dds_reported'], int) and c['dds_reported'] >= 0, (name, c)
     master = res.processes['master']
     # the master took the slave's force and impedance only from DDS, and the renderers
     # got the device's command through the process's own bus (not DDS)

@@ -7,7 +7,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from catheter_bringup import rclpy_adapter as A
-from catheter_common.qos import QOS_DEFAULT
+from catheter_common.qos import QOS_DEFAULT, QOS_FAST
 
 pytestmark = pytest.mark.ros
 
@@ -223,3 +223,73 @@ def test_spin_for_runs_the_events_executor_for_about_the_time_asked():
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+_LOST_CHILD = r'''
+import json, sys, time
+import rclpy
+from rclpy.experimental import EventsExecutor
+from std_msgs.msg import String
+from catheter_bringup import rclpy_adapter as A
+from catheter_common.qos import QOS_FAST
+rclpy.init()
+node = rclpy.create_node('lost_watch_child')
+got, lost = [], []
+sub = node.create_subscription(String, '/lost_watch/probe', lambda m: got.append(m.data), QOS_FAST)
+A.watch_message_lost(node, sub, lost.append)
+ex = EventsExecutor()
+ex.add_node(node)
+print('ready', flush=True)
+end = time.monotonic() + float(sys.argv[1])
+while time.monotonic() < end:
+    ex.spin_once(timeout_sec=0.05)
+n_handlers = len(sub.event_handlers)
+node.destroy_subscription(sub)          # the added handlers go with it
+print(json.dumps({'got': len(got), 'lost': lost, 'handlers': n_handlers}), flush=True)
+ex.shutdown()
+node.destroy_node()
+rclpy.try_shutdown()
+'''
+
+
+def test_watch_message_lost_reports_what_dds_lost_to_a_subscription(ros):
+    """A subscriber process frozen (SIGSTOP) 2.5 s while ~1 kHz samples keep coming: its DDS
+    transport drops what does not fit (the shared-memory port holds 512), and the handler
+    added after the subscription was made reports the total (the samples its own depth-10
+    queue dropped are not in it); the handler is destroyed with the subscription."""
+    import json
+    import signal
+    import subprocess
+    import sys
+    import time
+    pub = ros.node('lost_watch_pub').create_publisher(String, '/lost_watch/probe', QOS_FAST)
+    child = subprocess.Popen([sys.executable, '-c', _LOST_CHILD, '7.0'], stdout=subprocess.PIPE,
+                             text=True)
+    try:
+        assert child.stdout.readline().strip() == 'ready'
+        assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 20.0)
+        sent = 0
+
+        def publish_for(s):
+            nonlocal sent
+            end = time.monotonic() + s
+            while time.monotonic() < end:
+                pub.publish(String(data=str(sent)))
+                sent += 1
+                time.sleep(0.001)
+        publish_for(0.3)
+        child.send_signal(signal.SIGSTOP)
+        publish_for(2.5)
+        child.send_signal(signal.SIGCONT)
+        publish_for(0.3)
+        out = json.loads(child.communicate(timeout=60)[0].strip().splitlines()[-1])
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert child.returncode == 0
+    assert out['handlers'] >= 1
+    assert out['lost'] and out['lost'] == sorted(out['lost']), out      # running totals
+    total = out['lost'][-1]
+    # what DDS reported is part of what never arrived
+    assert 0 < total <= sent - out['got'], (total, sent, out['got'])

@@ -1,6 +1,6 @@
-"""catheter_common.ros_node.run_node in-process: a signal at any moment (while the node is
-being built, while its timers publish) ends in close(), destroy, exit code 0; a failing node
-exits 1; --help builds nothing."""
+"""catheter_common.ros_node.run_node in-process: a signal at any moment (before the node is
+built, while it is being built, while its timers publish) ends in close(), destroy, exit code
+0; a failing node exits 1; --help builds nothing."""
 import os
 import signal
 
@@ -10,6 +10,7 @@ from std_msgs.msg import String
 
 from catheter_common.params import Param
 from catheter_common.qos import QOS_DEFAULT
+from catheter_common import stop_signals
 from catheter_common.ros_node import node_help, node_main, run_node
 
 pytestmark = pytest.mark.ros
@@ -54,6 +55,21 @@ def test_signal_stops_the_node_cleanly(sig, at_start, capfd):
     err = capfd.readouterr().err
     assert 'FATAL' not in err and 'Traceback' not in err, err
     assert signal.getsignal(sig) is old                 # the handlers are restored
+
+
+@pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGINT], ids=['SIGTERM', 'SIGINT'])
+def test_a_signal_before_run_node_starts_nothing(sig, capfd):
+    """The executable's entry point installs the handlers before the node module is imported;
+    a signal then (the node still importing) is noted: run_node builds nothing, exits 0 and
+    puts back the handlers that were there before the entry point's."""
+    old = signal.getsignal(sig)
+    stop_signals.install()
+    os.kill(os.getpid(), sig)
+    built = []
+    code = run_node(lambda: built.append(1), args=['probe'])
+    assert code == 0 and built == []
+    assert 'before the node started: not started' in capfd.readouterr().err
+    assert signal.getsignal(sig) is old and stop_signals.installed() is None
 
 
 def test_a_failing_node_exits_1_and_is_still_closed(capfd):

@@ -10,11 +10,11 @@ from __future__ import annotations
 import array
 import collections
 import time
-from typing import Callable, Dict, List, Optional
+from typing import Callable, Dict, List, Optional, Tuple
 
 from catheter_bringup.msg_copy import message_copier
 from catheter_bringup.rclpy_adapter import (intercept_publish, serializer, take_callback,
-                                            wrap_callback)
+                                            watch_message_lost, wrap_callback)
 
 
 class PublishCounter:
@@ -111,6 +111,11 @@ class LocalBus:
         self.delivery_s = 0.0
         #: per topic: messages DDS delivered to this process's subscriptions outside the bus
         self.received: Dict[str, int] = {}
+        #: per topic taken from DDS (`external`): the samples DDS itself reported lost (a gap
+        #: in what the reader received: transport or sender), summed over the subscriptions;
+        #: a sample a subscription's own queue dropped is not in it
+        self.dds_lost: Dict[str, int] = {}
+        self._dds_lost_by_sub: Dict[int, Tuple[str, int]] = {}
         self._counted = set()
         #: one deserialised message shared by all subscribers of a publish (as rclcpp hands
         #: a const shared message to its intra-process subscribers: they must not modify
@@ -220,7 +225,7 @@ class LocalBus:
                 # nobody in this process publishes it (yet): DDS delivers it, the runner spins
                 # the executor for it
                 self.external.add(id(sub))
-                self._count_external(sub, node.get_name())
+                self._count_external(sub, node.get_name(), node)
                 continue
             self.external.discard(id(sub))
             self._subs.add(id(sub))
@@ -232,13 +237,18 @@ class LocalBus:
             if not raw:
                 self.msg_topics.add(sub.topic_name)
 
-    def _count_external(self, sub, owner: str) -> None:
-        """Count (and time) what DDS delivers to a subscription outside the bus."""
+    def _count_external(self, sub, owner: str, node=None) -> None:
+        """Count (and time) what DDS delivers to a subscription outside the bus, and what DDS
+        reports lost of it (`dds_lost`)."""
         if id(sub) in self._counted or not self.immediate:
             return
         self._counted.add(id(sub))
         topic = sub.topic_name
         self.received.setdefault(topic, 0)
+        if node is not None:
+            self.dds_lost.setdefault(topic, 0)
+            key = id(sub)
+            watch_message_lost(node, sub, lambda total: self.note_dds_lost(key, topic, total))
 
         def counting(orig, bus=self, _topic=topic, _owner=owner):
             def callback(*args):
@@ -251,6 +261,12 @@ class LocalBus:
             return callback
 
         wrap_callback(sub, counting)
+
+    def note_dds_lost(self, key: int, topic: str, total: int) -> None:
+        """Subscription `key` of `topic`: DDS reports `total` samples lost since it was made;
+        `dds_lost[topic]` is the sum over the topic's subscriptions."""
+        self._dds_lost_by_sub[key] = (topic, total)
+        self.dds_lost[topic] = sum(n for t, n in self._dds_lost_by_sub.values() if t == topic)
 
     def timed(self, owner: str, fn, *args):
         """Call fn(*args), adding its wall time minus the deliveries it caused to `owner`'s

@@ -96,6 +96,27 @@ def wrap_callback(sub, wrapper: Callable[[Callable], Callable]) -> None:
         sub.callback = lambda msg, _f=inner: _f(msg)
 
 
+def watch_message_lost(node, sub, callback: Callable[[int], None]) -> None:
+    """Call ``callback(total)`` whenever DDS reports samples of subscription `sub` lost (total:
+    since it was created) - added after the subscription was made by its node. DDS reports a
+    gap in the sequence numbers the reader received: samples lost in transport or never sent
+    by the writer. A sample the subscription's own queue (KEEP_LAST depth) dropped because it
+    was not taken in time is not reported.
+
+    Relies on: ``SubscriptionEventCallbacks.create_event_handlers(callback_group, handle,
+    topic)`` building the handlers ``Node.create_subscription`` adds for ``event_callbacks``;
+    ``sub.event_handlers`` being the list ``Node.destroy_subscription`` removes and destroys;
+    ``node.add_waitable`` handing them to the node's executor (the EventsExecutor too)."""
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    cbs = SubscriptionEventCallbacks(
+        message_lost=lambda status: callback(int(status.total_count)),
+        use_default_callbacks=False)
+    handlers = cbs.create_event_handlers(sub.callback_group, sub.handle, sub.topic_name)
+    sub.event_handlers.extend(handlers)
+    for h in handlers:
+        node.add_waitable(h)
+
+
 # ------------------------------------------------------------------ time
 def detach_clock(node):
     """Take the node's sim time away from /clock: destroys the TimeSource's /clock

@@ -327,6 +327,12 @@ def latency_stats(lat_s, skip: int = 2) -> Dict[str, float]:
             'p99_ms': float(np.percentile(a, 99) * 1e3), 'max_ms': float(a.max() * 1e3)}
 
 
+def counts_since(before: Dict[str, int], now: Dict[str, int], keys) -> Dict[str, int]:
+    """Running totals `now` minus what they were `before` (0 when absent then), for the keys
+    of `now` that are in `keys`: e.g. what DDS reported lost while a loop ran."""
+    return {k: int(n) - int(before.get(k, 0)) for k, n in now.items() if k in keys}
+
+
 def link_loss(sent_ns, taken_ns) -> Dict[str, int]:
     """What DDS lost of a stream between two processes, from the header stamps (ns) the
     publisher sent and those the subscriber took: counted inside the window both were

@@ -12,9 +12,9 @@ from catheter_bringup.lockstep_peer import PASS_SPIN
 from catheter_bringup.rclpy_adapter import (fire_timer, never_done, set_time, spin_for,
                                             spin_ready, timer_due_in_ns, timer_ready,
                                             wrap_timer_callback)
-from catheter_bringup.realtime import (GcWatch, cpu_delta, latency_stats, own_autogroup,
-                                       quiet_gc, reset_priority, set_fifo_priority, set_nice,
-                                       stream_stats, thread_cpu)
+from catheter_bringup.realtime import (GcWatch, counts_since, cpu_delta, latency_stats,
+                                       own_autogroup, quiet_gc, reset_priority,
+                                       set_fifo_priority, set_nice, stream_stats, thread_cpu)
 
 #: ns, real time with the local bus: how often DDS is polled for subscriptions outside the bus
 #: (the image worker's 30 Hz topics). One poll builds an rclpy wait set, 0.3-1.4 ms measured:
@@ -223,6 +223,7 @@ class Stepping:
             self.bus.latency_topics = {T.TIP_WRENCH}
             self.bus.stamp_topics = set(LINK_TOPICS) if self.children is None else set()
             self.bus.wall_ns = time.time_ns
+            dds_lost0 = dict(self.bus.dds_lost)
             # what this process puts on DDS besides its bus (a worker of layout split: only
             # what another process consumes, `split_run.worker_dds_topics`)
             info['dds_topics'] = 'all' if self.bus.dds else sorted(
@@ -250,6 +251,9 @@ class Stepping:
                 info['latency'] = {t: latency_stats(v) for t, v in self.bus.latency.items()}
                 info['link_sent'] = {t: list(v) for t, v in self.bus.sent.items()}
                 info['link_taken'] = {t: list(v) for t, v in self.bus.taken.items()}
+                # what DDS reported lost of them while the loop ran (transport / sender)
+                info['link_dds_lost'] = counts_since(dds_lost0, self.bus.dds_lost,
+                                                     self.bus.stamp_topics)
                 self.bus.times = None
 
     def _run_realtime_inner(self, bar):

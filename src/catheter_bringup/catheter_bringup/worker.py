@@ -180,17 +180,27 @@ class Workers:
 
     def _link_loss(self) -> Dict[str, dict]:
         """Per link topic and receiving process: what DDS lost between the processes
-        (`catheter_bringup.realtime.link_loss`); the stamp lists leave the reports."""
+        (`catheter_bringup.realtime.link_loss`) and, `dds_reported`, how many samples DDS
+        itself reported lost to the receiver while its loop ran (its reader saw a gap in the
+        sequence numbers: transport or sender; None when not watched). A loss that DDS did not
+        report was dropped by the receiving subscription's own queue (not taken in time).
+        The stamp lists leave the reports."""
         from catheter_bringup.realtime import link_loss
-        sent, taken = {}, {}
+        sent, taken, reported = {}, {}, {}
         for name, rep in self.reports.items():
             rt = rep.get('realtime') or {}
             for t, v in (rt.pop('link_sent', None) or {}).items():
                 sent[t] = v
             for t, v in (rt.pop('link_taken', None) or {}).items():
                 taken.setdefault(t, {})[name] = v
-        return {f'{t} -> {proc}': link_loss(sent[t], v)
-                for t in sorted(sent) for proc, v in sorted(taken.get(t, {}).items())}
+            for t, n in (rt.pop('link_dds_lost', None) or {}).items():
+                reported[t, name] = n
+        out = {}
+        for t in sorted(sent):
+            for proc, v in sorted(taken.get(t, {}).items()):
+                out[f'{t} -> {proc}'] = dict(link_loss(sent[t], v),
+                                             dds_reported=reported.get((t, proc)))
+        return out
 
     def published(self) -> Dict[str, int]:
         out: Dict[str, int] = {}

@@ -8,7 +8,6 @@ importable from here, as before).
 from __future__ import annotations
 
 import os
-import signal
 import sys
 import time
 from typing import Callable, Optional
@@ -16,11 +15,10 @@ from typing import Callable, Optional
 import rclpy
 from rclpy.node import Node
 
+from catheter_common import stop_signals
 from catheter_common.diagnostics import Diagnostics  # noqa: F401  (re-exported)
 from catheter_common.params import declare, format_help, seal  # noqa: F401  (re-exported)
-
-#: the signals that stop a node cleanly, and how the logs name them
-STOP_SIGNALS = {signal.SIGINT: 'SIGINT (Ctrl-C)', signal.SIGTERM: 'SIGTERM'}
+from catheter_common.stop_signals import STOP_SIGNALS  # noqa: F401  (re-exported)
 
 
 def make_executor(kind: str = 'events', context=None):
@@ -53,31 +51,31 @@ def node_help(node_class, executable: Optional[str] = None) -> str:
     return format_help(exe, getattr(node_class, 'PARAMS', ()), doc)
 
 
-class _StopFlag:
-    """Set by the signal handlers; the spin loop checks it between spins."""
-
-    def __init__(self):
-        self.signum: Optional[int] = None
-
-    def __call__(self, signum, _frame) -> None:
-        if self.signum is None:
-            self.signum = signum
-
-
 def run_node(node_factory: Callable[..., Node], args=None, executor: str = 'events') -> int:
     """Entry point body for a node executable. Returns the process exit code.
 
     ``--help`` / ``-h``: prints the node's parameters and exits 0 without starting anything.
-    SIGINT and SIGTERM stop the spin loop; then the node's ``close()`` runs (it may still
-    publish), the node is destroyed, and only then the context is shut down: no callback
-    can run against a dead context (that was the ``[FATAL] publisher's context is invalid``
-    on SIGTERM). Exit code 0 on a signal, 1 when the node failed.
+    SIGINT and SIGTERM stop the spin loop (`catheter_common.stop_signals`: installed by the
+    executable's entry point before the node's modules were imported, or here); then the
+    node's ``close()`` runs (it may still publish), the node is destroyed, and only then the
+    context is shut down: no callback can run against a dead context (that was the
+    ``[FATAL] publisher's context is invalid`` on SIGTERM). A signal that came before the
+    context was initialised starts nothing. Exit code 0 on a signal, 1 when the node failed.
     """
-    if wants_help(args):
-        sys.stdout.write(node_help(node_factory))
-        return 0
-    stop = _StopFlag()
-    old = {s: signal.signal(s, stop) for s in STOP_SIGNALS}
+    stop = stop_signals.install()
+    try:
+        if wants_help(args):
+            sys.stdout.write(node_help(node_factory))
+            return 0
+        if stop.signum is not None:
+            print(f'{stop.name} before the node started: not started', file=sys.stderr)
+            return 0
+        return _run(node_factory, args, executor, stop)
+    finally:
+        stop_signals.restore()
+
+
+def _run(node_factory, args, executor: str, stop: stop_signals.StopFlag) -> int:
     from rclpy.signals import SignalHandlerOptions
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node: Optional[Node] = None
@@ -93,9 +91,7 @@ def run_node(node_factory: Callable[..., Node], args=None, executor: str = 'even
         while stop.signum is None and rclpy.ok():
             exe.spin_once(timeout_sec=0.1)
         if stop.signum is not None:
-            node.get_logger().info(f'{STOP_SIGNALS[stop.signum]}: stopping')
-    except KeyboardInterrupt:          # a signal before the handlers were in place
-        pass
+            node.get_logger().info(f'{stop.name}: stopping')
     except Exception as exc:  # a failing node says why and exits non-zero
         if node is not None:
             node.get_logger().fatal(f'node failed: {exc!r}')
@@ -122,8 +118,6 @@ def run_node(node_factory: Callable[..., Node], args=None, executor: str = 'even
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-        for s, h in old.items():
-            signal.signal(s, h)
     return code
 
 
