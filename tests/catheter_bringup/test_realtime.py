@@ -76,6 +76,25 @@ def test_link_loss_invariants(sent, drop):
     assert R.link_loss(sent, taken + taken) == r
 
 
+def test_counts_since_subtracts_the_totals_at_the_start():
+    before = {'/a': 3, '/b': 1}
+    now = {'/a': 10, '/b': 1, '/c': 4, '/other': 9}
+    assert R.counts_since(before, now, {'/a', '/b', '/c'}) == {'/a': 7, '/b': 0, '/c': 4}
+    assert R.counts_since({}, {}, {'/a'}) == {}
+
+
+def test_bus_sums_what_dds_reported_lost_over_a_topics_subscriptions():
+    """Each subscription's handler reports its running total; the topic's figure is the sum
+    of the latest totals (a second report of one subscription replaces its first)."""
+    from catheter_bringup.bus import LocalBus
+    bus = LocalBus()
+    bus.note_dds_lost(1, '/slave/force', 3)
+    bus.note_dds_lost(2, '/slave/force', 4)
+    bus.note_dds_lost(1, '/slave/force', 5)
+    bus.note_dds_lost(3, '/slave/impedance', 2)
+    assert bus.dds_lost == {'/slave/force': 9, '/slave/impedance': 2}
+
+
 def test_fifo_priority_falls_back_with_one_log_line(monkeypatch):
     def refuse(*_a):
         raise PermissionError(1, 'Operation not permitted')
