@@ -72,6 +72,51 @@ def test_a_signal_before_run_node_starts_nothing(sig, capfd):
     assert signal.getsignal(sig) is old and stop_signals.installed() is None
 
 
+class _StuckProbe(_Probe):
+    """destroy_node blocks (as rcl / DDS teardown did once under load) until released."""
+    release = None
+
+    def destroy_node(self):
+        assert _StuckProbe.release.wait(30.0), 'the teardown watchdog never fired'
+        super().destroy_node()
+
+
+@pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGINT], ids=['SIGTERM', 'SIGINT'])
+def test_a_stuck_teardown_ends_the_process_with_the_nodes_code(sig, monkeypatch, capfd):
+    """The node is closed first; if destroy_node then hangs, the watchdog dumps the threads
+    and exits with the node's code (0 after a signal) instead of hanging until killed."""
+    import threading
+    from catheter_common import ros_node
+    _Probe.events.clear()
+    _StuckProbe.release = threading.Event()
+    exits = []
+
+    def fake_exit(code):                  # record instead of os._exit, then unblock destroy
+        exits.append(code)
+        _StuckProbe.release.set()
+    monkeypatch.setattr(ros_node, 'TEARDOWN_TIMEOUT_S', 0.3)
+    monkeypatch.setattr(ros_node, '_hard_exit', fake_exit)
+    code = run_node(lambda: _StuckProbe(sig, after=5), args=['probe'])
+    assert code == 0 and exits == [0]
+    assert _Probe.events and _Probe.events[0][0] == 'closed'      # closed before the teardown
+    err = capfd.readouterr().err
+    assert 'teardown after close() did not finish in 0.3 s' in err and 'exiting with code 0' in err
+    assert 'destroy_node' in err                                   # the stuck thread's stack
+
+
+def test_a_quick_teardown_does_not_fire_the_watchdog(monkeypatch):
+    from catheter_common import ros_node
+    exits = []
+    monkeypatch.setattr(ros_node, '_hard_exit', exits.append)
+    _Probe.events.clear()
+    assert run_node(lambda: _Probe(signal.SIGINT, after=5), args=['probe']) == 0
+    w = ros_node.TeardownWatchdog(0, timeout=0.2)
+    w.cancel()
+    import time
+    time.sleep(0.4)
+    assert exits == [] and not w.fired
+
+
 def test_a_failing_node_exits_1_and_is_still_closed(capfd):
     _Probe.events.clear()
     code = run_node(lambda: _Probe(signal.SIGTERM, after=10 ** 9, fail=True), args=['probe'])

@@ -55,4 +55,18 @@ MUTANTS = [
            '                                             dds_reported=None)',
            'the link report drops what DDS reported lost',
            tests=('tests/catheter_bringup/test_layout_split.py', '-k', 'link_topics_flow')),
+    Mutant('S10', C + 'ros_node.py',
+           '        watchdog = TeardownWatchdog(code)',
+           '        watchdog = TeardownWatchdog(code, timeout=60.0)',
+           'no teardown watchdog in practice: a destroy_node that blocks keeps the process '
+           'running until it is killed (the hang of a fresh clone\'s full run)', tests=UNIT),
+    Mutant('S11', C + 'ros_node.py',
+           '            _hard_exit(self.code)',
+           '            _hard_exit(1)',
+           'a stuck teardown exits 1 although the node stopped as asked', tests=UNIT),
+    Mutant('S12', C + 'ros_node.py',
+           '        self._timer.cancel()\n',
+           '        pass\n',
+           'the watchdog is not cancelled: a node that tore down in time is still killed',
+           tests=UNIT),
 ]

@@ -7,8 +7,10 @@ importable from here, as before).
 """
 from __future__ import annotations
 
+import faulthandler
 import os
 import sys
+import threading
 import time
 from typing import Callable, Optional
 
@@ -113,12 +115,64 @@ def _run(node_factory, args, executor: str, stop: stop_signals.StopFlag) -> int:
                     print(f'error while closing node: {exc!r}', file=sys.stderr)
                     code = code or 1
             node.get_logger().info('shut down cleanly')
-        if exe is not None:
-            exe.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        # the node is closed (its data are safe): the rest is rcl / DDS teardown, which once
+        # blocked for good in destroy_node under load (impedance_identifier_node, a fresh
+        # clone's full run: its stack, dumped on SIGUSR1, ended in destroy_when_not_in_use)
+        watchdog = TeardownWatchdog(code)
+        try:
+            if exe is not None:
+                exe.shutdown()
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
+        finally:
+            watchdog.cancel()
     return code
+
+
+#: s: how long the rcl / DDS teardown after a node's close() may take before the process
+#: exits without waiting for it (normally well under 1 s)
+TEARDOWN_TIMEOUT_S = 10.0
+#: s: after that, a watchdog that needs no GIL (faulthandler's thread) ends the process with
+#: exit code 1, in case the blocked call holds the GIL
+TEARDOWN_BACKSTOP_S = 5.0
+
+
+def _hard_exit(code: int) -> None:
+    os._exit(code)
+
+
+class TeardownWatchdog:
+    """Ends the process if the teardown after close() has not finished in
+    `TEARDOWN_TIMEOUT_S`: one line on stderr, every thread's stack, then exit with `code` (the
+    node itself stopped as asked). A second, GIL-free watchdog (faulthandler) exits 1
+    `TEARDOWN_BACKSTOP_S` later should the first never get to run."""
+
+    def __init__(self, code: int, timeout: Optional[float] = None):
+        self.timeout = TEARDOWN_TIMEOUT_S if timeout is None else float(timeout)
+        self.code = code
+        self.fired = False
+        self._timer = threading.Timer(self.timeout, self._expire)
+        self._timer.daemon = True
+        self._timer.start()
+        faulthandler.dump_traceback_later(self.timeout + TEARDOWN_BACKSTOP_S, exit=True)
+
+    def _expire(self) -> None:
+        self.fired = True
+        try:
+            sys.stderr.write(f'teardown after close() did not finish in {self.timeout:g} s '
+                             f'(rcl / DDS); exiting with code {self.code} without waiting; '
+                             'the threads:\n')
+            sys.stderr.flush()
+            faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
+            sys.stdout.flush()
+            sys.stderr.flush()
+        finally:
+            _hard_exit(self.code)
+
+    def cancel(self) -> None:
+        self._timer.cancel()
+        faulthandler.cancel_dump_traceback_later()
 
 
 def node_main(node_class, executor: str = 'events') -> Callable[..., int]:
