@@ -198,62 +198,6 @@ def test_immediate_bus_delivers_inside_publish_in_order(ros):
 
 
 @pytest.mark.ros
-def test_immediate_bus_takes_an_outside_topic_once_for_all_its_subscriptions(ros):
-    """Worker processes: of several subscriptions of a topic another process publishes (the
-    master's three nodes take /slave/force), the first takes it from DDS and hands the one
-    message to the others after its own callback (each timed as its owner's, each one's
-    publishes delivered when it returns); the others take raw and drop; counted once. A
-    subscription with other QoS takes its own; with `share_dds` off each takes its own."""
-    from std_msgs.msg import String
-    from catheter_bringup.bus import LocalBus
-    from catheter_common.qos import QOS_DEFAULT, QOS_FAST
-    a, b, c = ros.node('dds1_a'), ros.node('dds1_b'), ros.node('dds1_c')
-    got = []
-    pub_echo = b.create_publisher(String, 'dds1/echo', QOS_DEFAULT)
-
-    def on_b(msg):
-        got.append(('b', msg))
-        pub_echo.publish(String(data='echo ' + msg.data))
-    subs = [a.create_subscription(String, 'dds1/ext', lambda m: got.append(('a', m)),
-                                  QOS_DEFAULT),
-            b.create_subscription(String, 'dds1/ext', on_b, QOS_DEFAULT),
-            c.create_subscription(String, 'dds1/ext', lambda m, info: got.append(('c', m)),
-                                  QOS_DEFAULT),
-            c.create_subscription(String, 'dds1/ext', lambda m: got.append(('fast', m)),
-                                  QOS_FAST)]
-    c.create_subscription(String, 'dds1/echo', lambda m: got.append(('echo', m.data)),
-                          QOS_DEFAULT)
-    bus = LocalBus(immediate=True)
-    for n in (a, b, c):
-        bus.wrap_publishers(n)
-    for n in (a, b, c):
-        bus.wrap_subscriptions(n)
-    assert [s.raw for s in subs] == [False, True, True, False]
-    other = ros.node('dds1_other').create_publisher(String, 'dds1/ext', QOS_DEFAULT)
-    assert ros.spin_until(lambda: other.get_subscription_count() >= 4, 10.0)
-    other.publish(String(data='y'))
-    assert ros.spin_until(lambda: len(got) >= 5, 10.0)
-    ros.spin_for(0.2)
-    names = [g[0] for g in got]
-    # a, then b (whose publish reaches its subscriber when b returns), then c; the QOS_FAST
-    # subscription on its own (any place)
-    assert [n for n in names if n != 'fast'] == ['a', 'b', 'echo', 'c'] and names.count('fast') == 1
-    shared = [m for n, m in got if n in 'abc']
-    assert shared[0] is shared[1] is shared[2] and shared[0].data == 'y'
-    assert bus.received['/dds1/ext'] == 2          # the two subscriptions that take from DDS
-    assert {'dds1_a', 'dds1_b', 'dds1_c'} <= set(bus.cost.samples)
-    # off: each subscription takes its own
-    bus2 = LocalBus(immediate=True)
-    bus2.share_dds = False
-    d, e = ros.node('dds2_d'), ros.node('dds2_e')
-    s2 = [n.create_subscription(String, 'dds2/ext', lambda m: None, QOS_DEFAULT)
-          for n in (d, e)]
-    for n in (d, e):
-        bus2.wrap_subscriptions(n)
-    assert [s.raw for s in s2] == [False, False]
-
-
-@pytest.mark.ros
 def test_immediate_bus_delivers_a_callbacks_publishes_when_it_returns(ros):
     """Worker processes: a timer (or a DDS delivery) run through `LocalBus.timed` publishes
     back to back; its subscribers run after it returns, in publish order (as lockstep

@@ -152,10 +152,6 @@ class LocalBus:
         self.external = set()
         self._pubs = set()
         self._subs = set()
-        #: immediate (a worker): one DDS subscription takes a topic from another process for
-        #: all of this process's subscriptions of it with the same type and QoS (`_share_dds`)
-        self.share_dds = True
-        self._dds_groups: Dict[tuple, list] = {}
 
     def wrap_node(self, node, publishers: bool = True) -> None:
         if publishers:
@@ -229,8 +225,7 @@ class LocalBus:
                 # nobody in this process publishes it (yet): DDS delivers it, the runner spins
                 # the executor for it
                 self.external.add(id(sub))
-                if not self._share_dds(sub, node.get_name()):
-                    self._count_external(sub, node.get_name(), node)
+                self._count_external(sub, node.get_name(), node)
                 continue
             self.external.discard(id(sub))
             self._subs.add(id(sub))
@@ -241,28 +236,6 @@ class LocalBus:
                 (cb, raw, sub.msg_type, with_info, node.get_name()))
             if not raw:
                 self.msg_topics.add(sub.topic_name)
-
-    def _share_dds(self, sub, owner: str) -> bool:
-        """Immediate (a worker): the first subscription of an outside topic (per message type
-        and QoS) takes it from DDS for every later one: theirs are switched to raw and
-        dropped (taken without deserialising), and the first one's callback hands its
-        message to their callbacks after its own, one message shared as on the bus
-        (subscribers must not modify it). Before, DDS delivered each message to each
-        subscription and rclpy deserialised it for each: the master process's three nodes
-        took /slave/force and /slave/impedance three times per period. Returns whether
-        `sub` became such a follower (False: it takes from DDS itself)."""
-        if not (self.immediate and self.share_dds) or sub.raw or id(sub) in self._counted:
-            return False
-        q = sub.qos_profile
-        key = (sub.topic_name, sub.msg_type, q.history, q.depth, q.reliability, q.durability)
-        followers = self._dds_groups.get(key)
-        if followers is None:
-            self._dds_groups[key] = []      # `sub` takes it (`_count_external`)
-            return False
-        cb, with_info = take_callback(sub, _drop, raw=True)
-        followers.append((cb, with_info, owner))
-        self._counted.add(id(sub))
-        return True
 
     def _count_external(self, sub, owner: str, node=None) -> None:
         """Count (and time) what DDS delivers to a subscription outside the bus, and what DDS
@@ -277,27 +250,14 @@ class LocalBus:
             key = id(sub)
             watch_message_lost(node, sub, lambda total: self.note_dds_lost(key, topic, total))
 
-        q = sub.qos_profile
-        # the subscriptions this one takes the topic for (`_share_dds`: filled as the later
-        # ones are wrapped)
-        followers = self._dds_groups.get(
-            (topic, sub.msg_type, q.history, q.depth, q.reliability, q.durability), ()) \
-            if not sub.raw else ()
-
-        def counting(orig, bus=self, _topic=topic, _owner=owner, _followers=followers):
+        def counting(orig, bus=self, _topic=topic, _owner=owner):
             def callback(*args):
                 bus.received[_topic] += 1
                 if bus.times is not None and _topic in bus.stamp_topics:
                     ns = _stamp_ns(args[0])
                     if ns is not None:
                         bus.taken.setdefault(_topic, array.array('q')).append(ns)
-                ret = bus.timed(_owner, orig, *args)
-                for cb, with_info, owner in _followers:
-                    if with_info:
-                        bus.timed(owner, cb, args[0], args[1] if len(args) > 1 else {})
-                    else:
-                        bus.timed(owner, cb, args[0])
-                return ret
+                return bus.timed(_owner, orig, *args)
             return callback
 
         wrap_callback(sub, counting)
