@@ -12,6 +12,7 @@ import collections
 import time
 from typing import Callable, Dict, List, Optional, Tuple
 
+from catheter_bringup.cdr_decode import decoder
 from catheter_bringup.msg_copy import message_copier
 from catheter_bringup.rclpy_adapter import (intercept_publish, serializer, take_callback,
                                             watch_message_lost, wrap_callback)
@@ -70,6 +71,9 @@ def _stamp_ns(msg) -> Optional[int]:
     """The header stamp of a message in ns (None: no header, or raw bytes)."""
     st = getattr(getattr(msg, 'header', None), 'stamp', None)
     return None if st is None else st.sec * 1_000_000_000 + st.nanosec
+
+
+_UNSEEN = object()
 
 
 def _drop(*_args):
@@ -152,6 +156,8 @@ class LocalBus:
         self.external = set()
         self._pubs = set()
         self._subs = set()
+        #: per message class: its generated CDR decoder (`cdr_decode`; None: rclpy's)
+        self._decoders: Dict[type, Optional[Callable]] = {}
 
     def wrap_node(self, node, publishers: bool = True) -> None:
         if publishers:
@@ -289,6 +295,7 @@ class LocalBus:
 
     def deliver_all(self) -> int:
         deserialize_message = serializer()[1]
+        decoders = self._decoders
         n = 0
         q = self.queue
         clock = time.perf_counter
@@ -312,7 +319,15 @@ class LocalBus:
                         last_type = msg_type
                         copied = None
                     else:
-                        msg = last = deserialize_message(data, msg_type)
+                        # the type's generated decoder (`cdr_decode`), rclpy where it has none
+                        # or it does not read the bytes
+                        dec = decoders.get(msg_type, _UNSEEN)
+                        if dec is _UNSEEN:
+                            dec = decoders[msg_type] = decoder(msg_type)
+                        msg = dec(data) if dec is not None else None
+                        if msg is None:
+                            msg = deserialize_message(data, msg_type)
+                        last = msg
                         last_type = msg_type
                     if with_info:
                         cb(msg, {})
