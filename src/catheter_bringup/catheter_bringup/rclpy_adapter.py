@@ -81,6 +81,14 @@ def take_callback(sub, replacement: Callable, raw: bool = False) -> Tuple[Callab
     return old, wants
 
 
+def set_raw(sub) -> None:
+    """Make the executor take the subscription's messages as their CDR bytes (its callback
+    then gets bytes instead of a message).
+
+    Relies on: as `take_callback`, the executor reads ``sub.raw`` at each take."""
+    sub.raw = True
+
+
 def wrap_callback(sub, wrapper: Callable[[Callable], Callable]) -> None:
     """``sub.callback = wrapper(sub.callback)`` (e.g. to count what it took), keeping what the
     executor hands it: a callback that takes (msg, message_info) still gets the info.
