@@ -211,7 +211,7 @@ def _frames(stream):
     in blocks of up to 1 MB (``read1``: what the pipe holds, waiting only when it is
     empty) instead of two reads per frame; ends at the end of the stream, or where a
     frame is cut off (the producer died inside it)."""
-    read = getattr(stream, 'read1', stream.read)
+    read = getattr(stream, 'read1', None) or stream.read
     size = FRAME.size
     unpack = FRAME.unpack_from
     buf = bytearray()
