@@ -122,3 +122,30 @@ def test_exact_length_equals_what_dds_delivers(ros):
         for m, raw in zip(msgs, got, strict=True):
             assert len(exact_bytes(m)) == len(raw), type_name
             assert cdr_end(raw, cls) == len(raw), type_name
+
+
+@pytest.mark.parametrize('type_name', GRAPH_TYPES + ('visualization_msgs/msg/Marker',))
+def test_the_generated_end_finds_what_the_walker_finds(type_name):
+    """`cdr._generated_end` (what cdr_end tries first): the walker's end on rclpy's bytes
+    (estimated-size padding after the message) and on the exact bytes; bytes cut inside the
+    message give None (cdr_end then lets the walker say what is wrong), never another
+    end."""
+    from catheter_bringup.cdr import HEADER, _generated_end
+    cls = message_class(type_name)
+    end = _generated_end(cls)
+    assert end is not None
+    w = walker(cls)
+
+    @settings(max_examples=30, deadline=None)
+    @given(message_strategy(cls, max_len=5), st.data())
+    def check(msg, data):
+        raw = serialize_message(msg)
+        true = w(raw, 0, True)
+        assert end(raw) == true
+        assert end(raw[:HEADER + true]) == true
+        cut = data.draw(st.integers(HEADER, HEADER + true - 1)) if true else None
+        if cut is not None:
+            assert end(raw[:cut]) is None
+            with pytest.raises(ValueError, match='truncated'):
+                cdr_end(raw[:cut], cls)
+    check()

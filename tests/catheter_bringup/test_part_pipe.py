@@ -165,3 +165,32 @@ def test_add_topic_checks_are_the_same_for_both_recorders(tmp_path, kind):
     rec.close('complete')
     with pytest.raises(ValueError, match='closed'):
         rec.add_topic('/js', 'sensor_msgs/msg/JointState', None)
+
+
+class _Chunks:
+    """A binary stream whose read1 returns at most `size` bytes at a time (a pipe that hands
+    over what it holds)."""
+
+    def __init__(self, data: bytes, size: int):
+        self.data, self.size, self.pos = data, size, 0
+
+    def read1(self, n):
+        b = self.data[self.pos:self.pos + min(n, self.size)]
+        self.pos += len(b)
+        return b
+
+
+@pytest.mark.parametrize('size', [1, 7, 15, 16, 1000, 1 << 20])
+def test_the_writers_frames_are_reassembled_across_reads_and_a_cut_one_is_dropped(size):
+    """`part_pipe._frames`: frames split anywhere by the pipe's reads come out whole, in
+    order; a last frame cut off (the producer died inside it) is not yielded."""
+    from catheter_bringup.part_pipe import FRAME, MESSAGE, TOPIC, _frames
+    bodies = [b'', b'x', bytes(range(200)) * 3, b'{"topic": "/a"}', b'\x00' * 70]
+    kinds = [MESSAGE, MESSAGE, MESSAGE, TOPIC, MESSAGE]
+    data = b''.join(FRAME.pack(k, i, 1000 + i, len(b)) + b
+                    for i, (k, b) in enumerate(zip(kinds, bodies, strict=True)))
+    want = [(k, i, 1000 + i, b) for i, (k, b) in enumerate(zip(kinds, bodies, strict=True))]
+    assert list(_frames(_Chunks(data, size))) == want
+    cut = data + FRAME.pack(MESSAGE, 9, 9, 50) + b'y' * 49        # one byte short
+    assert list(_frames(_Chunks(cut, size))) == want
+    assert list(_frames(_Chunks(data + FRAME.pack(MESSAGE, 9, 9, 5)[:7], size))) == want

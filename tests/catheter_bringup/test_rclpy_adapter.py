@@ -120,6 +120,25 @@ def test_detach_clock_removes_the_clock_subscription_and_set_time_sets_the_clock
     assert A.detach_clock(node) is ts                  # idempotent
 
 
+def test_set_times_sets_every_clock_of_every_time_source(ros):
+    """set_times does what set_time with a /clock message of that time does, for several
+    TimeSources at once: every node's clock, and a clock attached afterwards starts there."""
+    from rclpy.clock import ROSClock
+    nodes = [_sim_node(ros, f'adapter_times_{k}') for k in range(3)]
+    sources = [A.detach_clock(n) for n in nodes]
+    A.set_times(sources, 7_000_000_321)
+    assert [n.get_clock().now().nanoseconds for n in nodes] == [7_000_000_321] * 3
+    late = ROSClock()
+    sources[1].attach_clock(late)
+    assert late.now().nanoseconds == 7_000_000_321
+    A.set_times(sources, 7_000_001_000)
+    assert late.now().nanoseconds == 7_000_001_000
+    assert [n.get_clock().now().nanoseconds for n in nodes] == [7_000_001_000] * 3
+    # the same state as set_time's
+    A.set_time(sources[0], _clock(9_000_000_000))
+    assert nodes[0].get_clock().now().nanoseconds == 9_000_000_000
+
+
 def test_fire_timer_runs_the_callback_and_advances_the_timer(ros):
     node = _sim_node(ros, 'adapter_timer')
     ts = A.detach_clock(node)

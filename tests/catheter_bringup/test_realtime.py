@@ -175,13 +175,15 @@ def test_immediate_bus_delivers_inside_publish_in_order(ros):
     c.create_subscription(String, 'imm/u', lambda m: (order.append('u:' + m.data),
                                                       seen_u.append(m)), QOS_DEFAULT)
     a.create_subscription(String, 'imm/u', seen_u.append, QOS_DEFAULT)
-    ext = c.create_subscription(String, 'imm/ext', lambda m: order.append('ext'), QOS_DEFAULT)
+    ext = c.create_subscription(String, 'imm/ext', lambda m: order.append(('ext', m)),
+                                QOS_DEFAULT)
     bus = LocalBus(immediate=True)
     for n in (a, b, c):
         bus.wrap_publishers(n)
     for n in (a, b, c):
         bus.wrap_subscriptions(n)
-    assert sub_t.raw is True and ext.raw is False
+    # ext: taken raw from DDS and decoded by the bus (`cdr_decode`)
+    assert sub_t.raw is True and ext.raw is True
     pub_t.publish(String(data='x'))
     assert order == ['t:x', 't-done', 'u:x!']
     # one deserialised message for both subscribers of /imm/u (share), a copy each without
@@ -194,7 +196,57 @@ def test_immediate_bus_delivers_inside_publish_in_order(ros):
     assert ros.spin_until(lambda: other.get_subscription_count() > 0, 10.0)
     other.publish(String(data='y'))
     assert ros.spin_until(lambda: bus.received.get('/imm/ext') == 1, 10.0)
-    assert order[-1] == 'ext'
+    assert order[-1][0] == 'ext' and order[-1][1] == String(data='y')
+
+
+@pytest.mark.ros
+def test_immediate_bus_decodes_what_it_takes_from_dds(ros):
+    """Worker processes: a subscription of a topic another process publishes is taken raw and
+    decoded by the type's generated decoder: the callback (message only, or with message
+    info) gets what rclpy's take would have built, field for field and in each value's
+    type; a type without a decoder, or with `decode_dds` off, is taken by rclpy as before."""
+    from geometry_msgs.msg import WrenchStamped
+    from sensor_msgs.msg import JointState
+    from catheter_interfaces.msg import TipForceEstimate
+    from catheter_bringup.bus import LocalBus
+    from catheter_common.qos import QOS_DEFAULT
+    from test_message_copy import _typed
+    n = ros.node('dec_sub')
+    got = []
+    subs = [n.create_subscription(WrenchStamped, 'dec/w', lambda m: got.append(('w', m)),
+                                  QOS_DEFAULT),
+            n.create_subscription(JointState, 'dec/j', lambda m, info: got.append(('j', m)),
+                                  QOS_DEFAULT),
+            n.create_subscription(TipForceEstimate, 'dec/t', lambda m: got.append(('t', m)),
+                                  QOS_DEFAULT)]
+    bus = LocalBus(immediate=True)
+    bus.wrap_subscriptions(n)
+    assert [s.raw for s in subs] == [True, True, False]
+    other = ros.node('dec_pub')
+    pw = other.create_publisher(WrenchStamped, 'dec/w', QOS_DEFAULT)
+    pj = other.create_publisher(JointState, 'dec/j', QOS_DEFAULT)
+    pt = other.create_publisher(TipForceEstimate, 'dec/t', QOS_DEFAULT)
+    assert ros.spin_until(lambda: min(p.get_subscription_count() for p in (pw, pj, pt)) > 0,
+                          10.0)
+    w = WrenchStamped()
+    w.header.frame_id, w.header.stamp.sec, w.wrench.torque.z = 'base', 7, -2.5
+    j = JointState(name=['a', 'bb'], position=[1.0, 2.0], velocity=[], effort=[0.5])
+    t = TipForceEstimate()
+    t.force.x = 0.25
+    pw.publish(w)
+    pj.publish(j)
+    pt.publish(t)
+    assert ros.spin_until(lambda: len(got) == 3, 10.0)
+    by = dict(got)
+    assert _typed(by['w']) == _typed(w) and _typed(by['j']) == _typed(j)
+    assert by['t'] == t
+    assert bus.received == {'/dec/w': 1, '/dec/j': 1, '/dec/t': 1}
+    off = LocalBus(immediate=True)
+    off.decode_dds = False
+    m = ros.node('dec_off')
+    s_off = m.create_subscription(WrenchStamped, 'dec/w', lambda msg: None, QOS_DEFAULT)
+    off.wrap_subscriptions(m)
+    assert s_off.raw is False
 
 
 @pytest.mark.ros

@@ -145,3 +145,27 @@ def test_checked_attribute_stores_the_checked_value_and_refuses_a_bad_one():
     with pytest.raises(ValueError, match='rate'):
         s.rate = -math.inf
     assert isinstance(_Settable.limit, checks.Checked)
+
+
+@given(value=st.one_of(ANY, st.floats(allow_nan=True, allow_infinity=True).map(
+    lambda f: __import__('numpy').float64(f))))
+def test_finite_returns_a_finite_float_or_names_the_argument(value):
+    """finite's fast path (an exact float) and its general path agree: a float of exactly
+    type float, equal to float(value); inf, -inf and NaN refused as 'must be finite'."""
+    try:
+        v = checks.finite('gain', value)
+    except ValueError as exc:
+        assert str(exc).startswith('gain must be')
+        try:
+            f = float(value)
+        except (TypeError, ValueError):
+            return
+        assert not math.isfinite(f) and 'must be finite' in str(exc)
+        return
+    assert type(v) is float and math.isfinite(v) and v == float(value)
+
+
+@pytest.mark.parametrize('bad', [math.inf, -math.inf, math.nan])
+def test_finite_refuses_non_finite_floats(bad):
+    with pytest.raises(ValueError, match=r'x must be finite, got'):
+        checks.finite('x', bad)

@@ -81,6 +81,29 @@ def test_impedance_key_ignores_stamp_and_status_but_not_the_model():
         assert M.impedance_key(M.impedance_msg(a.copy(**change))) != key, change
 
 
+def test_impedance_key_sees_every_model_field():
+    """Each field of MODEL_FIELDS changed alone on the message changes the key (the key is
+    read in one attrgetter: a field left out would take a changed model for the held one)."""
+    import array
+    a = Impedance(0.1, 2.0, 3.0, 0.5, True, x0=0.01, dx=0.005, S=[1, 2], F=[4, 5],
+                  B=[7, 8], C=[10, 11], status='ok', anchor=(0, 0, 0, 0, 0, 0.1, 0))
+    key = M.impedance_key(M.impedance_msg(a, stamp=5))
+    assert len(key) == len(M.MODEL_FIELDS)
+    for name in M.MODEL_FIELDS:
+        msg = M.impedance_msg(a, stamp=5)
+        v = getattr(msg, name)
+        if isinstance(v, bool):
+            new = not v
+        elif isinstance(v, int):
+            new = 1 - v if v in (0, 1) else v + 1
+        elif isinstance(v, float):
+            new = v + 0.5
+        else:
+            new = array.array('d', list(v) + [99.0])
+        setattr(msg, name, new)
+        assert M.impedance_key(msg) != key, name
+
+
 @pytest.mark.parametrize('field', ['x0', 'dx', 'sigma', 'v_s', 'beta', 'anchor_x', 'anchor_r'])
 def test_a_non_finite_unused_field_is_refused_too(field):
     """A relay passes on only clean messages: NaN in a field a linear model does not use

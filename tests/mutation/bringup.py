@@ -19,9 +19,8 @@ MUTANTS = [
            '            self._seq[topic] = seq',
            'issue 14 survivor: every message of a topic gets sequence number 0'),
     Mutant('B02', P + 'recorder.py',
-           '                                publish_time=log_time_ns if publish_time_ns is None\n'
-           '                                else int(publish_time_ns), sequence=seq, data=data)',
-           '                                publish_time=log_time_ns, sequence=seq, data=data)',
+           '            pub = log_time_ns if publish_time_ns is None else int(publish_time_ns)',
+           '            pub = log_time_ns',
            'issue 14 survivor: the publish time given is dropped (log time recorded instead)'),
     Mutant('B03', P + 'recorder.py',
            '            if self.first_time_ns is None:\n                self.first_time_ns = '
@@ -73,4 +72,27 @@ MUTANTS = [
            '    keep = rel >= skip',
            '    keep = rel >= 0.0',
            'force tracking: the start-up seconds (skip) are counted in the error'),
+    # -- round 9 (issue 15): the recorder's fast Message path (fast_message_writer)
+    Mutant('B14', P + 'recorder.py',
+           '        stats.message_count += 1\n',
+           '',
+           'round 9: the file statistics count no message (the summary says 0 messages)'),
+    Mutant('B15', P + 'recorder.py',
+           '        elif log_time < cb.message_start_time:\n'
+           '            cb.message_start_time = log_time',
+           '        elif False:\n'
+           '            cb.message_start_time = log_time',
+           'round 9: a chunk\'s start time ignores an earlier message after its first'),
+    Mutant('B16', P + 'recorder.py',
+           '        index.records.append((log_time, buf.tell()))',
+           '        index.records.append((log_time, 0))',
+           'round 9: the message index points every message at the chunk\'s start'),
+    Mutant('B17', P + 'recorder.py',
+           'sequence, log_time, publish_time))',
+           'sequence, log_time, log_time))',
+           'round 9: the publish time given is dropped in the fast path'),
+    Mutant('B18', P + 'recorder.py',
+           '        finish()\n    return add',
+           '    return add',
+           'round 9: a chunk is never finished when full (one chunk per file)'),
 ]

@@ -12,9 +12,10 @@ import collections
 import time
 from typing import Callable, Dict, List, Optional, Tuple
 
+from catheter_bringup.cdr_decode import decoder
 from catheter_bringup.msg_copy import message_copier
-from catheter_bringup.rclpy_adapter import (intercept_publish, serializer, take_callback,
-                                            watch_message_lost, wrap_callback)
+from catheter_bringup.rclpy_adapter import (intercept_publish, serializer, set_raw,
+                                            take_callback, watch_message_lost, wrap_callback)
 
 
 class PublishCounter:
@@ -70,6 +71,9 @@ def _stamp_ns(msg) -> Optional[int]:
     """The header stamp of a message in ns (None: no header, or raw bytes)."""
     st = getattr(getattr(msg, 'header', None), 'stamp', None)
     return None if st is None else st.sec * 1_000_000_000 + st.nanosec
+
+
+_UNSEEN = object()
 
 
 def _drop(*_args):
@@ -152,6 +156,11 @@ class LocalBus:
         self.external = set()
         self._pubs = set()
         self._subs = set()
+        #: immediate: subscriptions left to DDS are taken raw and decoded by the bus
+        #: (`cdr_decode`) where the type has a decoder
+        self.decode_dds = True
+        #: per message class: its generated CDR decoder (`cdr_decode`; None: rclpy's)
+        self._decoders: Dict[type, Optional[Callable]] = {}
 
     def wrap_node(self, node, publishers: bool = True) -> None:
         if publishers:
@@ -250,8 +259,21 @@ class LocalBus:
             key = id(sub)
             watch_message_lost(node, sub, lambda total: self.note_dds_lost(key, topic, total))
 
-        def counting(orig, bus=self, _topic=topic, _owner=owner):
+        # taken raw and decoded here by the type's generated decoder (`cdr_decode`): rclpy's
+        # take builds the message through its C conversion and every nested __init__
+        # (WrenchStamped 15 against 1.7 us, ImpedanceModel 15 against 3.9 us, measured)
+        dec = decoder(sub.msg_type) if self.decode_dds and not sub.raw else None
+        if dec is not None:
+            set_raw(sub)
+
+        def counting(orig, bus=self, _topic=topic, _owner=owner, _dec=dec,
+                     _type=sub.msg_type):
             def callback(*args):
+                if _dec is not None:
+                    msg = _dec(args[0])
+                    if msg is None:            # bytes it does not read: rclpy decides
+                        msg = serializer()[1](args[0], _type)
+                    args = (msg,) + args[1:]
                 bus.received[_topic] += 1
                 if bus.times is not None and _topic in bus.stamp_topics:
                     ns = _stamp_ns(args[0])
@@ -289,6 +311,7 @@ class LocalBus:
 
     def deliver_all(self) -> int:
         deserialize_message = serializer()[1]
+        decoders = self._decoders
         n = 0
         q = self.queue
         clock = time.perf_counter
@@ -312,7 +335,15 @@ class LocalBus:
                         last_type = msg_type
                         copied = None
                     else:
-                        msg = last = deserialize_message(data, msg_type)
+                        # the type's generated decoder (`cdr_decode`), rclpy where it has none
+                        # or it does not read the bytes
+                        dec = decoders.get(msg_type, _UNSEEN)
+                        if dec is _UNSEEN:
+                            dec = decoders[msg_type] = decoder(msg_type)
+                        msg = dec(data) if dec is not None else None
+                        if msg is None:
+                            msg = deserialize_message(data, msg_type)
+                        last = msg
                         last_type = msg_type
                     if with_info:
                         cb(msg, {})

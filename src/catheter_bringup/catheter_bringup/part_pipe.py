@@ -206,9 +206,35 @@ class PartPipe(RecorderPipe):
         super().close(status, reason, dict(extra or {}, part_errors=self.errors), timeout)
 
 
-def _read_exact(f, n: int) -> bytes:
-    data = f.read(n)
-    return data if data is not None else b''
+def _frames(stream):
+    """The complete frames of `stream` as (kind, topic id, log time ns, payload bytes), read
+    in blocks of up to 1 MB (``read1``: what the pipe holds, waiting only when it is
+    empty) instead of two reads per frame; ends at the end of the stream, or where a
+    frame is cut off (the producer died inside it)."""
+    read = getattr(stream, 'read1', None) or stream.read
+    size = FRAME.size
+    unpack = FRAME.unpack_from
+    buf = bytearray()
+    while True:
+        b = read(1 << 20)
+        if not b:
+            return
+        buf += b
+        n, off = len(buf), 0
+        out = []
+        view = memoryview(buf)
+        try:
+            while n - off >= size:
+                kind, tid, t_ns, length = unpack(buf, off)
+                start = off + size
+                if n - start < length:
+                    break
+                off = start + length
+                out.append((kind, tid, t_ns, bytes(view[start:off])))
+        finally:
+            view.release()
+        del buf[:off]
+        yield from out
 
 
 def write_stream(stream, recorder, ack=None) -> Dict[str, object]:
@@ -221,21 +247,15 @@ def write_stream(stream, recorder, ack=None) -> Dict[str, object]:
     extra: Dict[str, object] = {}
     start_info: Dict[str, object] = {}
     closed_by_producer = False
-    while True:
-        head = _read_exact(stream, FRAME.size)
-        if len(head) < FRAME.size:
-            break
-        kind, tid, t_ns, n = FRAME.unpack(head)
-        body = _read_exact(stream, n)
-        if len(body) < n:
-            break                      # cut off: the producer died inside a frame
+    write = recorder.write
+    for kind, tid, t_ns, body in _frames(stream):
         if kind == MESSAGE:
             topic = names.get(tid)
             if topic is None:
                 errors += 1
                 continue
             try:
-                recorder.write(topic, body, t_ns)
+                write(topic, body, t_ns)
             except ValueError:
                 errors += 1            # a payload the recorder refuses: counted, not fatal
         elif kind == TOPIC:

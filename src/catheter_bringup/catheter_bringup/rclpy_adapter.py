@@ -81,6 +81,14 @@ def take_callback(sub, replacement: Callable, raw: bool = False) -> Tuple[Callab
     return old, wants
 
 
+def set_raw(sub) -> None:
+    """Make the executor take the subscription's messages as their CDR bytes (its callback
+    then gets bytes instead of a message).
+
+    Relies on: as `take_callback`, the executor reads ``sub.raw`` at each take."""
+    sub.raw = True
+
+
 def wrap_callback(sub, wrapper: Callable[[Callable], Callable]) -> None:
     """``sub.callback = wrapper(sub.callback)`` (e.g. to count what it took), keeping what the
     executor hands it: a callback that takes (msg, message_info) still gets the info.
@@ -140,6 +148,24 @@ def set_time(ts, clock_msg) -> None:
     Relies on: ``TimeSource.clock_callback(msg)`` setting the ROS time override of its clocks
     (and thereby making due timers ready)."""
     ts.clock_callback(clock_msg)
+
+
+def set_times(sources, t_ns: int) -> None:
+    """Set the sim time of every clock of every TimeSource in `sources` to `t_ns` (int ns), as
+    `set_time` with a /clock message of that time would, with one rclpy Time for all of them
+    (`set_time` builds one per TimeSource from the message: a lockstep step sets every
+    node's time).
+
+    Relies on: what ``TimeSource.clock_callback`` does: keep the time in ``_last_time_set``
+    (a clock attached later starts there) and ``set_ros_time_override`` it on each clock of
+    ``_associated_clocks``."""
+    from rclpy.clock_type import ClockType
+    from rclpy.time import Time
+    t = Time(nanoseconds=t_ns, clock_type=ClockType.ROS_TIME)
+    for ts in sources:
+        ts._last_time_set = t
+        for clock in ts._associated_clocks:
+            clock.set_ros_time_override(t)
 
 
 # ------------------------------------------------------------------ timers

@@ -26,6 +26,7 @@ import json
 import os
 import pathlib
 import re
+import struct
 import threading
 from typing import Dict, List, Mapping, Optional
 
@@ -67,6 +68,61 @@ def _use_zstd_level(level: int = ZSTD_LEVEL) -> None:
 
 
 _use_zstd_level()
+
+#: a Message record as mcap's ``Message.write`` builds it: opcode 5, record length (22 + the
+#: payload), channel id, sequence, log time, publish time; then the payload
+_MESSAGE_HEAD = struct.Struct('<BQHIQQ')
+
+
+def fast_message_writer(w: Writer):
+    """A function ``add(channel_id, log_time, publish_time, sequence, data)`` that does what
+    ``w.add_message`` does for a chunked writer (the file's statistics, the chunk's time
+    range and message index, the Message record in the chunk, the chunk finished when full)
+    with one packed header instead of mcap's record builder calls and a Message object per
+    message (the mcap writer was about half of the recording writer process's CPU in a
+    lockstep Experiment II: the package README, round 9). None when `w` does not chunk (its
+    own add_message then).
+
+    Relies on mcap's Writer internals (``_Writer__statistics``, ``_Writer__chunk_builder``,
+    ``_Writer__maybe_finalize_chunk``; the ChunkBuilder's ``message_indices``,
+    ``num_messages``, times and ``record_writer._buffer``, a BytesIO at the chunk's end);
+    tests/catheter_bringup/test_recorder.py checks the files are byte for byte the same as
+    with ``add_message``."""
+    cb = getattr(w, '_Writer__chunk_builder', None)
+    stats = getattr(w, '_Writer__statistics', None)
+    finish = getattr(w, '_Writer__maybe_finalize_chunk', None)
+    if cb is None or stats is None or finish is None:
+        return None
+    from mcap.records import MessageIndex
+    counts = stats.channel_message_counts
+    indices = cb.message_indices
+    pack = _MESSAGE_HEAD.pack
+
+    def add(channel_id: int, log_time: int, publish_time: int, sequence: int, data) -> None:
+        if stats.message_count == 0:
+            stats.message_start_time = log_time
+        elif log_time < stats.message_start_time:
+            stats.message_start_time = log_time
+        if log_time > stats.message_end_time:
+            stats.message_end_time = log_time
+        counts[channel_id] += 1
+        stats.message_count += 1
+        if cb.num_messages == 0:
+            cb.message_start_time = log_time
+        elif log_time < cb.message_start_time:
+            cb.message_start_time = log_time
+        if log_time > cb.message_end_time:
+            cb.message_end_time = log_time
+        index = indices.get(channel_id)
+        if not index:
+            index = indices[channel_id] = MessageIndex(channel_id=channel_id, records=[])
+        buf = cb.record_writer._buffer
+        index.records.append((log_time, buf.tell()))
+        cb.num_messages += 1
+        buf.write(pack(5, 22 + len(data), channel_id, sequence, log_time, publish_time))
+        buf.write(data)
+        finish()
+    return add
 
 SEPARATOR = '=' * 80
 BUILTIN_TYPES = {
@@ -220,6 +276,8 @@ class McapRecorder:
             raise ValueError(f'compression must be zstd, lz4 or none, got {compression!r}')
         self._w = Writer(self._file, chunk_size=chunk_size, compression=comp)
         self._w.start(profile='ros2', library=library)
+        #: mcap's add_message without its per-record builder calls (None: its own)
+        self._add = fast_message_writer(self._w)
         self._schemas: Dict[str, int] = {}
         self._channels: Dict[str, int] = {}
         self._types: Dict[str, str] = {}
@@ -277,9 +335,12 @@ class McapRecorder:
                 return
             seq = self._seq[topic]
             self._seq[topic] = seq + 1
-            self._w.add_message(channel_id=self._channels[topic], log_time=log_time_ns,
-                                publish_time=log_time_ns if publish_time_ns is None
-                                else int(publish_time_ns), sequence=seq, data=data)
+            pub = log_time_ns if publish_time_ns is None else int(publish_time_ns)
+            if self._add is not None:
+                self._add(self._channels[topic], log_time_ns, pub, seq, data)
+            else:
+                self._w.add_message(channel_id=self._channels[topic], log_time=log_time_ns,
+                                    publish_time=pub, sequence=seq, data=data)
             self.counts[topic] += 1
             self.bytes += len(data)
             if self.first_time_ns is None:

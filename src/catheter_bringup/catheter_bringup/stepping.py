@@ -9,7 +9,7 @@ import time
 from rosgraph_msgs.msg import Clock
 
 from catheter_bringup.lockstep_peer import PASS_SPIN
-from catheter_bringup.rclpy_adapter import (fire_timer, never_done, set_time, spin_for,
+from catheter_bringup.rclpy_adapter import (fire_timer, never_done, set_times, spin_for,
                                             spin_ready, timer_due_in_ns, timer_ready,
                                             wrap_timer_callback)
 from catheter_bringup.realtime import (GcWatch, counts_since, cpu_delta, latency_stats,
@@ -165,13 +165,12 @@ class Stepping:
 
     def _publish_clock(self, t_ns: int, msg: Clock):
         self._now_ns = t_ns
-        msg.clock.sec = t_ns // 1_000_000_000
-        msg.clock.nanosec = t_ns % 1_000_000_000
-        for ts in self.time_sources:
-            set_time(ts, msg)
+        set_times(self.time_sources, t_ns)
         # /clock for tools outside the run (the nodes' time is set directly): a DDS publish
         # per step costs ~20-50 us, so only while someone listens
         if self.clock_pub.get_subscription_count() > 0:
+            msg.clock.sec = t_ns // 1_000_000_000
+            msg.clock.nanosec = t_ns % 1_000_000_000
             self.clock_pub.publish(msg)
 
     def _rescan(self):

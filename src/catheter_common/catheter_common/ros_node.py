@@ -184,6 +184,20 @@ def node_main(node_class, executor: str = 'events') -> Callable[..., int]:
     return main
 
 
+def clock_ns(clock) -> Callable[[], int]:
+    """A function returning `clock`'s time now as integer ns: ``clock.now().nanoseconds``
+    without building an rclpy Time (1.2 against 3.4 us per call measured; the 1 kHz nodes
+    read their clock 7-10 times per period). Reads what ``Clock.now`` reads: the C clock
+    (``Clock.handle``, the same object for the clock's life; its sim time override too),
+    under the handle's context."""
+    h = clock.handle
+
+    def now_ns(_h=h) -> int:
+        with _h:
+            return _h.get_now().nanoseconds
+    return now_ns
+
+
 def wall_time() -> float:
     """Monotonic wall time in seconds, for measuring latency only (never for node logic)."""
     return time.perf_counter()

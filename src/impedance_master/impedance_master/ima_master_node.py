@@ -41,7 +41,7 @@ from catheter_common.messages import impedance_fields, impedance_key, master_com
 from catheter_common.outgoing import WrenchOut
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
-from catheter_common.ros_node import node_main
+from catheter_common.ros_node import clock_ns, node_main
 from impedance_master.impedance import Impedance
 from impedance_master.rendering import SAFE_MAX_RATE, DfrRenderer, ImaRenderer
 
@@ -122,6 +122,7 @@ class ImaMasterNode(Node):
         # catheter_common.outgoing) and the node clock (the same object for the node's life)
         self._out = WrenchOut(T.FRAME_CATHETER_BASE)
         self._clock = self.get_clock()
+        self._clock_ns = clock_ns(self._clock)
         self.timer = self.create_timer(dt, self._render)
         self.diag.add_updater(self._to_diag)
         self.get_logger().info(
@@ -142,7 +143,7 @@ class ImaMasterNode(Node):
             set_core_limit(self.renderer, self.limit)
 
     def _now_ns(self) -> int:
-        return self._clock.now().nanoseconds
+        return self._clock_ns()
 
     def _on_command(self, msg: MasterCommand) -> None:
         try:
@@ -204,7 +205,7 @@ class ImaMasterNode(Node):
             except ValueError as exc:     # the renderer refused the state: render nothing
                 self.diag.event('renderer_refused', ERROR, f'renderer refused the state: {exc}')
                 f = 0.0
-        ns = self._clock.now().nanoseconds
+        ns = self._clock_ns()
         self.pub.publish(self._out.fill(ns, self._safe(f)))
         self.diag.count('rendered')
 

@@ -40,7 +40,7 @@ from catheter_common.messages import impedance_msg
 from catheter_common.outgoing import set_stamp
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
-from catheter_common.ros_node import node_main
+from catheter_common.ros_node import clock_ns, node_main
 from impedance_master.identification import SlidingWindowIdentifier, make_identifier
 from impedance_master.state_file import StateFile
 
@@ -91,6 +91,7 @@ class ImpedanceIdentifierNode(Node):
         self.diag.count('bad_messages', 0)
         self._msg = None             # the message of _published_model (re-stamped when held)
         self._clock = self.get_clock()   # the same object for the node's life
+        self._clock_ns = clock_ns(self._clock)
         self.pub = self.create_publisher(ImpedanceModel, T.relative(T.SLAVE_IMPEDANCE),
                                          QOS_FAST)
         self.sub = self.create_subscription(JointState, T.relative(T.SLAVE_JOINT_STATE),
@@ -137,7 +138,7 @@ class ImpedanceIdentifierNode(Node):
     def _publish(self) -> None:
         if self.model is None or self.pub.get_subscription_count() == 0:
             return
-        ns = self._clock.now().nanoseconds
+        ns = self._clock_ns()
         if self.model is not self._published_model or self._msg is None:
             # a new model: converted once (a held model is re-sent re-stamped in place:
             # serialised at publish, catheter_common.outgoing); a table model with an

@@ -40,7 +40,7 @@ from catheter_common.messages import impedance_fields, impedance_key
 from catheter_common.outgoing import CommandOut, WrenchOut
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
-from catheter_common.ros_node import node_main
+from catheter_common.ros_node import clock_ns, node_main
 from impedance_master.haptic import HapticDevice
 from impedance_master.operator import OPERATORS, experiment_trajectory
 from sim_slave.link import Link
@@ -109,6 +109,7 @@ class SimHapticNode(Node):
         self._cmd_out = CommandOut(T.FRAME_CATHETER_BASE)
         self._hand_out = WrenchOut(T.FRAME_CATHETER_BASE)
         self._clock = self.get_clock()
+        self._clock_ns = clock_ns(self._clock)
         self._imp_checked = None      # impedance_key of the last model that passed the check
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self.diag.add_updater(self._to_diag)
@@ -128,7 +129,7 @@ class SimHapticNode(Node):
         self.link_force = Link(self.link_cfg, seed=2 * self.seed + 12)
 
     def _now(self) -> float:
-        return self._clock.now().nanoseconds * 1e-9
+        return self._clock_ns() * 1e-9
 
     def _on_rendered(self, msg: WrenchStamped) -> None:
         f = msg.wrench.force.x
@@ -175,7 +176,7 @@ class SimHapticNode(Node):
         self._send(self.link_force, msg, 'force')
 
     def _tick(self) -> None:
-        ns = self._clock.now().nanoseconds
+        ns = self._clock_ns()
         t, restarted = self.run.tick(ns * 1e-9)
         if restarted:
             self.get_logger().warning('the clock jumped back: restarting script, device, links')

@@ -43,7 +43,7 @@ from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
 from catheter_common.qos import QOS_FAST
 from catheter_common.outgoing import set_stamp
-from catheter_common.ros_node import node_main
+from catheter_common.ros_node import clock_ns, node_main
 from sim_slave.link import Link
 from sim_slave.link_side import (RunClock, apply_link_changes, link_config, link_params,
                                  link_to_diag)
@@ -143,6 +143,7 @@ class SimSlaveNode(Node):
         self._wrench = WrenchStamped()
         self._wrench.header.frame_id = T.FRAME_CATHETER_BASE
         self._clock = self.get_clock()       # the same object for the node's life
+        self._clock_ns = clock_ns(self._clock)
         self.diag = Diagnostics(self)
         self.diag.count('bad_messages', 0)
         self.pub_js = self.create_publisher(JointState, T.relative(T.SLAVE_JOINT_STATE), QOS_FAST)
@@ -163,7 +164,7 @@ class SimSlaveNode(Node):
             self.max_catchup = values['max_catchup_steps']
 
     def _now(self) -> float:
-        return self._clock.now().nanoseconds * 1e-9
+        return self._clock_ns() * 1e-9
 
     def _on_command(self, msg: MasterCommand) -> None:
         if self.run.t0 is None:
@@ -203,7 +204,7 @@ class SimSlaveNode(Node):
                 raise
 
     def _step(self) -> None:
-        ns = self._clock.now().nanoseconds
+        ns = self._clock_ns()
         t, restarted = self.run.tick(ns * 1e-9)
         if restarted:
             self._restart()
