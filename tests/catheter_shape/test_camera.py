@@ -127,3 +127,46 @@ def test_framing_sees_every_loaded_shape(shape_helpers):
     for theta in (-3.0, -1.5, 0.0, 1.5, 3.0):        # arcs up to a U-turn
         assert cam.render(shape_helpers.arc(theta)).in_view
     assert cam.render(np.array([[0, 0], [-0.03, 0.058]])).in_view
+
+
+@pytest.mark.parametrize('radius_px', [15.0, 20.0, 77.0, 300.0, 5000.0])
+def test_the_tube_is_drawn_through_chords_within_a_sixteenth_of_a_pixel(radius_px):
+    """Draw spacing from the sharpest bend: the chord of an arc of radius R between points s
+    apart sags s^2 / (8 R); measured here on the arc itself against that bound."""
+    from catheter_shape.camera import _SAG_PX, _draw_spacing
+    t = np.linspace(0.0, 1.2, 400)
+    px = radius_px * np.stack([np.sin(t), 1.0 - np.cos(t)], axis=1) + 100.0
+    s = _draw_spacing(px)
+    assert 3.0 <= s <= 12.0
+    # the largest distance of the arc from a chord of length s (independent: sampled)
+    phi = s / radius_px                                      # the chord's angle
+    mid = radius_px * (1.0 - np.cos(phi / 2))                # sag at the chord's middle
+    if s > 3.0:
+        assert mid <= _SAG_PX * 1.02                         # within the bound (1 % + disc.)
+    if s < 12.0:
+        assert mid >= _SAG_PX * 0.9                          # not needlessly dense
+    straight = np.stack([np.linspace(0, 400, 50), np.full(50, 7.0)], axis=1)
+    assert _draw_spacing(straight) == 12.0
+
+
+def test_the_frame_outside_the_tube_is_the_truncated_noisy_background(shape_helpers):
+    """The uint8 frame outside the tube's box comes from one OpenCV pass (rounding bg - 1/2 +
+    noise to nearest): against floor(clip(bg + noise)) in float64 it differs only where the
+    sum is within float32 rounding of an integer."""
+    cam = SyntheticCamera(width=400, height=300, noise=8, seed=2)
+    c = shape_helpers.arc(0.6, length=0.02)
+    f = cam.render(c, rng=np.random.default_rng(5))
+    rng = np.random.default_rng(5)                           # the draw render made
+    k = int(rng.integers(2))
+    dy, dx = (int(x) for x in rng.integers(0, cam._pad, 2))
+    ref = np.floor(np.clip(cam._bg.astype(np.float64)
+                           + cam._bank[k, dy:dy + 300, dx:dx + 400], 0, 255)).astype(int)
+    far = np.ones((300, 400), bool)
+    far[:, :int(f.centerline_px[:, 0].max()) + 20] = False
+    d = np.abs(f.image.astype(int) - ref)[far]
+    assert d.max() <= 1 and np.count_nonzero(d) <= 1e-4 * d.size
+    # without noise: the truncated background itself
+    cam0 = SyntheticCamera(width=400, height=300, noise=0, seed=2)
+    f0 = cam0.render(c)
+    np.testing.assert_array_equal(f0.image[far], np.floor(np.clip(cam0._bg, 0, 255))
+                                  .astype(np.uint8)[far])

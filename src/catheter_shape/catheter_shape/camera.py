@@ -35,6 +35,8 @@ __all__ = ['SyntheticCamera', 'SyntheticFrame', 'make_psi', 'psi_to_pixels', 'pi
 BLAZER_DIAMETER = 7.0 / 3.0 * 1e-3
 _SHIFT = 4                     # OpenCV sub-pixel bits for drawing (1/16 px)
 _SCALE = float(1 << _SHIFT)
+#: the largest chord sag (px) of the tube's drawn polyline: the drawing's resolution
+_SAG_PX = 1.0 / _SCALE
 
 
 def make_psi(mm_per_px: float, base_px, angle: float = 0.0) -> np.ndarray:
@@ -107,6 +109,21 @@ def psi_to_pixels(psi, xyz) -> np.ndarray:
     raise ValueError(f'points must be (N, 2) or (N, 3), got {x.shape}')
 
 
+def _draw_spacing(px: np.ndarray) -> float:
+    """Pixels between the points a tube's polyline (px (k, 2)) is drawn through: the chord
+    of an arc of radius R sags s^2 / (8 R), kept within _SAG_PX at the polyline's sharpest
+    bend (its turning per length), between 3 and 12 px."""
+    d = np.diff(px, axis=0)
+    seg = np.hypot(d[:, 0], d[:, 1])
+    if d.shape[0] < 2:
+        return 12.0
+    cross = d[:-1, 0] * d[1:, 1] - d[:-1, 1] * d[1:, 0]
+    dot = np.sum(d[:-1] * d[1:], axis=1)
+    kappa = np.abs(np.arctan2(cross, dot)) / np.maximum(0.5 * (seg[:-1] + seg[1:]), 1e-12)
+    k = float(kappa.max())
+    return float(np.clip(np.sqrt(8.0 * _SAG_PX / k), 3.0, 12.0)) if k > 0 else 12.0
+
+
 @dataclass
 class SyntheticFrame:
     """One rendered frame.
@@ -134,8 +151,8 @@ class SyntheticCamera:
     sigma, pixels (0 = none). vignetting: relative brightness loss at the corners (0-0.5).
     clamp: draw the clamp jaw behind the base (only if the base is in the image).
     electrodes: draw the tip and ring electrodes. seed: seeds the background texture and
-    the noise (render(rng=...) overrides the noise draw per frame). A camera keeps its float
-    frame buffer between renders: one render at a time per camera (not thread-safe).
+    the noise (render(rng=...) overrides the noise draw per frame). One render at a time per
+    camera (its noise generator and tissue mask are its own: not thread-safe).
     """
 
     def __init__(self, width: int = 640, height: int = 480, mm_per_px: float = 0.15,
@@ -170,6 +187,11 @@ class SyntheticCamera:
         rng = np.random.default_rng(self.seed)
         self._bg = self._make_background(rng)                      # float32
         self.background = np.clip(np.rint(self._bg), 0, 255).astype(np.uint8)
+        # the frame outside the tube is trunc(clip(bg + noise)) in one OpenCV pass to uint8,
+        # which rounds to nearest: so bg - 1/2 (round(y - 1/2) = floor(y) but where y is
+        # within a float32 rounding of an integer); without noise, the truncated background
+        self._bg_half = self._bg - np.float32(0.5)
+        self._bg_trunc = np.clip(self._bg, 0, 255).astype(np.uint8)
         self._pad = 64
         if self.noise > 0:
             self._bank = (rng.standard_normal((2, self.height + self._pad, self.width + self._pad))
@@ -177,7 +199,6 @@ class SyntheticCamera:
         else:
             self._bank = None
         self._rng = rng
-        self._buf = None
 
     @classmethod
     def framing(cls, length: float = 0.065, width: int = 640, height: int = 480,
@@ -286,26 +307,30 @@ class SyntheticCamera:
         visible = c
         if tissue_depth > 0:
             bg, visible = self._tissue(c, px, s_m, tissue_depth)
-        # the float frame in a buffer kept between frames (a fresh 800x800 float32 array per
-        # frame cost more in page faults than the addition itself); only `image` leaves
-        img = self._buf
-        if img is None or img.shape != (H, W):
-            img = self._buf = np.empty((H, W), np.float32)
+        # the frame in uint8 at once (bg + noise, truncated: one pass); the tube's box is then
+        # composed in float32 and truncated the same way (a full float32 frame, clipped and
+        # converted, cost twice the pass)
+        noise = None
         if self._bank is not None:
             k = int(rng.integers(2))
             dy, dx = (int(x) for x in rng.integers(0, self._pad, 2))
-            np.add(bg, self._bank[k, dy:dy + H, dx:dx + W], out=img)
+            noise = self._bank[k, dy:dy + H, dx:dx + W]
+            half = self._bg_half if tissue_depth <= 0 else bg - np.float32(0.5)
+            image = cv2.add(half, noise, dtype=cv2.CV_8U)
+        elif tissue_depth <= 0:
+            image = self._bg_trunc.copy()
         else:
-            np.copyto(img, bg)
+            image = np.clip(bg, 0, 255).astype(np.uint8)
         if u1 > u0 and v1 > v0:
             cw, ch = u1 - u0, v1 - v0
             off = np.array([u0, v0], dtype=float)
             alpha = np.zeros((ch, cw), np.uint8)    # coverage
             level = np.zeros((ch, cw), np.uint8)    # darkness of the covered part
-            # draw through points about 3 px apart (thick anti-aliased polylines cost per
-            # segment; the chord sag at 3 px is < 0.06 px for radii above 20 px)
+            # draw through points as far apart as the curvature allows: the chord's sag
+            # s^2 / (8 R) within the drawing's 1/16 px (thick anti-aliased polylines cost per
+            # segment), 3 to 12 px apart
             s_px = s_m * self._px_per_m
-            n_draw = int(np.ceil(s_px[-1] / 3.0)) + 1
+            n_draw = int(np.ceil(s_px[-1] / _draw_spacing(px))) + 1
             if n_draw < px.shape[0]:
                 sd = np.linspace(0.0, s_px[-1], n_draw)
                 pd = np.stack([np.interp(sd, s_px, px[:, 0]), np.interp(sd, s_px, px[:, 1])], 1)
@@ -346,10 +371,11 @@ class SyntheticCamera:
                 k = int(2 * np.ceil(3 * self.blur) + 1)
                 a = cv2.GaussianBlur(a, (k, k), self.blur)
                 dark = cv2.GaussianBlur(dark, (k, k), self.blur)
-            sub = img[v0:v1, u0:u1]
-            sub += a * (dark - bg[v0:v1, u0:u1])
-        np.clip(img, 0, 255, out=img)
-        image = img.astype(np.uint8)
+            bgb = bg[v0:v1, u0:u1]
+            sub = bgb + noise[v0:v1, u0:u1] if noise is not None else bgb.copy()
+            sub += a * (dark - bgb)
+            np.clip(sub, 0, 255, out=sub)
+            image[v0:v1, u0:u1] = sub
         background = self.background if tissue_depth <= 0 else \
             np.clip(np.rint(bg), 0, 255).astype(np.uint8)
         return SyntheticFrame(image=image, background=background, psi=self.psi.copy(),
