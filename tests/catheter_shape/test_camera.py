@@ -129,26 +129,6 @@ def test_framing_sees_every_loaded_shape(shape_helpers):
     assert cam.render(np.array([[0, 0], [-0.03, 0.058]])).in_view
 
 
-@pytest.mark.parametrize('radius_px', [15.0, 20.0, 77.0, 300.0, 5000.0])
-def test_the_tube_is_drawn_through_chords_within_a_sixteenth_of_a_pixel(radius_px):
-    """Draw spacing from the sharpest bend: the chord of an arc of radius R between points s
-    apart sags s^2 / (8 R); measured here on the arc itself against that bound."""
-    from catheter_shape.camera import _SAG_PX, _draw_spacing
-    t = np.linspace(0.0, 1.2, 400)
-    px = radius_px * np.stack([np.sin(t), 1.0 - np.cos(t)], axis=1) + 100.0
-    s = _draw_spacing(px)
-    assert 3.0 <= s <= 12.0
-    # the largest distance of the arc from a chord of length s (independent: sampled)
-    phi = s / radius_px                                      # the chord's angle
-    mid = radius_px * (1.0 - np.cos(phi / 2))                # sag at the chord's middle
-    if s > 3.0:
-        assert mid <= _SAG_PX * 1.02                         # within the bound (1 % + disc.)
-    if s < 12.0:
-        assert mid >= _SAG_PX * 0.9                          # not needlessly dense
-    straight = np.stack([np.linspace(0, 400, 50), np.full(50, 7.0)], axis=1)
-    assert _draw_spacing(straight) == 12.0
-
-
 def test_the_frame_outside_the_tube_is_the_truncated_noisy_background(shape_helpers):
     """The uint8 frame outside the tube's box comes from one OpenCV pass (rounding bg - 1/2 +
     noise to nearest): against floor(clip(bg + noise)) in float64 it differs only where the
