@@ -145,6 +145,17 @@ def test_the_frame_outside_the_tube_is_the_truncated_noisy_background(shape_help
     far[:, :int(f.centerline_px[:, 0].max()) + 20] = False
     d = np.abs(f.image.astype(int) - ref)[far]
     assert d.max() <= 1 and np.count_nonzero(d) <= 1e-4 * d.size
+    # inside the tube's box (composed in float32) but off the tube and its blur: the same
+    from scipy.spatial import cKDTree
+    v, u = np.mgrid[0:300, 0:400]
+    dist, _ = cKDTree(f.centerline_px).query(np.stack([u.ravel(), v.ravel()], 1))
+    px = f.centerline_px
+    near_box = ((u >= px[:, 0].min() - 5) & (u <= px[:, 0].max() + 5)
+                & (v >= px[:, 1].min() - 5) & (v <= px[:, 1].max() + 5)).ravel()
+    off = near_box & (dist > cam.radius_px + 3 * cam.blur + 3)
+    assert off.sum() > 500
+    d = np.abs(f.image.astype(int).ravel() - ref.ravel())[off]
+    assert d.max() <= 1 and np.count_nonzero(d) <= 1e-3 * d.size
     # without noise: the truncated background itself
     cam0 = SyntheticCamera(width=400, height=300, noise=0, seed=2)
     f0 = cam0.render(c)
