@@ -7,7 +7,7 @@ Subscribes  slave/joint_state_decimated  sensor_msgs/JointState (position[0] ins
                                      frame's stamp at its velocity (at most
                                      MAX_EXTRAPOLATION_S): sim_slave_node publishes it at
                                      100 Hz (its 1 kHz slave/joint_state cost the camera's
-                                     process 8-12 % of a core through DDS)
+                                     process about 10 % of a core through DDS)
 Publishes   camera/image_raw         sensor_msgs/Image mono8, frame camera_optical_frame,
                                      sensor-data QoS (only while subscribed)
             camera/tip_force_truth   geometry_msgs/WrenchStamped, frame catheter_base: the tip
