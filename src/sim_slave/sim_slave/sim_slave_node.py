@@ -237,7 +237,8 @@ class SimSlaveNode(Node):
         self._err_n += 1
         dec = ns // self._dec_period_ns
         want_dec = dec != self._dec_last and self.pub_js_dec.get_subscription_count() > 0
-        if want_dec or self.pub_js.get_subscription_count() > 0:
+        want_js = self.pub_js.get_subscription_count() > 0
+        if want_dec or want_js:
             js = self._js            # reused: serialised at publish (catheter_common.outgoing)
             set_stamp(js.header.stamp, ns)
             rotation = self.sim.rotation
@@ -247,7 +248,7 @@ class SimSlaveNode(Node):
             vel[0] = sample.xd
             vel[1] = rotation.xd
             eff[0] = sample.f_meas
-            if self.pub_js.get_subscription_count() > 0:
+            if want_js:
                 self.pub_js.publish(js)
             if want_dec:
                 self._dec_last = dec
