@@ -152,8 +152,11 @@ def report(streams, lat, r, rows, label):
     for name, rep in sorted(r.processes.items()):
         if name != 'link':
             rt = rep.get('realtime', {})
+            loop = rt.get('loop_s') or float('nan')
+            threads = ', '.join(f'{t} {100 * c / loop:.1f}' for t, c in sorted(
+                (rt.get('thread_cpu_s') or {}).items(), key=lambda kv: -kv[1])[:4])
             print(f'{name}: CPU {100 * B.cpu_share(rt):.0f} % of a core, {rt.get("scheduling")}, '
-                  f'CPUs {rep.get("cpus") or "any"}')
+                  f'CPUs {rep.get("cpus") or "any"}; by thread, %: {threads}')
 
 
 def main():

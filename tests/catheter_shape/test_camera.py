@@ -127,3 +127,37 @@ def test_framing_sees_every_loaded_shape(shape_helpers):
     for theta in (-3.0, -1.5, 0.0, 1.5, 3.0):        # arcs up to a U-turn
         assert cam.render(shape_helpers.arc(theta)).in_view
     assert cam.render(np.array([[0, 0], [-0.03, 0.058]])).in_view
+
+
+def test_the_frame_outside_the_tube_is_the_truncated_noisy_background(shape_helpers):
+    """The uint8 frame outside the tube's box comes from one OpenCV pass (rounding bg - 1/2 +
+    noise to nearest): against floor(clip(bg + noise)) in float64 it differs only where the
+    sum is within float32 rounding of an integer."""
+    cam = SyntheticCamera(width=400, height=300, noise=8, seed=2)
+    c = shape_helpers.arc(0.6, length=0.02)
+    f = cam.render(c, rng=np.random.default_rng(5))
+    rng = np.random.default_rng(5)                           # the draw render made
+    k = int(rng.integers(2))
+    dy, dx = (int(x) for x in rng.integers(0, cam._pad, 2))
+    ref = np.floor(np.clip(cam._bg.astype(np.float64)
+                           + cam._bank[k, dy:dy + 300, dx:dx + 400], 0, 255)).astype(int)
+    far = np.ones((300, 400), bool)
+    far[:, :int(f.centerline_px[:, 0].max()) + 20] = False
+    d = np.abs(f.image.astype(int) - ref)[far]
+    assert d.max() <= 1 and np.count_nonzero(d) <= 1e-4 * d.size
+    # inside the tube's box (composed in float32) but off the tube and its blur: the same
+    from scipy.spatial import cKDTree
+    v, u = np.mgrid[0:300, 0:400]
+    dist, _ = cKDTree(f.centerline_px).query(np.stack([u.ravel(), v.ravel()], 1))
+    px = f.centerline_px
+    near_box = ((u >= px[:, 0].min() - 5) & (u <= px[:, 0].max() + 5)
+                & (v >= px[:, 1].min() - 5) & (v <= px[:, 1].max() + 5)).ravel()
+    off = near_box & (dist > cam.radius_px + 3 * cam.blur + 3)
+    assert off.sum() > 500
+    d = np.abs(f.image.astype(int).ravel() - ref.ravel())[off]
+    assert d.max() <= 1 and np.count_nonzero(d) <= 1e-3 * d.size
+    # without noise: the truncated background itself
+    cam0 = SyntheticCamera(width=400, height=300, noise=0, seed=2)
+    f0 = cam0.render(c)
+    np.testing.assert_array_equal(f0.image[far], np.floor(np.clip(cam0._bg, 0, 255))
+                                  .astype(np.uint8)[far])

@@ -14,7 +14,7 @@ from catheter_common import qos as Q
 from catheter_shape import SyntheticCamera, fit_bezier
 from catheter_shape.shape_node import (ShapeNode, array_to_image, control_points_to_pose_array,
                                        image_to_array, pose_array_to_control_points,
-                                       points_to_path)
+                                       PathOut, points_to_path)
 
 pytestmark = pytest.mark.ros
 
@@ -60,6 +60,25 @@ def test_pose_array_round_trip():
         control_points_to_pose_array(np.full((4, 3), np.nan), Time(), 'x')
     p = points_to_path(np.zeros((500, 3)), Time(), max_poses=50)
     assert len(p.poses) == 50 and p.header.frame_id == 'catheter_base'
+
+
+def test_the_reused_path_is_the_built_one_frame_after_frame():
+    """PathOut refills one message: after each fill it equals points_to_path's fresh one
+    (fewer points than before, more, subsampled), and what was serialised at an earlier
+    publish is not changed by a later fill."""
+    from builtin_interfaces.msg import Time
+    from nav_msgs.msg import Path
+    from rclpy.serialization import deserialize_message, serialize_message
+    out = PathOut()
+    rng = np.random.default_rng(4)
+    sent = []
+    for k, n in enumerate((450, 3, 100, 101, 40, 450, 1)):
+        pts = rng.normal(size=(n, 3))
+        st = Time(sec=k, nanosec=7 * k)
+        m = out.fill(pts, st, 100)
+        assert m == points_to_path(pts, st, max_poses=100)
+        sent.append((serialize_message(m), points_to_path(pts, st, max_poses=100)))
+    assert all(deserialize_message(b, Path) == ref for b, ref in sent)
 
 
 def test_node_publishes_control_points_close_to_the_truth(ros, shape_helpers):

@@ -241,3 +241,28 @@ def test_warm_start_after_an_axial_unobservable_estimate_drops_the_weak_componen
     finally:
         inv._solve = orig
         inv.reset()
+
+
+def test_no_start_begins_after_the_solve_budget():
+    """An S-shaped curve no tip force explains tries every start without a budget; with one,
+    no start begins once max_solves were spent, and the answer is the best start's so far.
+    A shape the warm or first start answers is the same with any budget."""
+    s = np.linspace(0, 1, 200)
+    cp = _cp(np.c_[L * s, 0.012 * np.sin(2 * np.pi * s)])
+
+    def make(ms):
+        return FamInverseEstimator(Catheter(length=L, ei=EI), n_arcs=12, table_angles=24,
+                                   table_magnitudes=10, max_solves=ms)
+    free, capped, tight = make(10 ** 6).estimate(cp), make(12).estimate(cp), make(3).estimate(cp)
+    one_start = 1 + 8                              # a start: at most 1 + max_iter solves
+    assert free.solves > 12 + one_start            # every start tried
+    assert 12 <= capped.solves < 12 + one_start and tight.solves < 3 + one_start
+    assert capped.status == tight.status == 'not_converged'
+    assert free.residual <= capped.residual <= tight.residual
+    with pytest.raises(ValueError, match='max_solves'):
+        make(0)
+    good = _cp(solve_fam(Catheter(length=L, ei=EI), Loads(tip_force=(0.05, 0.12)),
+                         n_arcs=48).centerline(200))
+    a, b = make(10 ** 6).estimate(good), make(1).estimate(good)
+    assert a.status == 'ok' and a.solves == b.solves
+    np.testing.assert_array_equal(a.force, b.force)

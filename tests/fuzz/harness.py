@@ -106,7 +106,7 @@ FUZZ_NODES = {
                                                       'commands_before_start')),
     }, params={'link.delay': 0.002, 'link.outages': [0.0, 0.0]}),
     'camera_node': FuzzNode('camera_node', {
-        T.SLAVE_JOINT_STATE: Input(_js(0.06), ('joint_states', 'bad_joint_state')),
+        T.SLAVE_JOINT_STATE_DECIMATED: Input(_js(0.06), ('joint_states', 'bad_joint_state')),
     }, tick_ns=34_000_000, param_values={'rate': st.floats(1.0, 60.0),
                                           'n_arcs': st.integers(1, 24)}, tick_share=0.02,
        cost=1.5, dynamic_first=True),

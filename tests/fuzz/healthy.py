@@ -125,7 +125,7 @@ def slave(rig):
 def camera(rig):
     reset_params(rig)
     n = _count(rig, T.CAMERA_IMAGE)
-    rig.feed(T.SLAVE_JOINT_STATE, _js(0.05, 0.0))
+    rig.feed(T.SLAVE_JOINT_STATE_DECIMATED, _js(0.05, 0.0))
     rig.tick(2)
     assert _count(rig, T.CAMERA_IMAGE) > n
 

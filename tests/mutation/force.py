@@ -92,4 +92,15 @@ MUTANTS = [
            '    pass',
            'observability weights: the unloaded catheters are down-weighted with the pulls '
            '(the MLP then read a straight catheter as a 49 mN pull)'),
+    # -- issue 15 round 9: the inversion's solve budget
+    Mutant('E20', P + 'fam_inverse.py',
+           '            if total >= self.max_solves:',
+           '            if False:',
+           'every start is tried whatever it costs (35 solves, 34 ms, seen in a real-time run)',
+           tests=('tests/force_estimator/test_fam_inverse.py', '-k', 'budget')),
+    Mutant('E21', P + 'fam_inverse.py',
+           '            if total >= self.max_solves:',
+           '            if total >= 0:',
+           'no start after the first: the fallback start of another quadrant is never tried',
+           tests=('tests/force_estimator/test_fam_inverse.py',)),
 ]

@@ -93,4 +93,23 @@ MUTANTS = [
            'the second pass holds each pixel to a quarter of its neighbourhood\'s darkness, '
            'not half (a dark wire keeps its blurred width)',
            tests=('tests/catheter_shape/test_fast_paths.py',)),
+    # -- issue 15 round 9: the reused catheter/shape message, the camera's uint8 frame
+    Mutant('C18', P + 'shape_node.py',
+           '        msg.poses = pool[:p.shape[0]]',
+           '        msg.poses = pool',
+           'a path with fewer points than an earlier one keeps the earlier poses at its end',
+           tests=('tests/catheter_shape/test_shape_node.py', '-k', 'reused')),
+    Mutant('C19', P + 'shape_node.py',
+           '            pos.x, pos.y, pos.z = x, y, z',
+           '            pos.x, pos.y = x, y',
+           'the refilled poses keep the previous frame\'s z',
+           tests=('tests/catheter_shape/test_shape_node.py', '-k', 'reused')),
+    Mutant('C20', P + 'camera.py',
+           "        self._bg_half = self._bg - np.float32(0.5)",
+           "        self._bg_half = self._bg",
+           'the one-pass uint8 frame rounds bg + noise to nearest instead of truncating it'),
+    Mutant('C21', P + 'camera.py',
+           '            sub = bgb + noise[v0:v1, u0:u1] if noise is not None else bgb.copy()',
+           '            sub = bgb.copy()',
+           'the tube\'s box is composed without the noise the rest of the frame has'),
 ]

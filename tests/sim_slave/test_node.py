@@ -9,7 +9,7 @@ from catheter_interfaces.msg import MasterCommand
 from sensor_msgs.msg import JointState
 
 from catheter_common.topics import (CLOCK, FRAME_CATHETER_BASE, MASTER_COMMAND, SLAVE_FORCE,
-                                    SLAVE_JOINT_STATE)
+                                    SLAVE_JOINT_STATE, SLAVE_JOINT_STATE_DECIMATED)
 from catheter_common.qos import QOS_DEFAULT, QOS_FAST
 from sim_slave.sim_slave_node import SimSlaveNode
 
@@ -89,6 +89,29 @@ def test_outputs_follow_commands_with_the_configured_delay(ros):
     d = rig.node.diag
     assert d.get('commands_received') >= 650 and d.get('commands_delivered') >= 550
     assert d.get('bad_commands') == 0
+
+
+def test_decimated_joint_state_is_the_first_state_of_each_period(ros):
+    rig = Rig(ros, **{'link.delay': 0.0, 'link.outages': [0.0, 0.0], 'decimated_rate': 100.0})
+    dec = []
+    rig.peer.create_subscription(JointState, SLAVE_JOINT_STATE_DECIMATED, dec.append, QOS_FAST)
+    assert ros.spin_until(lambda: rig.node.pub_js_dec.get_subscription_count() > 0, 10.0)
+    for k in range(95):
+        rig.step((0.002 * k / 95, 0.0))
+    ros.spin_until(lambda: False, 0.2)                  # the last ones delivered
+    full = {stamp(m): (tuple(m.position), tuple(m.velocity), tuple(m.effort)) for m in rig.js}
+    ts = [stamp(m) for m in dec]
+    assert 8 <= len(dec) <= 10                          # 95 ms at 100 Hz
+    # one per 10 ms period of the node clock, its first state: the tick at a multiple of 10
+    # ms (the first period's first tick is the node's first, at 1 ms)
+    assert [round(t * 1000) % 10 for t in ts[1:]] == [0] * (len(ts) - 1)
+    assert round(ts[0] * 1000) < 10
+    assert [round((b - a) * 1000) for a, b in zip(ts[1:], ts[2:], strict=False)] == \
+        [10] * (len(ts) - 2)
+    # the same message as the full stream's at that stamp
+    assert all(full[stamp(m)] == (tuple(m.position), tuple(m.velocity), tuple(m.effort))
+               for m in dec if stamp(m) in full)
+    assert all(m.header.frame_id == FRAME_CATHETER_BASE for m in dec)
 
 
 def test_outage_holds_the_last_command_and_bad_messages_are_counted(ros):

@@ -35,6 +35,9 @@ TIP_FORCE = '/catheter/tip_force'
 SHAPE_DEBUG_IMAGE = '/catheter/debug_image'    # sensor_msgs/Image overlay (only while subscribed)
 #: sensor_msgs/JointState (insertion m, rotation rad; effort N)
 SLAVE_JOINT_STATE = '/slave/joint_state'
+#: sensor_msgs/JointState: /slave/joint_state decimated (sim_slave_node's `decimated_rate`,
+#: 100 Hz: the first state of each period), for the 30 Hz camera in another process
+SLAVE_JOINT_STATE_DECIMATED = '/slave/joint_state_decimated'
 #: /slave/joint_state with the insertion effort taken from the image-based tip force
 #: (force_source_node; the identifier's input when a scenario says force_source: image)
 SLAVE_JOINT_STATE_IMAGE = '/slave/joint_state_image'

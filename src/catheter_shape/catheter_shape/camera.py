@@ -134,8 +134,8 @@ class SyntheticCamera:
     sigma, pixels (0 = none). vignetting: relative brightness loss at the corners (0-0.5).
     clamp: draw the clamp jaw behind the base (only if the base is in the image).
     electrodes: draw the tip and ring electrodes. seed: seeds the background texture and
-    the noise (render(rng=...) overrides the noise draw per frame). A camera keeps its float
-    frame buffer between renders: one render at a time per camera (not thread-safe).
+    the noise (render(rng=...) overrides the noise draw per frame). One render at a time per
+    camera (its noise generator and tissue mask are its own: not thread-safe).
     """
 
     def __init__(self, width: int = 640, height: int = 480, mm_per_px: float = 0.15,
@@ -170,6 +170,11 @@ class SyntheticCamera:
         rng = np.random.default_rng(self.seed)
         self._bg = self._make_background(rng)                      # float32
         self.background = np.clip(np.rint(self._bg), 0, 255).astype(np.uint8)
+        # the frame outside the tube is trunc(clip(bg + noise)) in one OpenCV pass to uint8,
+        # which rounds to nearest: so bg - 1/2 (round(y - 1/2) = floor(y) but where y is
+        # within a float32 rounding of an integer); without noise, the truncated background
+        self._bg_half = self._bg - np.float32(0.5)
+        self._bg_trunc = np.clip(self._bg, 0, 255).astype(np.uint8)
         self._pad = 64
         if self.noise > 0:
             self._bank = (rng.standard_normal((2, self.height + self._pad, self.width + self._pad))
@@ -177,7 +182,6 @@ class SyntheticCamera:
         else:
             self._bank = None
         self._rng = rng
-        self._buf = None
 
     @classmethod
     def framing(cls, length: float = 0.065, width: int = 640, height: int = 480,
@@ -286,17 +290,20 @@ class SyntheticCamera:
         visible = c
         if tissue_depth > 0:
             bg, visible = self._tissue(c, px, s_m, tissue_depth)
-        # the float frame in a buffer kept between frames (a fresh 800x800 float32 array per
-        # frame cost more in page faults than the addition itself); only `image` leaves
-        img = self._buf
-        if img is None or img.shape != (H, W):
-            img = self._buf = np.empty((H, W), np.float32)
+        # the frame in uint8 at once (bg + noise, truncated: one pass); the tube's box is then
+        # composed in float32 and truncated the same way (a full float32 frame, clipped and
+        # converted, cost twice the pass)
+        noise = None
         if self._bank is not None:
             k = int(rng.integers(2))
             dy, dx = (int(x) for x in rng.integers(0, self._pad, 2))
-            np.add(bg, self._bank[k, dy:dy + H, dx:dx + W], out=img)
+            noise = self._bank[k, dy:dy + H, dx:dx + W]
+            half = self._bg_half if tissue_depth <= 0 else bg - np.float32(0.5)
+            image = cv2.add(half, noise, dtype=cv2.CV_8U)
+        elif tissue_depth <= 0:
+            image = self._bg_trunc.copy()
         else:
-            np.copyto(img, bg)
+            image = np.clip(bg, 0, 255).astype(np.uint8)
         if u1 > u0 and v1 > v0:
             cw, ch = u1 - u0, v1 - v0
             off = np.array([u0, v0], dtype=float)
@@ -346,10 +353,11 @@ class SyntheticCamera:
                 k = int(2 * np.ceil(3 * self.blur) + 1)
                 a = cv2.GaussianBlur(a, (k, k), self.blur)
                 dark = cv2.GaussianBlur(dark, (k, k), self.blur)
-            sub = img[v0:v1, u0:u1]
-            sub += a * (dark - bg[v0:v1, u0:u1])
-        np.clip(img, 0, 255, out=img)
-        image = img.astype(np.uint8)
+            bgb = bg[v0:v1, u0:u1]
+            sub = bgb + noise[v0:v1, u0:u1] if noise is not None else bgb.copy()
+            sub += a * (dark - bgb)
+            np.clip(sub, 0, 255, out=sub)
+            image[v0:v1, u0:u1] = sub
         background = self.background if tissue_depth <= 0 else \
             np.clip(np.rint(bg), 0, 255).astype(np.uint8)
         return SyntheticFrame(image=image, background=background, psi=self.psi.copy(),

@@ -90,6 +90,14 @@ from force_estimator.uncertainty import (ALIGN_SIGMA, FORCE_PRIOR, SHAPE_NOISE,
 SOLVERS = ('analytic', 'single', 'batch')
 
 
+#: FAM solves after which an estimate begins no further start (`FamInverseEstimator`'s
+#: max_solves): a warm start plus one table start, the most an estimate needed in the
+#: replays of recorded runs (5) and round 6's contact-onset frame (12); in a real-time split
+#: run one estimate tried every start, 35 solves, 34 ms CPU (catheter_bringup README,
+#: round 9)
+MAX_SOLVES = 12
+
+
 @dataclass
 class FamInverseResult(ForceEstimate):
     """One estimate (a ForceEstimate, method 'fam') and the inversion's details: residual
@@ -118,19 +126,22 @@ class FamInverseEstimator:
     per iteration, force columns of the Jacobian from `fam_solver.sensitivity`), "single"
     (forward differences: three warm-started `solve_fam` calls per iteration; fd_step is
     used only by this and "batch") or "batch" (one `solve_fam_batch` call of three forces
-    per iteration).
+    per iteration). max_solves: no further start begins once an estimate has spent this
+    many FAM solves (the best so far is its answer): bounds an estimate's cost at about
+    max_solves + one start's.
     """
 
     def __init__(self, cat, n_arcs: int = 12, n_points: int = 24, f_max: float = 0.45,
                  tol: float = 1e-4, max_iter: int = 8, max_residual: float = 5e-4,
                  fd_step: float = 1e-4, table_angles: int = 64, table_magnitudes: int = 30,
-                 solver: str = 'analytic'):
+                 solver: str = 'analytic', max_solves: int = MAX_SOLVES):
         for name, v in (('f_max', f_max), ('tol', tol), ('max_residual', max_residual),
                         ('fd_step', fd_step)):
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f'{name} must be positive and finite, got {v}')
         for name, v, lo in (('n_arcs', n_arcs, 1), ('n_points', n_points, 4),
                             ('max_iter', max_iter, 1), ('table_angles', table_angles, 4),
+                            ('max_solves', max_solves, 1),
                             ('table_magnitudes', table_magnitudes, 1)):
             if int(v) != v or v < lo:
                 raise ValueError(f'{name} must be an integer >= {lo}, got {v!r}')
@@ -152,6 +163,7 @@ class FamInverseEstimator:
         self.f_max = float(f_max)
         self.tol = float(tol)
         self.max_iter = int(max_iter)
+        self.max_solves = int(max_solves)
         self.max_residual = float(max_residual)
         self.fd_step = float(fd_step)
         self._w = 1e-4          # prior rows in metres of shape residual per sigma
@@ -435,6 +447,8 @@ class FamInverseEstimator:
                 best = (x, res, it, conv, xe, J)
             if conv and res <= 0.5 * self.max_residual:
                 break
+            if total >= self.max_solves:
+                break                           # the budget is spent: the best so far
         x, res, it, conv, xe, J = best
         if np.isfinite(res):
             self._last = x.copy()

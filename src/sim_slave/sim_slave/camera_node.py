@@ -1,9 +1,13 @@
 """ROS 2 node `camera_node`: the slave's camera, 30 Hz frames of the catheter's distal end bent
 by the tip's wall-contact force.
 
-Subscribes  slave/joint_state        sensor_msgs/JointState (position[0] insertion m,
+Subscribes  slave/joint_state_decimated  sensor_msgs/JointState (position[0] insertion m,
                                      velocity[0] m/s), QOS_LATEST (keep last 1): the newest
-                                     one is used
+                                     one is used, its insertion carried forward to the
+                                     frame's stamp at its velocity (at most
+                                     MAX_EXTRAPOLATION_S): sim_slave_node publishes it at
+                                     100 Hz (its 1 kHz slave/joint_state cost the camera's
+                                     process about 10 % of a core through DDS)
 Publishes   camera/image_raw         sensor_msgs/Image mono8, frame camera_optical_frame,
                                      sensor-data QoS (only while subscribed)
             camera/tip_force_truth   geometry_msgs/WrenchStamped, frame catheter_base: the tip
@@ -39,6 +43,10 @@ from sim_slave.vessel import VesselParams
 
 #: the tip force each frame was drawn with (re-exported for the tests that import it here)
 CAMERA_TIP_FORCE_TRUTH = T.CAMERA_TIP_FORCE_TRUTH
+#: the longest time (s) the newest joint state's insertion is carried forward to a frame's
+#: stamp at its velocity: two periods of the 100 Hz decimated state (a staler state is
+#: carried this far, no farther: the slave has stopped publishing)
+MAX_EXTRAPOLATION_S = 0.02
 _WALL_FIELDS = ('wall_depth', 'wall_stiffness', 'wall_exponent', 'wall_damping')
 
 PARAMS = table(
@@ -89,12 +97,14 @@ class CameraNode(Node):
             if not cv2.imwrite(bg_file, self.camera.camera.background):
                 raise ValueError(f'background_file {bg_file!r} cannot be written')
         self.x, self.xd = 0.0, 0.0
+        self._state_ns = None           # the newest joint state's stamp, ns
         self.diag = Diagnostics(self)
         self.diag.count('bad_messages', 0)
         self.pub_image = self.create_publisher(Image, T.relative(T.CAMERA_IMAGE), QOS_SENSOR)
         self.pub_truth = self.create_publisher(WrenchStamped,
                                                T.relative(T.CAMERA_TIP_FORCE_TRUTH), QOS_SENSOR)
-        self.sub = self.create_subscription(JointState, T.relative(T.SLAVE_JOINT_STATE),
+        self.sub = self.create_subscription(JointState,
+                                            T.relative(T.SLAVE_JOINT_STATE_DECIMATED),
                                             self._on_state, QOS_LATEST)
         self.timer = self.create_timer(1.0 / rate, self._tick)
         psi = ', '.join(f'{v:.9g}' for v in self.camera.psi.reshape(-1))
@@ -118,7 +128,18 @@ class CameraNode(Node):
             self.diag.bad_input('joint_state', str(exc))
             return
         self.x, self.xd = x, xd
+        st = msg.header.stamp
+        self._state_ns = st.sec * 1_000_000_000 + st.nanosec
         self.diag.count('joint_states')
+
+    def state_at(self, stamp_ns: int):
+        """(insertion m, velocity m/s) at stamp_ns: the newest joint state's insertion carried
+        forward at its velocity over the time from its stamp (clamped to [0,
+        MAX_EXTRAPOLATION_S]; none without a stamp)."""
+        if self._state_ns is None:
+            return self.x, self.xd
+        dt = min(max((stamp_ns - self._state_ns) * 1e-9, 0.0), MAX_EXTRAPOLATION_S)
+        return self.x + self.xd * dt, self.xd
 
     def _tick(self) -> None:
         want_image = self.pub_image.get_subscription_count() > 0
@@ -126,13 +147,15 @@ class CameraNode(Node):
         if not (want_image or want_truth):
             return
         stage = stage_trace.Stage.begin()
-        stamp = self.get_clock().now().to_msg()
+        now = self.get_clock().now()
+        stamp = now.to_msg()
+        x, xd = self.state_at(now.nanoseconds)
         try:
-            frame = self.camera.frame(self.x, self.xd) if want_image else None
-            force = frame.tip_force if want_image else self.camera.tip_force(self.x, self.xd)
+            frame = self.camera.frame(x, xd) if want_image else None
+            force = frame.tip_force if want_image else self.camera.tip_force(x, xd)
         except (ArithmeticError, ValueError) as exc:     # a state the camera cannot draw
             self.diag.count('frame_errors')
-            self.diag.event('frame_error', ERROR, f'no frame for x={self.x!r} m: {exc!r}')
+            self.diag.event('frame_error', ERROR, f'no frame for x={x!r} m: {exc!r}')
             return
         if want_image:
             if not frame.converged:

@@ -10,6 +10,10 @@ Subscribes  master/command     catheter_interfaces/MasterCommand (position: inse
                                command and holds it while nothing new arrives.
 Publishes   slave/joint_state  sensor_msgs/JointState, name [insertion, rotation], position,
                                velocity, effort [measured insertion force N, 0], QOS_FAST
+            slave/joint_state_decimated  the same at `decimated_rate` (the first state of each
+                               of its periods of the node clock), QOS_FAST: for the 30 Hz
+                               camera in another process, which would otherwise take every
+                               1 kHz state through DDS
             slave/force        geometry_msgs/WrenchStamped, frame catheter_base, force.x =
                                measured insertion force N, QOS_FAST
             /diagnostics       steps, commands received/delivered/lost/stale, bad commands,
@@ -96,6 +100,8 @@ PARAMS = table(
     Param('robot.max_accel', 2.0, 'insertion axis acceleration limit, m/s^2', 1e-3, 1000.0),
     Param('robot.x0', 0.0, 'initial inserted length (the robot holds it until the first '
           'command arrives), m', -0.02, 0.2),
+    Param('decimated_rate', 100.0, 'rate of slave/joint_state_decimated, Hz (the first state '
+          'of each period)', 1.0, 10000.0),
     Param('max_catchup_steps', 100, 'most simulation periods computed in one late timer tick',
           1, 10000, dynamic=True),
     *(Param('vessel.' + f.name, float(getattr(VesselParams(), f.name)),
@@ -148,6 +154,10 @@ class SimSlaveNode(Node):
         self.diag.count('bad_messages', 0)
         self.pub_js = self.create_publisher(JointState, T.relative(T.SLAVE_JOINT_STATE), QOS_FAST)
         self.pub_force = self.create_publisher(WrenchStamped, T.relative(T.SLAVE_FORCE), QOS_FAST)
+        self.pub_js_dec = self.create_publisher(
+            JointState, T.relative(T.SLAVE_JOINT_STATE_DECIMATED), QOS_FAST)
+        self._dec_period_ns = int(round(1e9 / p['decimated_rate']))
+        self._dec_last = None            # the decimated stream's last period index
         self.sub = self.create_subscription(MasterCommand, T.relative(T.MASTER_COMMAND),
                                             self._on_command, QOS_FAST)
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
@@ -226,7 +236,10 @@ class SimSlaveNode(Node):
         self._err_max = max(self._err_max, err)
         self._err_sq += err * err
         self._err_n += 1
-        if self.pub_js.get_subscription_count() > 0:
+        dec = ns // self._dec_period_ns
+        want_dec = dec != self._dec_last and self.pub_js_dec.get_subscription_count() > 0
+        want_js = self.pub_js.get_subscription_count() > 0
+        if want_dec or want_js:
             js = self._js            # reused: serialised at publish (catheter_common.outgoing)
             set_stamp(js.header.stamp, ns)
             rotation = self.sim.rotation
@@ -236,7 +249,11 @@ class SimSlaveNode(Node):
             vel[0] = sample.xd
             vel[1] = rotation.xd
             eff[0] = sample.f_meas
-            self.pub_js.publish(js)
+            if want_js:
+                self.pub_js.publish(js)
+            if want_dec:
+                self._dec_last = dec
+                self.pub_js_dec.publish(js)
         if self.pub_force.get_subscription_count() > 0:
             w = self._wrench
             set_stamp(w.header.stamp, ns)
