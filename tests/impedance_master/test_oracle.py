@@ -155,3 +155,18 @@ def test_run_oracles_refuses_bad_arguments():
         run_oracles(ExperimentConfig(), kinds=())
     with pytest.raises(ValueError, match='config must be an ExperimentConfig'):
         run_oracles({'vessel': 'soft'})
+
+
+def test_anchored_oracle_carries_the_disturbance_two_delays_old():
+    """With a 12 mN cardiac term and no sensor noise the law alone misses by the cardiac
+    term (its MAE about 2 / pi of the amplitude, less where it is ramped in); the miss the
+    anchored oracle receives is the disturbance 2 delays (0.4 s, half a beat) ago, so it
+    adds rather than cancels: its error is larger."""
+    cfg = ExperimentConfig(vessel='smooth_coulomb', operator='sines', seed=2, duration=6.0,
+                           vessel_params=(('cardiac_amplitude', 0.012), ('noise_std', 0.0)))
+    m = run_oracles(cfg, kinds=('law', 'law_anchored', 'law_disturbed'))
+    law, anch, dist = (m[k]['normal']['mae'] for k in ('law', 'law_anchored',
+                                                        'law_disturbed'))
+    assert dist < 0.002
+    assert 0.004 < law < 0.0085
+    assert anch > law + 0.002
