@@ -273,6 +273,12 @@ MUTANTS = [
            "the anchored oracle's miss leaves out the disturbances (the slave's true force "
            "stands in for the law)",
            tests=('tests/impedance_master/test_oracle.py',)),
+    Mutant('I53', IM + 'envelope.py',
+           '            if not 0.0 <= imp.sigma <= self.max_sigma:',
+           '            if not 0.0 < imp.sigma <= self.max_sigma:',
+           'the envelope refuses the stateless friction law (sigma 0) the identifier may '
+           'select: it holds its last model instead',
+           tests=('tests/impedance_master/test_envelope_state.py',)),
     # -- operator and vessel families (issue 12)
     Mutant('I16', IM + 'operator.py',
            '        self._amp = min((self.x_hi - self.x_lo) / span if span > 0 else math.inf,',
