@@ -38,8 +38,8 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
   Not part of ``all``. Seen from the ninth round on.
 * ``fresh8``: the ninth round's held-out worlds (`drawn_cases(FRESH8_SEEDS)`, seeds
   800-804, the same families and operators, 90 worlds), committed during the eighth round
-  before its blind run of fresh7, to be run once after the ninth round's design is final.
-  Not part of ``all``.
+  before its blind run of fresh7, to be run once after a round's design is final (the
+  ninth round kept no change and did not run it: still held out). Not part of ``all``.
 
 Tables per section: every case (MAE normal / outage / max, N); per vessel and per operator;
 the count of cases where the default beats DFR (normal MAE < DFR's, outage MAE < DFR's /
