@@ -38,8 +38,8 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
   Not part of ``all``. Seen from the ninth round on.
 * ``fresh8``: the ninth round's held-out worlds (`drawn_cases(FRESH8_SEEDS)`, seeds
   800-804, the same families and operators, 90 worlds), committed during the eighth round
-  before its blind run of fresh7, to be run once after the ninth round's design is final.
-  Not part of ``all``.
+  before its blind run of fresh7, to be run once after a round's design is final (the
+  ninth round kept no change and did not run it: still held out). Not part of ``all``.
 
 Tables per section: every case (MAE normal / outage / max, N); per vessel and per operator;
 the count of cases where the default beats DFR (normal MAE < DFR's, outage MAE < DFR's /
@@ -47,7 +47,11 @@ the count of cases where the default beats DFR (normal MAE < DFR's, outage MAE <
 baseline's; the averages over cases with the ratios to DFR.
 Options: --section dev|fresh|fresh2|fresh3|fresh4|fresh5|fresh6|fresh7|fresh8|all
 (default all = dev and fresh), --quick (one seed), --jobs N (cases run in N processes;
-default 1).
+default 1), --oracle (ninth round: also run the ORACLE renderers of
+`impedance_master.oracle` on every case, the world's true vessel law at the master, and
+print per vessel x operator how many worlds each beats DFR in beside the default: where
+the oracles miss, the miss is a floor of the protocol; where they win and the default
+loses, the gap is the identifier's or the renderer's).
 """
 from __future__ import annotations
 
@@ -68,7 +72,10 @@ from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS,  #
                                              FRESH3_SEEDS, FRESH4_SEEDS, FRESH5_SEEDS, FRESH6_SEEDS,
                                              FRESH7_SEEDS, FRESH8_SEEDS, FRESH_SEEDS, MODES,
                                              TUNING,
-                                             beats_dfr, cases, drawn_cases, run_case)
+                                             beats_dfr, case_result, cases, drawn_cases,
+                                             run_case)
+from impedance_master.experiment import ExperimentConfig  # noqa: E402
+from impedance_master.oracle import ORACLES, run_oracles  # noqa: E402
 
 LABEL = {'ima': 'IMA default', 'ima_thesis': 'IMA thesis', 'dfr': 'DFR',
          'anchored': 'anchored'}
@@ -83,12 +90,51 @@ def _run(case):
     return run_case(v, op, s, vessel_params=params)
 
 
-def run_all(todo, jobs):
+def _run_oracle(case):
+    """The modes of `_run` and the oracles' results ({kind: CaseResult}) under 'oracle'."""
+    v, op, s, params = case
+    out = _run(case)
+    out['oracle'] = {k: case_result(m) for k, m in run_oracles(ExperimentConfig(
+        vessel=v, operator=op, seed=s, vessel_params=params)).items()}
+    return out
+
+
+def run_all(todo, jobs, oracle=False):
+    fn = _run_oracle if oracle else _run
     if jobs <= 1:
-        return [_run(c) for c in todo]
+        return [fn(c) for c in todo]
     from concurrent.futures import ProcessPoolExecutor
     with ProcessPoolExecutor(jobs) as ex:
-        return list(ex.map(_run, todo, chunksize=1))
+        return list(ex.map(fn, todo, chunksize=1))
+
+
+def oracle_report(title, todo, results):
+    """Per vessel x operator: in how many worlds the default, each oracle and the law or
+    the law anchored (either) beat DFR; 'gap': the default misses where the law or the
+    law anchored wins; 'floor': both oracles miss too."""
+    cols = ('default',) + ORACLES + ('law or anchored', 'gap', 'floor')
+    print(f'\n## {title}: the ORACLES (impedance_master.oracle, the true vessel law at the '
+          'master), worlds that beat DFR by the criterion')
+    print(f'{"vessel x operator":<26} {"n":>3} | ' + ' | '.join(f'{c:>15}' for c in cols))
+    groups, tot = {}, {}
+    for c, r in zip(todo, results, strict=True):
+        d = r['dfr']
+        w = {'default': beats_dfr(r['ima'], d)}
+        w.update({k: beats_dfr(r['oracle'][k], d) for k in ORACLES})
+        w['law or anchored'] = w['law'] or w['law_anchored']
+        w['gap'] = w['law or anchored'] and not w['default']
+        w['floor'] = not (w['law or anchored'] or w['default'])
+        g = groups.setdefault(f'{c[0]} x {c[1]}', {})
+        for k, v in w.items():
+            g[k] = g.get(k, 0) + int(v)
+            tot[k] = tot.get(k, 0) + int(v)
+        g['n'] = g.get('n', 0) + 1
+        tot['n'] = tot.get('n', 0) + 1
+    for name in sorted(groups):
+        g = groups[name]
+        print(f'{name:<26} {g["n"]:>3} | ' + ' | '.join(f'{g.get(k, 0):>15}' for k in cols))
+    print(f'{"all":<26} {tot["n"]:>3} | ' + ' | '.join(f'{tot.get(k, 0):>15}' for k in cols),
+          flush=True)
 
 
 def report(title, todo, results, counted):
@@ -152,6 +198,9 @@ def main(argv=None):
                     help='comma-separated seeds: the randomised section on these seeds '
                          'instead of the fresh ones (development draws, never the held-out '
                          '800-804)')
+    ap.add_argument('--oracle', action='store_true',
+                    help='also run the oracle renderers (impedance_master.oracle) on the '
+                         'randomised sections and print their table')
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     if a.section in ('dev', 'all'):
@@ -196,7 +245,10 @@ def main(argv=None):
         print(f'\n# bench_ima_general, {title}: {len(todo)} randomised draws '
               f'(sim_slave.vessels.draw_vessel) of every vessel family x every operator x '
               f'seeds {seeds}, cold start, Experiment II timing{note}')
-        report(title, todo, run_all(todo, a.jobs), lambda c: True)
+        results = run_all(todo, a.jobs, a.oracle)
+        report(title, todo, results, lambda c: True)
+        if a.oracle:
+            oracle_report(title, todo, results)
         print(f'({title}: {time.perf_counter() - t1:.0f} s)')
     print(f'\n(total {time.perf_counter() - t0:.0f} s)', flush=True)
 

@@ -134,3 +134,25 @@ def test_a_good_state_is_continued_and_saved_in_place(tmp_path):
     assert sf.save(ident) == str(path) and beside(str(path)).endswith('ident.1.json')
     with pytest.raises(ValueError, match='path'):
         StateFile('')
+
+
+def test_envelope_accepts_the_stateless_friction_law():
+    """sigma = 0 is the stateless friction law (`Impedance`: the friction follows the
+    velocity and vanishes at rest; `HistoryParams.sigmas` names it a candidate): inside
+    the envelope, so the identifier that selects it on data of such a law renders it
+    (ninth round of issue 12: refused before, the identifier held its last model)."""
+    imp = learned().last
+    assert DEFAULT_ENVELOPE.check(imp.copy(sigma=0.0)) is None
+    assert 'sigma' in DEFAULT_ENVELOPE.check(imp.copy(sigma=0.06))
+    ident = make_identifier(sigmas=(3e-4, 0.0))
+    t, x, xd, xdd = OperatorTrajectory(duration=6.0, seed=5).arrays()
+    rng = np.random.default_rng(1)
+    f = 0.1 * np.tanh(xd / 0.002) + 3.0 * x + 0.005 * rng.normal(size=x.size)
+    for s in zip(x, xd, xdd, f, strict=True):
+        ident.update(*s)
+    m = ident.last
+    assert (m.sigma, m.valid, ident.status) == (0.0, True, 'ok')
+    assert ident.n_out_of_envelope == 0
+    # the friction vanishes at rest: the static force alone (3 N/m x 30 mm)
+    assert m.force(0.03, 0.0, 0.0) == pytest.approx(0.09, abs=0.01)
+    assert m.force(0.03, 0.01, 0.0) == pytest.approx(0.19, abs=0.015)

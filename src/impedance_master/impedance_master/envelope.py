@@ -38,8 +38,9 @@ class ModelEnvelope:
             (default 10: five times the clinical 2 N insertion range).
         x_lo, x_hi: m, workspace of inserted lengths (default -0.02..0.2, the insertion
             axis's stroke); max_speed m/s (0.1), max_accel m/s^2 (2): the axis's limits.
-        max_sigma: m, the presliding length sigma must be in (0, max_sigma]
-            (default 0.05); max_v_s: m/s (1); max_beta: (10).
+        max_sigma: m, the presliding length sigma must be in [0, max_sigma]
+            (default 0.05; 0: a stateless friction law, `Impedance` sigma); max_v_s: m/s
+            (1); max_beta: (10).
         max_anchor_force: N, |anchor f| and |anchor r| (default 20).
     `check(imp)` returns None (accepted) or the reason; `force_bound(imp)` the largest |f|
     over the workspace (exact for the model's piecewise-linear structure, with the friction
@@ -78,8 +79,8 @@ class ModelEnvelope:
             if not abs(v) <= bound:
                 return f'|{name}| = {abs(v):.3g} above {bound:g}'
         if imp.S is not None:
-            if not 0.0 < imp.sigma <= self.max_sigma:
-                return f'sigma = {imp.sigma:.3g} m outside (0, {self.max_sigma:g}]'
+            if not 0.0 <= imp.sigma <= self.max_sigma:
+                return f'sigma = {imp.sigma:.3g} m outside [0, {self.max_sigma:g}]'
             if not imp.v_s <= self.max_v_s:
                 return f'v_s = {imp.v_s:.3g} m/s above {self.max_v_s:g}'
             if not imp.beta <= self.max_beta:
