@@ -147,32 +147,40 @@ class ExperimentResult:
     metrics: Dict[str, object] = field(default_factory=dict)
 
 
-def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> ExperimentResult:
-    """Run one closed-loop experiment (see module doc); keyword overrides patch `config`."""
+def experiment_world(cfg: ExperimentConfig):
+    """The world of experiment ``cfg``, built from its seed as every run of it builds it:
+    (operator trajectory, number of periods n, start position x0 m, the link to the slave,
+    the link to the master, the vessel spec, the slave simulation). One place, so that
+    `run_experiment` and the oracles (`impedance_master.oracle`) meet the same world."""
     from sim_slave.link import Link, LinkConfig
     from sim_slave.robot import SlaveRobot
     from sim_slave.slave import SlaveSimulation
 
-    cfg = config or ExperimentConfig()
-    if overrides:
-        cfg = replace(cfg, **overrides)
     seed = cfg.seed
-    dt = 1.0 / cfg.rate
     traj = experiment_trajectory(cfg.experiment, seed=seed, operator=cfg.operator,
                                  **dict(cfg.operator_params))
-    duration = cfg.duration or traj.duration
-    n = int(round(duration * cfg.rate))
+    n = int(round((cfg.duration or traj.duration) * cfg.rate))
     x0 = traj.sample(0.0)[0]
-
     link_cfg = LinkConfig(delay=cfg.delay, jitter=cfg.jitter, loss=cfg.loss,
                           outages=tuple(cfg.outages))
     to_slave = Link(link_cfg, seed=2 * seed + 1)
     to_master = Link(link_cfg, seed=2 * seed + 2)
     vspec = vessel_spec(cfg.vessel, **dict(cfg.vessel_params))
-    robot = SlaveRobot(rate=cfg.rate, x0=x0)
     slave = SlaveSimulation(vessel=vspec.build(seed),
                             sensor=vspec.sensor(seed if cfg.sensor_seed is None
-                                                else cfg.sensor_seed), robot=robot)
+                                                else cfg.sensor_seed),
+                            robot=SlaveRobot(rate=cfg.rate, x0=x0))
+    return traj, n, x0, to_slave, to_master, vspec, slave
+
+
+def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> ExperimentResult:
+    """Run one closed-loop experiment (see module doc); keyword overrides patch `config`."""
+    cfg = config or ExperimentConfig()
+    if overrides:
+        cfg = replace(cfg, **overrides)
+    seed = cfg.seed
+    dt = 1.0 / cfg.rate
+    traj, n, x0, to_slave, to_master, vspec, slave = experiment_world(cfg)
     device = HapticDevice(DeviceParams(), dt=dt,
                           hand_stiffness=cfg.hand_stiffness if cfg.compliant_hand else None,
                           hand_damping=cfg.hand_damping,

@@ -44,12 +44,11 @@ from typing import Dict, Iterable, Optional
 import numpy as np
 
 from catheter_common.checks import nonneg, positive
-from impedance_master.experiment import ExperimentConfig
+from impedance_master.experiment import ExperimentConfig, experiment_world
 from impedance_master.haptic import DeviceParams, HapticDevice
 from impedance_master.metrics import tracking_metrics, twin_reference
-from impedance_master.operator import experiment_trajectory
 from impedance_master.safety import SAFE_MAX_RATE, SafeOutput
-from sim_slave.vessels import VesselSpec, vessel_spec
+from sim_slave.vessels import VesselSpec
 
 ORACLES = ('law', 'law_anchored', 'law_anchored_lp', 'law_disturbed', 'law_seen')
 #: s, time constant of the slave-side low-pass of the anchor's miss ('law_anchored_lp'),
@@ -127,10 +126,6 @@ def run_oracles(config: ExperimentConfig, kinds: Iterable[str] = ORACLES,
     Returns {kind: `metrics.tracking_metrics` dict} ('normal' / 'outage' / 'all'), comparable
     with `run_experiment(config).metrics` of the other modes (same seeds). max_rate N/s of the
     oracles' slew limit (None: `config.max_rate`)."""
-    from sim_slave.link import Link, LinkConfig
-    from sim_slave.robot import SlaveRobot
-    from sim_slave.slave import SlaveSimulation
-
     if not isinstance(config, ExperimentConfig):
         raise ValueError(f'config must be an ExperimentConfig, got {type(config).__name__}')
     kinds = tuple(kinds)
@@ -142,19 +137,7 @@ def run_oracles(config: ExperimentConfig, kinds: Iterable[str] = ORACLES,
     cfg = config
     seed = cfg.seed
     dt = 1.0 / cfg.rate
-    traj = experiment_trajectory(cfg.experiment, seed=seed, operator=cfg.operator,
-                                 **dict(cfg.operator_params))
-    n = int(round((cfg.duration or traj.duration) * cfg.rate))
-    x0 = traj.sample(0.0)[0]
-    link_cfg = LinkConfig(delay=cfg.delay, jitter=cfg.jitter, loss=cfg.loss,
-                          outages=tuple(cfg.outages))
-    to_slave = Link(link_cfg, seed=2 * seed + 1)
-    to_master = Link(link_cfg, seed=2 * seed + 2)
-    vspec = vessel_spec(cfg.vessel, **dict(cfg.vessel_params))
-    slave = SlaveSimulation(vessel=vspec.build(seed),
-                            sensor=vspec.sensor(seed if cfg.sensor_seed is None
-                                                else cfg.sensor_seed),
-                            robot=SlaveRobot(rate=cfg.rate, x0=x0))
+    traj, n, x0, to_slave, to_master, vspec, slave = experiment_world(cfg)
     slave_law = law_spec(vspec).build(seed)      # the law along the SLAVE's path
     rate = cfg.max_rate if max_rate is None else max_rate
     oracles = [OracleRenderer(k, vspec, seed, cfg.delay, cfg.limit, rate, dt) for k in kinds]
