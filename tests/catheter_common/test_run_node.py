@@ -2,6 +2,7 @@
 built, while it is being built, while its timers publish) ends in close(), destroy, exit code
 0; a failing node exits 1; --help builds nothing."""
 import os
+import sys
 import signal
 
 import pytest
@@ -143,3 +144,45 @@ def test_help_builds_nothing(capsys):
     again = capsys.readouterr().out
     assert 'demo (float [0, 2]' in again and 'a demo parameter' in again
     assert 'demo_node' in node_help(Factory, 'demo_node')
+
+
+_GIL_HOLDER = '''
+import ctypes, sys, time
+from catheter_common import ros_node
+ros_node.TEARDOWN_TIMEOUT_S = 0.3
+ros_node.TEARDOWN_BACKSTOP_S = 0.7
+w = ros_node.TeardownWatchdog(int(sys.argv[1]))
+print('armed', w._exit.armed, flush=True)
+if sys.argv[2] == 'cancel':
+    w.cancel()
+    time.sleep(1.5)
+    print('alive', flush=True)
+    sys.exit(7)
+ctypes.PyDLL(None).sleep(30)          # a blocking C call that keeps the GIL, as destroy_node did
+print('not reached', flush=True)
+'''
+
+
+@pytest.mark.parametrize('code', [0, 3])
+def test_a_teardown_stuck_holding_the_gil_still_exits_with_the_nodes_code(code):
+    """The hang of a fresh clone's run (round 9): destroy_node blocked while holding the GIL,
+    so the Python watchdog's timer never ran and faulthandler's backstop exited 1. The
+    GIL-free timer exits with the node's code; faulthandler dumps the stacks just before."""
+    import subprocess
+    import time
+    t0 = time.monotonic()
+    p = subprocess.run([sys.executable, '-c', _GIL_HOLDER, str(code), 'hold'],
+                       capture_output=True, text=True, timeout=25)
+    took = time.monotonic() - t0
+    assert 'armed True' in p.stdout, p.stdout + p.stderr
+    assert p.returncode == code, p.stderr
+    assert 'not reached' not in p.stdout and took < 15.0
+    assert 'Timeout' in p.stderr and '<string>' in p.stderr       # the stuck thread's stack
+
+
+def test_a_cancelled_gil_free_exit_does_not_fire():
+    import subprocess
+    p = subprocess.run([sys.executable, '-c', _GIL_HOLDER, '0', 'cancel'],
+                       capture_output=True, text=True, timeout=25)
+    assert p.returncode == 7 and 'alive' in p.stdout, p.stdout + p.stderr
+    assert 'Timeout' not in p.stderr

@@ -69,4 +69,18 @@ MUTANTS = [
            '        pass\n',
            'the watchdog is not cancelled: a node that tore down in time is still killed',
            tests=UNIT),
+    Mutant('S13', C + 'ros_node.py',
+           '            sev.value = int(code) & 0xFF',
+           '            sev.value = 1',
+           'the GIL-free backstop exits 1 whatever the node\'s code (the round-8 backstop)',
+           tests=UNIT),
+    Mutant('S14', C + 'ros_node.py',
+           '        self._exit.cancel()\n',
+           '        pass\n',
+           'the GIL-free backstop is not cancelled: a node whose teardown finished is ended '
+           'later anyway', tests=UNIT),
+    Mutant('S15', C + 'ros_node.py',
+           '            self._libc.timer_delete(self._timer)',
+           '            pass',
+           'cancel() leaves the POSIX timer running', tests=UNIT),
 ]

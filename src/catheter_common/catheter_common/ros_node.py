@@ -133,8 +133,10 @@ def _run(node_factory, args, executor: str, stop: stop_signals.StopFlag) -> int:
 #: s: how long the rcl / DDS teardown after a node's close() may take before the process
 #: exits without waiting for it (normally well under 1 s)
 TEARDOWN_TIMEOUT_S = 10.0
-#: s: after that, a watchdog that needs no GIL (faulthandler's thread) ends the process with
-#: exit code 1, in case the blocked call holds the GIL
+#: s: after that, a watchdog that needs no GIL ends the process with the node's code (a
+#: POSIX timer whose thread calls _exit; faulthandler's exit 1 where there is none), in case
+#: the blocked call holds the GIL (it did: a fresh clone's run, the Python watchdog's timer
+#: thread stuck in its wait while destroy_node blocked; the old backstop then exited 1)
 TEARDOWN_BACKSTOP_S = 5.0
 
 
@@ -142,11 +144,65 @@ def _hard_exit(code: int) -> None:
     os._exit(code)
 
 
+class GilFreeExit:
+    """A timer that calls ``_exit(code)`` after `delay` s from a thread glibc starts
+    (``timer_create`` with SIGEV_THREAD, the notify function libc's ``_exit``, its argument
+    the code): no Python runs, so it fires while another thread holds the GIL. `armed` is
+    False where the platform does not offer it (not Linux / glibc, ctypes refused): the caller
+    falls back. `cancel()` deletes the timer (idempotent)."""
+
+    def __init__(self, delay: float, code: int):
+        self.armed = False
+        self._timer = None
+        try:
+            import ctypes
+            import sys as _sys
+            if not _sys.platform.startswith('linux'):
+                return
+            libc = ctypes.CDLL(None, use_errno=True)
+
+            class Sigevent(ctypes.Structure):          # glibc's struct sigevent, 64 bytes
+                _fields_ = [('value', ctypes.c_void_p), ('signo', ctypes.c_int),
+                            ('notify', ctypes.c_int), ('function', ctypes.c_void_p),
+                            ('attribute', ctypes.c_void_p), ('pad', ctypes.c_int * 8)]
+
+            class Timespec(ctypes.Structure):
+                _fields_ = [('sec', ctypes.c_long), ('nsec', ctypes.c_long)]
+
+            class Itimerspec(ctypes.Structure):
+                _fields_ = [('interval', Timespec), ('value', Timespec)]
+
+            if ctypes.sizeof(Sigevent) != 64:
+                return
+            sev = Sigevent()
+            sev.value = int(code) & 0xFF
+            sev.notify = 2                               # SIGEV_THREAD
+            sev.function = ctypes.cast(libc._exit, ctypes.c_void_p).value
+            timer = ctypes.c_void_p()
+            if libc.timer_create(1, ctypes.byref(sev), ctypes.byref(timer)) != 0:   # MONOTONIC
+                return
+            its = Itimerspec()
+            its.value.sec = int(delay)
+            its.value.nsec = int(round((delay - int(delay)) * 1e9))
+            if libc.timer_settime(timer, 0, ctypes.byref(its), None) != 0:
+                libc.timer_delete(timer)
+                return
+            self._libc, self._timer, self.armed = libc, timer, True
+        except Exception:  # noqa: BLE001 - no such timer here: the caller falls back
+            self.armed = False
+
+    def cancel(self) -> None:
+        if self._timer is not None:
+            self._libc.timer_delete(self._timer)
+            self._timer = None
+
+
 class TeardownWatchdog:
     """Ends the process if the teardown after close() has not finished in
     `TEARDOWN_TIMEOUT_S`: one line on stderr, every thread's stack, then exit with `code` (the
-    node itself stopped as asked). A second, GIL-free watchdog (faulthandler) exits 1
-    `TEARDOWN_BACKSTOP_S` later should the first never get to run."""
+    node itself stopped as asked). Should the first never get to run (the blocked call holds
+    the GIL), faulthandler's thread dumps every stack and a `GilFreeExit` exits with `code`
+    `TEARDOWN_BACKSTOP_S` later (without one, faulthandler exits 1 then)."""
 
     def __init__(self, code: int, timeout: Optional[float] = None):
         self.timeout = TEARDOWN_TIMEOUT_S if timeout is None else float(timeout)
@@ -155,7 +211,10 @@ class TeardownWatchdog:
         self._timer = threading.Timer(self.timeout, self._expire)
         self._timer.daemon = True
         self._timer.start()
-        faulthandler.dump_traceback_later(self.timeout + TEARDOWN_BACKSTOP_S, exit=True)
+        backstop = self.timeout + TEARDOWN_BACKSTOP_S
+        self._exit = GilFreeExit(backstop, code)
+        faulthandler.dump_traceback_later(backstop - 0.2 if self._exit.armed else backstop,
+                                          exit=not self._exit.armed)
 
     def _expire(self) -> None:
         self.fired = True
@@ -172,6 +231,7 @@ class TeardownWatchdog:
 
     def cancel(self) -> None:
         self._timer.cancel()
+        self._exit.cancel()
         faulthandler.cancel_dump_traceback_later()
 
 
