@@ -146,6 +146,39 @@ def test_help_builds_nothing(capsys):
     assert 'demo_node' in node_help(Factory, 'demo_node')
 
 
+class _FakeGilFreeExit:
+    """In-process stand-in for ros_node.GilFreeExit: a real one left armed would _exit the
+    pytest process itself, with code 0, hiding every failure after it (seen: mutants S14 and
+    S15 'survived' that way). The real timer is tested in subprocesses below."""
+    made = []
+
+    def __init__(self, delay, code):
+        self.delay, self.code, self.armed, self.cancelled = delay, code, True, False
+        _FakeGilFreeExit.made.append(self)
+
+    def cancel(self):
+        self.cancelled = True
+
+
+@pytest.fixture(autouse=True)
+def _no_real_gil_free_exit(monkeypatch):
+    from catheter_common import ros_node
+    _FakeGilFreeExit.made.clear()
+    monkeypatch.setattr(ros_node, 'GilFreeExit', _FakeGilFreeExit)
+    yield
+    assert all(f.cancelled for f in _FakeGilFreeExit.made), 'a teardown backstop left armed'
+
+
+def test_the_watchdog_arms_the_gil_free_exit_with_the_nodes_code_and_cancels_it():
+    from catheter_common import ros_node
+    w = ros_node.TeardownWatchdog(3, timeout=0.2)
+    (f,) = _FakeGilFreeExit.made
+    assert f.code == 3 and abs(f.delay - (0.2 + ros_node.TEARDOWN_BACKSTOP_S)) < 1e-9
+    assert not f.cancelled
+    w.cancel()
+    assert f.cancelled
+
+
 _GIL_HOLDER = '''
 import ctypes, sys, time
 from catheter_common import ros_node
