@@ -26,6 +26,8 @@ import struct
 import sys
 from typing import Callable, Dict, List, Optional
 
+from catheter_bringup.cdr_encode import message_fields, slot_class
+
 #: struct codes and sizes (= alignment) of the basic types read here
 _FMT = {'boolean': ('?', 1), 'int8': ('b', 1), 'uint8': ('B', 1), 'int16': ('h', 2),
         'uint16': ('H', 2), 'int32': ('i', 4), 'uint32': ('I', 4), 'int64': ('q', 8),
@@ -53,20 +55,6 @@ class _Gen:
         if key not in self.env:
             self.env[key] = struct.Struct('<' + code).unpack_from
         return key
-
-
-def _fields(cls):
-    fields = list(cls.get_fields_and_field_types())
-    slots = [s for s in getattr(cls, '__slots__', ()) if s != '_check_fields']
-    if [f'_{f}' for f in fields] != slots or len(cls.SLOT_TYPES) != len(fields):
-        return None                      # a layout this module does not know
-    return list(zip(fields, cls.SLOT_TYPES, strict=True))
-
-
-def _message_class(slot):
-    import importlib
-    pkg, sub, name = slot.namespaced_name()
-    return getattr(importlib.import_module(f'{pkg}.{sub}'), name)
 
 
 def _align(g: _Gen, size: int, ind: str) -> None:
@@ -105,7 +93,7 @@ def _field(g: _Gen, slot, ind: str, depth: int) -> Optional[str]:
     if isinstance(slot, d.AbstractString):
         return _string(g, ind)
     if isinstance(slot, d.NamespacedType):
-        return _struct(g, _message_class(slot), ind, depth + 1)
+        return _struct(g, slot_class(slot), ind, depth + 1)
     if isinstance(slot, d.AbstractSequence) and not isinstance(slot, d.Array):
         vt = slot.value_type
         _align(g, 4, ind)
@@ -142,7 +130,7 @@ def _field(g: _Gen, slot, ind: str, depth: int) -> Optional[str]:
 def _struct(g: _Gen, cls, ind: str, depth: int) -> Optional[str]:
     if depth > 8:
         return None                      # (a recursive type)
-    fields = _fields(cls)
+    fields = message_fields(cls)
     if fields is None:
         return None
     vals = []

@@ -91,16 +91,19 @@ class _Gen:
         self.mod, self.val = 1, 0
 
 
-def _message_class(slot):
+def slot_class(slot):
+    """The generated message class of a NamespacedType slot (shared with cdr_decode)."""
     import importlib
     pkg, sub, name = slot.namespaced_name()
     return getattr(importlib.import_module(f'{pkg}.{sub}'), name)
 
 
-def _fields(cls) -> Optional[List[Tuple[str, object]]]:
+def message_fields(cls) -> Optional[List[Tuple[str, object]]]:
+    """[(field name, SLOT_TYPES entry)] of a generated message class in wire order, or None
+    for a layout the generated encoders / decoders do not know (shared with cdr_decode)."""
     fields = list(cls.get_fields_and_field_types())
     slots = [s for s in getattr(cls, '__slots__', ()) if s != '_check_fields']
-    if [f'_{f}' for f in fields] != slots:
+    if [f'_{f}' for f in fields] != slots or len(cls.SLOT_TYPES) != len(fields):
         return None                      # a layout this module does not know
     return list(zip(fields, cls.SLOT_TYPES, strict=True))
 
@@ -124,7 +127,7 @@ def _emit(g: _Gen, slot, expr: str, indent: str, depth: int) -> bool:
         g.lines.append(f"{indent}b += b'\\x00'")
         return True
     if isinstance(slot, d.NamespacedType):
-        return _emit_struct(g, _message_class(slot), expr, indent, depth + 1)
+        return _emit_struct(g, slot_class(slot), expr, indent, depth + 1)
     if isinstance(slot, d.AbstractSequence) and not isinstance(slot, d.Array):
         vt = slot.value_type
         g.flush(indent)
@@ -163,7 +166,7 @@ def _emit(g: _Gen, slot, expr: str, indent: str, depth: int) -> bool:
 def _emit_struct(g: _Gen, cls, expr: str, indent: str, depth: int) -> bool:
     if depth > 8:
         return False                     # (a recursive type)
-    fields = _fields(cls)
+    fields = message_fields(cls)
     if fields is None:
         return False
     cname = g.name('_C')
