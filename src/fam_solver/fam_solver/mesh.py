@@ -321,9 +321,8 @@ def _small_grade(phi: np.ndarray, F: complex, follower: bool,
         D = [0.0] * (n + 2)
         for j in range(1, n):
             D[j] = p[j] - p[j - 1]
-        if n > 2:
-            D[0] = 2.0 * D[1] - D[2]
-            D[n] = 2.0 * D[n - 1] - D[n - 2]
+        if n > 2:      # the second differences extrapolated linearly to the ends 0 and n
+            D[0], D[n] = 2.0 * D[1] - D[2], 2.0 * D[n - 1] - D[n - 2]
         else:
             D[0] = D[2] = D[1]
         ph = p + [0.0]
