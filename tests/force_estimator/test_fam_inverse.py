@@ -318,12 +318,11 @@ def test_hold_acts_only_after_an_unobservable_estimate(inv):
     inv.reset()
 
 
-def test_a_held_start_lets_the_weak_direction_go_when_the_shape_is_not_explained(inv):
-    """The hold keeps the force along the weak direction only while the shape is fitted to the
-    shape noise: after straight frames, a catheter pushed near its buckling load (-20 mN
-    axial, 1 mN lateral) is not explained by the lateral force alone (held at 0 axial the fit
-    stops at ~0.05 mm RMS), so the iteration lets the axial force go and answers what the free
-    iteration answers."""
+def test_a_push_after_straight_frames_is_found_with_the_hold(inv):
+    """The hold keeps the force along the weak direction only where the shape does not
+    determine it: after straight frames, a catheter pushed near its buckling load (-20 mN
+    axial, 1 mN lateral) gets the free iteration's answer (held at 0 axial throughout, the fit
+    would stop at ~0.05 mm RMS with no push)."""
     cat = Catheter(length=L, ei=EI)
     free = FamInverseEstimator(cat, n_arcs=12, table_angles=24, table_magnitudes=10,
                                hold_unobservable=False)

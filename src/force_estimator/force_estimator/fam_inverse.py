@@ -57,10 +57,9 @@ the weak direction (the prior's mean there is 0): the shape had not determined i
 guessed push beyond the buckling load made the next, loaded frame's inversion crawl for 8
 iterations and fall back to the table (12 solves instead of 2-5 in the system scene). And
 while the force along the weak direction stays unobservable at the current point (its std
-above `UNOBSERVABLE_STD`), that warm start steps only across it (`hold_unobservable`) until
-it has converged across it: then, if the shape is fitted to the shape noise, that is the
-answer; if not, the force along the weak direction may be what explains it (a push near the
-buckling load) and the iteration goes on in every direction. The contact-onset frame after
+above `UNOBSERVABLE_STD`), that warm start steps only across it (`hold_unobservable`); where
+the shape does determine it (a push near the buckling load), the point's std there is below
+the threshold and the iteration moves freely. The contact-onset frame after
 straight ones (0.2 mN lateral) had its fit at the shape noise after one solve, then crawled
 along the axial direction through cost changes below one noise unit, 8 solves without
 converging, and then through two table starts: 17 solves, 'not_converged' (force_estimator
@@ -139,8 +138,7 @@ class FamInverseEstimator:
     many FAM solves (the best so far is its answer): bounds an estimate's cost at about
     max_solves + one start's. hold_unobservable: after an 'axial_unobservable' estimate, the
     warm start keeps the force along the weak direction at the prior's mean while the shape
-    does not determine it, unless the fit across it leaves the shape unexplained (False: it
-    moves freely, as before round 10; for comparisons).
+    does not determine it (False: it moves freely, as before round 10; for comparisons).
     """
 
     def __init__(self, cat, n_arcs: int = 12, n_points: int = 24, f_max: float = 0.45,
@@ -391,11 +389,6 @@ class FamInverseEstimator:
                 xn[:2] *= 1.5 * self.f_max / nf
                 step = xn - x
             small = bool(np.hypot(step[0], step[1]) < self.tol)
-            if small and v is not None and not r[:n2] @ r[:n2] <= self.n_points * SHAPE_NOISE ** 2:
-                # held, converged across v, and the shape is still not explained: the force
-                # along v may be what explains it; from here on every direction moves
-                hold = False
-                continue
             if small and mu < 1e-2:
                 # a Gauss-Newton step below the tolerance: take it without another solve
                 x = xn
