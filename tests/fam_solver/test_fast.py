@@ -69,8 +69,9 @@ def test_kernel_jacobian_is_the_derivative_of_its_residual(follower, clothoid, n
             e[j] = h
             Jn[:, j] = (residual(phi + e) - residual(phi - e)) / (2 * h)
         # the clothoid rates' terms are in J only near a solution (max|r| < QUASI_ABOVE) or for
-        # N < 3; far from it J is the circular-arc one (a quasi-Newton step)
-        exact = not clothoid or n < 3 or np.max(np.abs(r0)) < fast_newton.QUASI_ABOVE
+        # N < _QUASI_MIN_N; far from it J is the circular-arc one (a quasi-Newton step)
+        exact = not clothoid or n < fast_newton._QUASI_MIN_N or \
+            np.max(np.abs(r0)) < fast_newton.QUASI_ABOVE
         if exact:
             assert np.abs(J - Jn).max() < 1e-6 * max(1.0, np.abs(Jn).max())
             checked += 1

@@ -37,6 +37,10 @@ def test_small_jacobian_equals_the_array_form(n, follower, clothoid, monkeypatch
     to rounding."""
     K = fast_newton.SMALL_N
     assert K >= 4
+    # both Jacobians compared, with and without the rates' terms: the shipped setting adds the
+    # terms at every step on N <= SMALL_N (_QUASI_MIN_N), so only a lower switch reaches the
+    # circular-arc factors of the Python-float form
+    monkeypatch.setattr(fast_newton, '_QUASI_MIN_N', 3)
     rng = np.random.default_rng(10 * n + 2 * follower + clothoid)
     terms_seen = set()
     for trial in range(6):
@@ -61,7 +65,7 @@ def test_small_jacobian_equals_the_array_form(n, follower, clothoid, monkeypatch
         assert abs(r1 - r0) <= 1e-15 * max(1.0, r0) and abs(tip1 - tip0) <= 1e-15
         assert (rho0 is None) == (rho1 is None) == (not clothoid)
         assert clothoid is False or np.max(np.abs(rho1 - rho0)) <= 1e-15
-        terms_seen.add(clothoid and (r0 < fast_newton.QUASI_ABOVE or n < 3))
+        terms_seen.add(clothoid and (r0 < fast_newton.QUASI_ABOVE or n < fast_newton._QUASI_MIN_N))
     if clothoid and n >= 3:
         assert terms_seen == {False, True}
 
@@ -276,3 +280,103 @@ def test_graded_solves_take_the_cubic_start_between_its_bounds(monkeypatch):
             sh = solve_fam(BLAZER, Loads(tip_force=(0.1, 0.2)), n_arcs=n, arc_model=model,
                            spacing='graded')
             assert sh.converged and seen == [want], (model, n, seen)
+
+
+# -- round 10 (issue 15): the graded N = 4 -> 8 drop. At N <= 8 a graded solve costs about its
+# residual evaluations and Newton steps, each about as dear at N = 4 as at 8; N = 4's second pass
+# starts ~10x farther from its solution (the 4-arc graded mesh differs more from the equal one)
+# and took more steps: on clothoid arcs a first step without the rates' terms (max|r| above
+# QUASI_ABOVE) that converged only linearly; and its grading's ~30 numpy calls cost about a step.
+
+@pytest.mark.parametrize('spacing', ['graded', 'uniform'])
+def test_rates_terms_from_the_first_step_on_few_arcs_save_iterations(spacing, monkeypatch):
+    """Clothoid arcs, N = 3-4 (_QUASI_MIN_N = 5): the rates' terms at every step reach the
+    same solutions as the switch at N = 3 did (the circular-arc factors far from a solution),
+    in fewer iterations on the cliff bench's loads (measured, round 10: graded 46 -> 40 and
+    62 -> 53 at N = 3, 43 -> 41 and 58 -> 53 at N = 4, thesis / Blazer; uniform fewer at N = 3
+    only), never more per set and N."""
+    shipped = fast_newton._QUASI_MIN_N
+    assert shipped == fast_newton.SMALL_N + 1
+    total = {shipped: 0, 3: 0}
+    for n in (3, 4):
+        its = {}
+        tips = {}
+        for q in (shipped, 3):
+            monkeypatch.setattr(fast_newton, '_QUASI_MIN_N', q)
+            its[q] = {id(THESIS): 0, id(BLAZER): 0}
+            tips[q] = []
+            for cat, ld in BENCH:
+                sh = solve_fam(cat, ld, n_arcs=n, arc_model='clothoid', spacing=spacing)
+                assert sh.converged
+                its[q][id(cat)] += sh.iterations
+                tips[q].append(sh.tip / cat.length)
+        q5, q3 = its[shipped], its[3]
+        assert all(q5[k] <= q3[k] for k in q5), (n, its)
+        assert spacing == 'uniform' or sum(q5.values()) < sum(q3.values()), (n, its)
+        assert np.max(np.abs(np.array(tips[shipped]) - np.array(tips[3]))) < 1e-11
+        total[shipped] += sum(q5.values())
+        total[3] += sum(q3.values())
+    assert total[shipped] < total[3], total
+
+
+def test_graded_second_pass_on_four_clothoid_arcs_converges_quadratically():
+    """The graded second pass at N = 4 on the Blazer loads: from its start (max|r| above
+    QUASI_ABOVE on 6 of the 9) Newton with the rates' terms takes at most 3 iterations per load
+    (before round 10: 4 on three loads, a first step without the terms reducing max|r| by
+    only 3-6x), and 25 in all (27 before)."""
+    total = 0
+    for cat, ld in BENCH:
+        if cat is not BLAZER:
+            continue
+        F = complex(*ld.tip_force)
+        l, w, _ = fast._equal_arcs(4, cat.length, cat.ei)
+        eq = fast.fast_solve(4, cat.length, cat.ei, F, 0.0, False, clothoid=True, rtol=1e-9)
+        f, start = mesh.fast_grade(eq[0], F, False, fast._graded_start(4, True))
+        lg = cat.length * f
+        p, conv, it = fast_newton.fast_tip_newton(4, lg, lg / cat.ei, F, 0.0, False, start, 12,
+                                                  clothoid=True)[:3]
+        assert conv and it <= 3, (ld, it)
+        total += it
+    assert total <= 25
+
+
+@pytest.mark.parametrize('n', [1, 2, 3, 4])
+def test_small_grade_equals_the_array_form(n):
+    """fast_grade in Python floats (N <= SMALL_GRADE_N) gives the array form's fractions and
+    starts (every start, dead and follower forces, tiny to large angles) to rounding."""
+    rng = np.random.default_rng(40 + n)
+    for trial in range(150):
+        phi = rng.normal(0, [1e-9, 0.05, 0.5, 2.0][trial % 4], n)
+        F = complex(*rng.normal(0, 1, 2)) * 10.0 ** rng.integers(-3, 3)
+        follower = bool(trial % 3 == 0)
+        for st in ('remap', 'curvature', 'cubic'):
+            f1, s1 = mesh._small_grade(phi, F, follower, st)
+            f2, s2 = mesh._array_grade(phi, F, follower, st)
+            assert f1.shape == s1.shape == (n,)
+            assert np.max(np.abs(f1 - f2)) < 2e-15, (n, st, f1, f2)
+            assert np.max(np.abs(s1 - s2)) < 4e-15 * max(1e-300, np.max(np.abs(phi))), (n, st)
+    # no curvature change (no force: a pure moment): equal arcs from the equal solution itself;
+    # a straight catheter under a lateral force: equal arcs (a uniform monitor), straight start
+    phi = np.full(n, 0.3)
+    f, s = mesh._small_grade(phi, 0j, False, 'cubic')
+    assert np.all(f == 1.0 / n) and s is phi
+    f, s = mesh._small_grade(np.zeros(n), 0.5 + 0.2j, False, 'cubic')
+    assert np.allclose(f, 1.0 / n, rtol=0, atol=1e-15) and not np.any(s)
+
+
+def test_fast_grade_takes_the_python_float_form_up_to_small_grade_n(monkeypatch):
+    """fast_grade: Python floats up to SMALL_GRADE_N (= the Newton kernel's SMALL_N) arcs, the
+    array form beyond; a graded solve at N = 4 grades through the Python-float form."""
+    assert mesh.SMALL_GRADE_N == fast_newton.SMALL_N
+    seen = []
+    orig_s, orig_a = mesh._small_grade, mesh._array_grade
+    monkeypatch.setattr(mesh, '_small_grade', lambda *a: seen.append('small') or orig_s(*a))
+    monkeypatch.setattr(mesh, '_array_grade', lambda *a: seen.append('array') or orig_a(*a))
+    K = mesh.SMALL_GRADE_N
+    for n, want in ((1, 'small'), (K, 'small'), (K + 1, 'array'), (12, 'array')):
+        seen.clear()
+        mesh.fast_grade(np.linspace(0.1, 0.3, n), 0.2j, False, 'cubic')
+        assert seen == [want], (n, seen)
+    seen.clear()
+    sh = solve_fam(BLAZER, Loads(tip_force=(0.1, 0.2)), n_arcs=K, spacing='graded')
+    assert sh.converged and seen == ['small']

@@ -368,4 +368,27 @@ MUTANTS = [
            'cliff_report: the follow-up\'s verdict ignored', tests=BT),
     Mutant('M83', B, "            if coarse[q] == 'NO':", '            if True:',
            'cliff_report: drops within the coarse noise followed up too', tests=BT),
+    # -- issue 15, round 10: the graded N = 4 -> 8 drop (few arcs: the rates' terms at every
+    # step, the grading in Python floats)
+    Mutant('M84', P + 'fast_newton.py', '_QUASI_MIN_N = 5', '_QUASI_MIN_N = 3',
+           'clothoid arcs at N = 3-4: the circular-arc factors again far from a solution (the '
+           'graded second pass converges linearly: an extra Newton step on 6 of 9 loads)'),
+    Mutant('M85', P + 'mesh.py', '    if n <= SMALL_GRADE_N:\n        return _small_grade',
+           '    if n < SMALL_GRADE_N:\n        return _small_grade',
+           'fast_grade: N = SMALL_GRADE_N graded through the numpy form (its ~30 calls again)'),
+    Mutant('M86', P + 'mesh.py', '        while k < n - 1 and C[k + 1] <= x:',
+           '        while k < n - 2 and C[k + 1] <= x:',
+           '_small_grade: an arc end in the last monitor segment placed by the one before'),
+    Mutant('M87', P + 'mesh.py',
+           'fp = [1.5 * kc[0] - 0.5 * kc[1]] + kc + [1.5 * kc[-1] - 0.5 * kc[-2]]',
+           'fp = [kc[0]] + kc + [kc[-1]]',
+           '_small_grade, curvature start: the curvature held at the ends, not extrapolated'),
+    Mutant('M88', P + 'mesh.py',
+           'A = D[k] * (1.0 / 3.0) + D[k + 1] * (1.0 / 6.0)',
+           'A = D[k] * (1.0 / 6.0) + D[k + 1] * (1.0 / 3.0)',
+           '_small_grade, cubic start: the two second differences swapped in the cubic'),
+    Mutant('M89', P + 'mesh.py', '        F = F * complex(math.cos(acc), math.sin(acc))',
+           '        F = F',
+           '_small_grade: a follower force not turned with the tip (the monitor of a dead '
+           'force)'),
 ]

@@ -103,4 +103,28 @@ MUTANTS = [
            '            if total >= 0:',
            'no start after the first: the fallback start of another quadrant is never tried',
            tests=('tests/force_estimator/test_fam_inverse.py',)),
+    # -- issue 15, round 10: the warm start after an axial_unobservable estimate holds the force
+    # along the unobservable direction
+    Mutant('E22', P + 'fam_inverse.py',
+           '        return V[:, -1] if lam[-1] > UNOBSERVABLE_STD ** 2 else None',
+           '        return None',
+           'the warm start after an unobservable estimate crawls along the weak direction again '
+           '(the contact-onset frame: 17 solves, not_converged)',
+           tests=('tests/force_estimator/test_fam_inverse.py',)),
+    Mutant('E23', P + 'fam_inverse.py',
+           "                starts.append(('hold', x0))",
+           "                starts.append(('warm', x0))",
+           'the hold never asked for: the warm start after an unobservable estimate moves '
+           'freely', tests=('tests/force_estimator/test_fam_inverse.py',)),
+    Mutant('E24', P + 'fam_inverse.py',
+           "Pm[0, 0], Pm[1, 0], Pm[2, 1], Pm[3, 2] = -v[1], v[0], 1.0, 1.0",
+           "Pm[0, 0], Pm[1, 0], Pm[2, 1], Pm[3, 2] = v[0], v[1], 1.0, 1.0",
+           'the held start steps along the weak direction instead of across it',
+           tests=('tests/force_estimator/test_fam_inverse.py',)),
+    Mutant('E25', P + 'fam_inverse.py',
+           "                obs, f0, hold=kind == 'hold' and self.hold_unobservable)",
+           "                obs, f0, hold=self.hold_unobservable)",
+           'every start held, the table starts and the warm start after an ok estimate too '
+           '(their force along a weak direction kept wherever they started)',
+           tests=('tests/force_estimator/test_fam_inverse.py',)),
 ]

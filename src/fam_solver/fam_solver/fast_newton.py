@@ -29,8 +29,12 @@ FAST_DENSE_MAX_N = 64
 #: clothoid arcs: the rates' Jacobian terms are added once max|r| < this (rad); further out
 #: the circular-arc factors do as well and cost less
 QUASI_ABOVE = 1e-2
-#: ... and from the first step below this N (the rates, ~ load / N^2, are large there)
-_QUASI_MIN_N = 3
+#: ... and from the first step below this N: the rates, ~ load / N^2, are large there, and on
+#: the Python-float path (N <= SMALL_N) their terms cost little. At N = 3-4 a step from a start
+#: with max|r| above QUASI_ABOVE (the graded second pass's on 6 of the cliff bench's 9 Blazer
+#: loads) converged linearly without them: 5-11 % more iterations at N = 3-4 on random loads,
+#: the N = 4 -> 8 graded drop of issue 15 (package README, round 10)
+_QUASI_MIN_N = 5
 #: up to this N the Newton step's Jacobian is built in Python floats (``_small_jacobian``)
 SMALL_N = 4
 #: ... while every arc is turned by less than this (rad; beyond, the array form: it gives NaN

@@ -134,6 +134,10 @@ def regrade(prob: Problem, phi: np.ndarray, arc_model: str) -> tuple:
 
 _U_CACHE = {}
 _STARTS = ('remap', 'curvature', 'cubic')
+#: up to this N ``fast_grade`` works in Python floats (``_small_grade``): on few arcs its ~30
+#: numpy calls (the cubic start's ~20 of them) cost 18-26 us of a 220-280 us graded solve,
+#: about what a Newton step costs there (package README, round 10); = fast_newton.SMALL_N
+SMALL_GRADE_N = 4
 
 
 def fast_grade(phi: np.ndarray, F: complex, follower: bool,
@@ -145,9 +149,19 @@ def fast_grade(phi: np.ndarray, F: complex, follower: bool,
     (``curvature_start``: exact for a curvature linear in s, as the small-deflection FAM has;
     remap's piecewise-constant curvature is off by O(l) per arc there) or 'cubic'
     (``cubic_start``: the tangent angle by a local cubic through the equal arcs' ends, the
-    fast path's start: package README, round 7)."""
+    fast path's start: package README, round 7). Up to SMALL_GRADE_N arcs in Python floats
+    (``_small_grade``), beyond with 1-D arrays (``_array_grade``): the same results."""
     if start not in _STARTS:
         raise ValueError(f"fast_grade: start must be one of {_STARTS}, got {start!r}")
+    n = phi.size
+    if n <= SMALL_GRADE_N:
+        return _small_grade(phi, F, follower, start)
+    return _array_grade(phi, F, follower, start)
+
+
+def _array_grade(phi: np.ndarray, F: complex, follower: bool,
+                 start: str) -> Tuple[np.ndarray, np.ndarray]:
+    """``fast_grade`` with 1-D arrays (any N)."""
     n = phi.size
     u = _U_CACHE.get(n)
     if u is None:
@@ -247,3 +261,86 @@ def cubic_start(phi: np.ndarray, th_end: np.ndarray, b: np.ndarray) -> np.ndarra
     th += c0[k]
     th += t * ph[k]
     return np.diff(th)
+
+
+def _small_grade(phi: np.ndarray, F: complex, follower: bool,
+                 start: str) -> Tuple[np.ndarray, np.ndarray]:
+    """``fast_grade`` for few arcs (N <= SMALL_GRADE_N) in Python floats: the same formulas as
+    ``_array_grade`` (``np.interp``'s slope form included), the same fractions and starts to
+    rounding (tests)."""
+    p = phi.tolist()
+    n = len(p)
+    th = [0.0] * (n + 1)           # tangent angle at the equal arcs' ends
+    acc = 0.0
+    for i in range(n):
+        acc += p[i]
+        th[i + 1] = acc
+    if follower:
+        F = F * complex(math.cos(acc), math.sin(acc))
+    fr, fi = F.real, F.imag
+    kp = [0.0] * n
+    for i in range(n):
+        a = th[i + 1] - 0.5 * p[i]
+        kp[i] = abs(math.cos(a) * fi - math.sin(a) * fr)     # |Im(conj(t) F)|
+    mx = max(kp)
+    if not (mx > 0 and mx < math.inf):
+        return np.full(n, 1.0 / n), phi
+    C = [0.0] * (n + 1)
+    c = 0.0
+    e = 0.5 * GRADE_POWER
+    f2 = GRADE_FLOOR * GRADE_FLOOR
+    for i in range(n):
+        k = kp[i] / mx
+        c += (k * k + f2) ** e
+        C[i + 1] = c
+    C = [x / c for x in C]
+    b = [0.0] * (n + 1)
+    k = 0
+    for j in range(1, n):          # b = interp(u, C, u), u = j / n
+        x = j / n
+        while k < n - 1 and C[k + 1] <= x:
+            k += 1
+        b[j] = (1.0 / n) / (C[k + 1] - C[k]) * (x - C[k]) + k / n
+    b[n] = 1.0
+    f = [b[j + 1] - b[j] for j in range(n)]
+    if n == 1:
+        return np.array(f), phi
+    if start == 'curvature':
+        kc = [x * n for x in p]
+        xp = [0.0] + [(i + 0.5) / n for i in range(n)] + [1.0]
+        fp = [1.5 * kc[0] - 0.5 * kc[1]] + kc + [1.5 * kc[-1] - 0.5 * kc[-2]]
+        out = [0.0] * n
+        q = 0
+        for j in range(n):
+            x = 0.5 * (b[j + 1] + b[j])
+            while q < n and xp[q + 1] <= x:
+                q += 1
+            out[j] = f[j] * ((fp[q + 1] - fp[q]) / (xp[q + 1] - xp[q]) * (x - xp[q]) + fp[q])
+        return np.array(f), np.array(out)
+    if start == 'cubic':
+        D = [0.0] * (n + 2)
+        for j in range(1, n):
+            D[j] = p[j] - p[j - 1]
+        if n > 2:      # the second differences extrapolated linearly to the ends 0 and n
+            D[0], D[n] = 2.0 * D[1] - D[2], 2.0 * D[n - 1] - D[n - 2]
+        else:
+            D[0] = D[2] = D[1]
+        ph = p + [0.0]
+        tb = [0.0] * (n + 1)
+        for j in range(n + 1):
+            x = b[j] * n
+            k = int(x)
+            t = x - k
+            A = D[k] * (1.0 / 3.0) + D[k + 1] * (1.0 / 6.0)
+            B = (D[k + 1] - D[k]) * (1.0 / 6.0)
+            tb[j] = (B * t + A) * (t * (t - 1.0)) + th[k] + t * ph[k]
+        return np.array(f), np.array([tb[j + 1] - tb[j] for j in range(n)])
+    # remap: the tangent angle linear in each equal arc (np.interp(b, u, Th))
+    tb = [0.0] * (n + 1)
+    q = 0
+    for j in range(n + 1):
+        x = b[j]
+        while q < n - 1 and (q + 1) / n <= x:
+            q += 1
+        tb[j] = (th[q + 1] - th[q]) / (1.0 / n) * (x - q / n) + th[q]
+    return np.array(f), np.array([tb[j + 1] - tb[j] for j in range(n)])

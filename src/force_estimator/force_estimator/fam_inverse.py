@@ -55,7 +55,15 @@ precomputed over the force range (both bending directions), looked up only then.
 'axial_unobservable' estimate the warm start drops the previous force's component along
 the weak direction (the prior's mean there is 0): the shape had not determined it, and a
 guessed push beyond the buckling load made the next, loaded frame's inversion crawl for 8
-iterations and fall back to the table (12 solves instead of 2-5 in the system scene).
+iterations and fall back to the table (12 solves instead of 2-5 in the system scene). And
+while the force along the weak direction stays unobservable at the current point (its std
+above `UNOBSERVABLE_STD`), that warm start steps only across it (`hold_unobservable`); where
+the shape does determine it (a push near the buckling load), the point's std there is below
+the threshold and the iteration moves freely. The contact-onset frame after
+straight ones (0.2 mN lateral) had its fit at the shape noise after one solve, then crawled
+along the axial direction through cost changes below one noise unit, 8 solves without
+converging, and then through two table starts: 17 solves, 'not_converged' (force_estimator
+README, round 10).
 
 A weak prior on the force (`FORCE_PRIOR`, the force range, per component) keeps the
 iteration where the shape says nothing: an axial pull leaves an inextensible catheter
@@ -79,7 +87,7 @@ from typing import Optional
 
 import numpy as np
 
-from force_estimator.estimate import (DOMAIN_UNKNOWN, ForceEstimate, bounded,
+from force_estimator.estimate import (DOMAIN_UNKNOWN, UNOBSERVABLE_STD, ForceEstimate, bounded,
                                       domain_distance, failed_estimate, status_of)
 from force_estimator.inputs import control_points_to_features
 from force_estimator.inputs import check_control_points
@@ -128,13 +136,16 @@ class FamInverseEstimator:
     used only by this and "batch") or "batch" (one `solve_fam_batch` call of three forces
     per iteration). max_solves: no further start begins once an estimate has spent this
     many FAM solves (the best so far is its answer): bounds an estimate's cost at about
-    max_solves + one start's.
+    max_solves + one start's. hold_unobservable: after an 'axial_unobservable' estimate, the
+    warm start keeps the force along the weak direction at the prior's mean while the shape
+    does not determine it (False: it moves freely, as before round 10; for comparisons).
     """
 
     def __init__(self, cat, n_arcs: int = 12, n_points: int = 24, f_max: float = 0.45,
                  tol: float = 1e-4, max_iter: int = 8, max_residual: float = 5e-4,
                  fd_step: float = 1e-4, table_angles: int = 64, table_magnitudes: int = 30,
-                 solver: str = 'analytic', max_solves: int = MAX_SOLVES):
+                 solver: str = 'analytic', max_solves: int = MAX_SOLVES,
+                 hold_unobservable: bool = True):
         for name, v in (('f_max', f_max), ('tol', tol), ('max_residual', max_residual),
                         ('fd_step', fd_step)):
             if not (np.isfinite(v) and v > 0):
@@ -164,6 +175,7 @@ class FamInverseEstimator:
         self.tol = float(tol)
         self.max_iter = int(max_iter)
         self.max_solves = int(max_solves)
+        self.hold_unobservable = bool(hold_unobservable)
         self.max_residual = float(max_residual)
         self.fd_step = float(fd_step)
         self._w = 1e-4          # prior rows in metres of shape residual per sigma
@@ -338,7 +350,7 @@ class FamInverseEstimator:
             return r, J, np.inf
         return r, J, cost
 
-    def _solve(self, obs: np.ndarray, x0: np.ndarray):
+    def _solve(self, obs: np.ndarray, x0: np.ndarray, hold: bool = False):
         """LM from x0 = (fx, fy[, delta, eps]). Returns (x = (fx, fy, delta, eps), shape cost,
         iterations, FAM solves, converged); the shape cost excludes the prior rows."""
         # returns (x, x_eval, ...): x_eval is the last evaluated point (its FAM shape is
@@ -354,9 +366,23 @@ class FamInverseEstimator:
         mu = 1e-4
         converged = False
         it = 0
+        n2 = 2 * self.n_points
         for it in range(1, self.max_iter + 1):  # noqa: B007 (the count is returned)
-            A = J.T @ J
-            step = -np.linalg.solve(A + mu * np.diag(np.diag(A)) + 1e-30 * np.eye(4), J.T @ r)
+            v = self._unobservable(J, r) if hold else None
+            if v is None:
+                A = J.T @ J
+                step = -np.linalg.solve(A + mu * np.diag(np.diag(A)) + 1e-30 * np.eye(4),
+                                        J.T @ r)
+            else:
+                # the force along v is not determined by the shape here: step only across it
+                # (fx, fy = a (-v_y, v_x)) and in delta, eps; the force along v stays where the
+                # start put it (after an unobservable estimate: the prior's mean, 0)
+                Pm = np.zeros((4, 3))
+                Pm[0, 0], Pm[1, 0], Pm[2, 1], Pm[3, 2] = -v[1], v[0], 1.0, 1.0
+                Jr = J @ Pm
+                A = Jr.T @ Jr
+                step = Pm @ -np.linalg.solve(A + mu * np.diag(np.diag(A)) + 1e-30 * np.eye(3),
+                                             Jr.T @ r)
             xn = x + step
             nf = np.hypot(xn[0], xn[1])
             if nf > 1.5 * self.f_max:            # stay within reach of the force range
@@ -381,9 +407,21 @@ class FamInverseEstimator:
                 if small:                        # no descent left at the tolerance scale
                     converged = True
                     break
-        n2 = 2 * self.n_points
         shape_cost = float(r[:n2] @ r[:n2])
         return x, xe, shape_cost, it, self._n_solves - n0, converged, J[:n2].copy()
+
+    def _unobservable(self, J: np.ndarray, r: np.ndarray) -> Optional[np.ndarray]:
+        """The weakest direction (2,) of the force covariance at the current point (J, r: its
+        Jacobian and residual, as `_result` takes them) when its std is above
+        UNOBSERVABLE_STD (an estimate there is 'axial_unobservable'), else None."""
+        n2 = 2 * self.n_points
+        res = float(np.sqrt(r[:n2] @ r[:n2] / self.n_points))
+        try:
+            lam, V = np.linalg.eigh(force_covariance(J[:n2], max(SHAPE_NOISE, res),
+                                                     FORCE_PRIOR))
+        except np.linalg.LinAlgError:
+            return None
+        return V[:, -1] if lam[-1] > UNOBSERVABLE_STD ** 2 else None
 
     def estimate(self, control_points) -> FamInverseResult:
         """Full result for one observation: control_points (4, 3) m (z ignored), or (4, 2).
@@ -425,7 +463,9 @@ class FamInverseEstimator:
                 if abs(along) > self.tol:
                     x0 = x0.copy()
                     x0[:2] -= along * w
-            starts.append(('warm', x0))
+                starts.append(('hold', x0))
+            else:
+                starts.append(('warm', x0))
             key = (float(self._last_eval[0]), float(self._last_eval[1]))
             self._shapes = {key: self._shapes[key]} if key in self._shapes else {}
         else:
@@ -440,7 +480,8 @@ class FamInverseEstimator:
                 continue
             if kind == 'table':
                 self._prev_shape = None        # a far warm start could pick another branch
-            x, xe, cost, it, solves, conv, J = self._solve(obs, f0)
+            x, xe, cost, it, solves, conv, J = self._solve(
+                obs, f0, hold=kind == 'hold' and self.hold_unobservable)
             total += solves
             res = float(np.sqrt(cost / self.n_points))
             if best is None or res < best[1]:
