@@ -15,6 +15,7 @@ from impedance_master import (DeviceParams, DfrRenderer, FrictionState, HapticDe
                               Impedance, ImaRenderer, SlidingWindowIdentifier,
                               experiment_trajectory, make_identifier)
 from impedance_master.identification import HistoryIdentifier
+from impedance_master.impedance import steady_states
 from impedance_master.operator import V_MAX, X_MAX, OperatorTrajectory
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
@@ -501,3 +502,38 @@ def test_default_identifier_reports_the_linear_part_in_m_c_k_offset():
     # local static table is 0.010-0.011 N off this global spring)
     for xx, v in ((0.01, 0.02), (0.03, -0.01), (0.05, 0.0)):
         assert imp.force(xx, v, 0.0) == pytest.approx(30.0 * xx + 0.02, abs=0.015)
+
+
+# --------------------------------------------- tenth round of issue 12: force_z
+
+def _table_model(sigma):
+    return Impedance(0.01, 0.5, 3.0, 0.02, x0=0.0, dx=0.01, sigma=sigma, v_s=0.002, beta=0.4,
+                     S=[0.0, 0.1, 0.2, 0.4], F=[0.0, 0.05, 0.1, 0.2],
+                     B=[0.0, 0.01, 0.02, 0.03], C=[0.0, 1.0, 2.0, 3.0])
+
+
+def test_force_z_hand_values_for_a_stateless_model():
+    """force_z takes the friction states as given also where sigma = 0 (force takes the
+    direction of x' there): at x = 15 mm the nodes interpolate to S 0.15, F 0.075,
+    B 0.015, C 1.5."""
+    m = _table_model(0.0)
+    x, xd, xdd = 0.015, -0.01, 0.2
+    lin = 0.01 * xdd + 0.5 * xd + 3.0 * x + 0.02
+    for z1, z2 in ((1.0, 1.2), (0.3, -0.1), (0.0, 0.0)):
+        want = lin + 0.15 + 0.075 * z1 + 0.015 * (z2 - z1) + 1.5 * xd
+        assert m.force_z(x, xd, xdd, (z1, z2)) == pytest.approx(want, rel=1e-12)
+    # force: the stateless law, whatever states are passed
+    zs = steady_states(xd, 0.002, 0.4)
+    assert m.force(x, xd, xdd, (1.0, 1.2)) == pytest.approx(m.force_z(x, xd, xdd, zs))
+    assert m.force(x, xd, xdd) == m.force(x, xd, xdd, (1.0, 1.2))
+
+
+def test_force_z_is_force_for_models_with_states_and_linear_models():
+    m = _table_model(3e-4)
+    lin = Impedance(0.01, 0.5, 3.0, 0.02)
+    rng = np.random.default_rng(10)
+    for _ in range(50):
+        x, xd, xdd = rng.uniform(-0.01, 0.05), rng.uniform(-0.05, 0.05), rng.uniform(-1, 1)
+        z = (rng.uniform(-1, 1), rng.uniform(-1.5, 1.5))
+        assert m.force_z(x, xd, xdd, z) == m.force(x, xd, xdd, z)
+        assert lin.force_z(x, xd, xdd, z) == lin.force(x, xd, xdd)

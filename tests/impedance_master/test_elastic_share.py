@@ -110,12 +110,13 @@ def test_share_is_always_in_the_unit_interval(anchors, x, f):
 
 # ------------------------------------------------------------- the first outward reversal
 
-def _friction_model(wall=True, drag=0.0):
+def _friction_model(wall=True, drag=0.0, sigma=3e-4):
     """What the identifier makes of insertion-only data: the whole static force as
-    friction (F = the measured force less the drag, S = 0), drag `drag` N s/m."""
+    friction (F = the measured force less the drag, S = 0), drag `drag` N s/m; sigma 0:
+    the stateless friction law."""
     nodes = [0.005 * i for i in range(17)]
     F = [_force(x, wall) for x in nodes]
-    return Impedance(0.0, 0.0, 0.0, 0.0, x0=0.0, dx=0.005, sigma=3e-4, beta=0.0,
+    return Impedance(0.0, 0.0, 0.0, 0.0, x0=0.0, dx=0.005, sigma=sigma, beta=0.0,
                      S=[0.0] * 17, F=F, B=[0.0] * 17, C=[drag] * 17)
 
 
@@ -145,12 +146,12 @@ def test_elastic_keep_hand_values():
 DRAG = 2.0         # N s/m: 0.02 N at 10 mm/s, in the measured force and the model
 
 
-def _inserted(wall=True, **kw):
+def _inserted(wall=True, sigma=3e-4, **kw):
     """A renderer fed the insertion from 10 to 56 mm at 10 mm/s (anchors every 0.5 mm,
     measured force = the vessel's static force + drag, the model: all of the static force
-    friction)."""
+    friction, presliding length sigma)."""
     ima = ImaRenderer(blend_time=0.0, max_rate=1e9, **kw)
-    m = _friction_model(wall, DRAG)
+    m = _friction_model(wall, DRAG, sigma)
     xd = 0.01
     z1, z2 = steady_states(xd, m.v_s, m.beta)
     for i in range(93):
@@ -180,6 +181,24 @@ def test_a_first_reversal_at_a_wall_keeps_half_its_elastic_force():
     # the elastic estimate at 54 mm is the wall's force (the trend fitted before 39 mm to
     # the measured force less the model's drag)
     assert on == pytest.approx(-f_ins - DRAG * 0.01 + 2.0 * ELASTIC_GAIN * e_wall, abs=2e-3)
+    assert on > off + 0.2
+
+
+def test_a_stateless_model_keeps_the_elastic_force_at_a_first_reversal_too():
+    """Tenth round: a stateless model (sigma 0, the friction follows the velocity) is split
+    into the anchor's friction direction and its change like a model with states
+    (`Impedance.force_z`); `force` ignored the states, so its flip was 0 and the wall was
+    flipped with the friction."""
+    x = 0.054
+    f_ins = _force(x)
+    e_wall = WALL[1] * (x - WALL[0])
+    z1 = math.tanh(-0.01 / 0.002)       # the stateless law's direction at -10 mm/s
+    off = _pull_back(_inserted(sigma=0.0, elastic_gain=None))
+    assert off == pytest.approx(f_ins * z1 - DRAG * 0.01, abs=2e-3)
+    on = _pull_back(_inserted(sigma=0.0))
+    # the trend is fitted to the measured force less the drag (not less the friction too)
+    assert on == pytest.approx(f_ins * z1 - DRAG * 0.01 - z1 * 2.0 * ELASTIC_GAIN * e_wall,
+                               abs=2e-3)
     assert on > off + 0.2
 
 

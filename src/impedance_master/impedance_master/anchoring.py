@@ -15,6 +15,11 @@ states and the model's miss there (rho = measured force - model force at the anc
   depths the slave has only moved inward at, the flip of the friction keeps the elastic
   share the measured force's growth in depth shows (`elastic_keep`, sixth round).
 
+The model is evaluated with the friction states given (`Impedance.force_z`), also for a
+stateless model (sigma 0, tenth round): `Impedance.force` takes the direction of x' there,
+which made the split into the anchor's friction direction (hold) and its change (flip)
+void, flip 0, so the elastic share never acted for it.
+
 Pure functions of (model, friction states, master state, anchor term, support): the
 renderer evaluates them on the master's state, the online score (`scoring`) on the
 slave's later samples with the support it had then. No rclpy, no numpy.
@@ -64,7 +69,7 @@ def anchor_term(model: Impedance, anchoring: str) -> Optional[AnchorTerm]:
 
 def anchored_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorTerm) -> float:
     """The anchored baseline at the master's state: the model plus its miss at the anchor."""
-    return m.force(x, xd, xdd, z) + a.rho
+    return m.force_z(x, xd, xdd, z) + a.rho
 
 
 def measured_slope(depth_slope: Optional[DepthSlope], max_slope: float, slope: float,
@@ -95,8 +100,8 @@ def elastic_keep(m: Impedance, x: float, za, sup: Support, elastic: ElasticShare
     direction is there (n_half / (n + n_half) of the outward anchors near x)."""
     n = sup.count(x, -1.0)
     w = sup.n_half / (n + sup.n_half)
-    f_ins = m.force(x, 0.0, 0.0, za)
-    e_model = m.force(x, 0.0, 0.0, (0.0, 0.0))
+    f_ins = m.force_z(x, 0.0, 0.0, za)
+    e_model = m.force_z(x, 0.0, 0.0, (0.0, 0.0))
     fr = f_ins - e_model
     e_est = gain * elastic.share(x, f_ins) * f_ins
     if not (fr > 0.0 and e_est > e_model):
@@ -114,29 +119,29 @@ def supported_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorT
     (weight (1 - c)^2): toward the anchored baseline. z: the friction states at x.
     Deeper than the data the model's own slope counts up to `max_model_slope` N/m."""
     za = (a.z1, a.z2)
-    hold = m.force(x, xd, xdd, za)          # the anchor's direction of friction
-    flip = m.force(x, xd, xdd, z) - hold    # the model's change of direction
+    hold = m.force_z(x, xd, xdd, za)          # the anchor's direction of friction
+    flip = m.force_z(x, xd, xdd, z) - hold    # the model's change of direction
     if elastic is not None and flip < 0.0 and a.z1 > 0.0:
         flip *= elastic_keep(m, x, za, sup, elastic, elastic_gain)
     c = sup.anywhere(x)
     lo, hi = sup.bracket(x) if c < 1.0 else (None, None)
     if lo is not None and hi is not None:
         if lo != hi:        # a gap between seen depths: the model's values at its edges
-            flo = m.force(lo, xd, xdd, za)
-            ext = flo + (m.force(hi, xd, xdd, za) - flo) * (x - lo) / (hi - lo)
+            flo = m.force_z(lo, xd, xdd, za)
+            ext = flo + (m.force_z(hi, xd, xdd, za) - flo) * (x - lo) / (hi - lo)
             hold += (1.0 - c) * (ext - hold)
     elif hi is not None:
         # shallower than the data: in proportion to the depth (friction and drag grow
         # with the inserted length from 0)
-        ext = m.force(hi, xd, xdd, za) * max(0.0, x) / hi
+        ext = m.force_z(hi, xd, xdd, za) * max(0.0, x) / hi
         hold += (1.0 - c) * (ext - hold)
     elif lo is not None:
         # deeper: the slope over SLOPE_STEP inside the data, never toward a smaller
         # |force| (friction grows with the length, a wall with the depth); where the
         # force at the edge is within SIGN_BAND of 0 its sign is unknown: the two
         # extensions are blended by it (a hard switch jumped as it crossed 0)
-        fs = m.force(lo, xd, xdd, za)
-        model_slope = (fs - m.force(lo - SLOPE_STEP, xd, xdd, za)) / SLOPE_STEP
+        fs = m.force_z(lo, xd, xdd, za)
+        model_slope = (fs - m.force_z(lo - SLOPE_STEP, xd, xdd, za)) / SLOPE_STEP
         u = min(1.0, max(0.0, 0.5 + 0.5 * fs / SIGN_BAND))
         ext = fs
         if u > 0.0:

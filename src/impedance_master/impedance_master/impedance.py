@@ -241,6 +241,16 @@ class Impedance:
         None uses the stateless steady-motion approximation. Ignored by linear and
         stateless (sigma = 0) models.
         """
+        if self.S is not None and (z is None or self.sigma == 0.0):
+            z = steady_states(xd, self.v_s, self.beta)
+        return self.force_z(x, xd, xdd, z)
+
+    def force_z(self, x: float, xd: float, xdd: float, z) -> float:
+        """Model force in N with the friction states z = (z1, z2) as given, also for a
+        stateless model (tenth round of issue 12): its friction in the direction the states
+        say, e.g. the anchor's, where `force` would take the direction of xd. The renderer's
+        split of the model into the anchor's friction and its change (`anchoring`) needs
+        it; with sigma > 0 it is `force(x, xd, xdd, z)`."""
         f = self.m * xdd + self.c * xd + self.k * x + self.offset
         S = self.S
         if S is None:
@@ -256,10 +266,7 @@ class Impedance:
             w = u - j
         w0 = 1.0 - w
         F, B, C = self.F, self.B, self.C
-        if z is None or self.sigma == 0.0:
-            z1, z2 = steady_states(xd, self.v_s, self.beta)
-        else:
-            z1, z2 = z
+        z1, z2 = z
         return (f + w0 * S[j] + w * S[j + 1]
                 + (w0 * F[j] + w * F[j + 1]) * z1 + (w0 * B[j] + w * B[j + 1]) * (z2 - z1)
                 + (w0 * C[j] + w * C[j + 1]) * xd)

@@ -376,8 +376,8 @@ class ImaRenderer(_Rendered):
                     self.depth_slope.add(a.x, a.xd, a.f, a.z1)
                 if self.elastic is not None:
                     za = (a.z1, a.z2)
-                    self.elastic.add(a.x, a.xd, a.f - new.force(a.x, a.xd, a.xdd, za)
-                                     + new.force(a.x, 0.0, 0.0, za), a.z1)
+                    self.elastic.add(a.x, a.xd, a.f - new.force_z(a.x, a.xd, a.xdd, za)
+                                     + new.force_z(a.x, 0.0, 0.0, za), a.z1)
                 if self.score is not None:
                     self.score.observe(new, term, a)
         self.model = new
