@@ -131,7 +131,13 @@ def _flat(m):
     return np.array(out)
 
 
-def _replay_same(stream, rtol=1e-9):
+# 1e-7 (1e-9 before): the third-difference prior on the friction tables (friction_kink
+# 1e5, eleventh round of issue 12) stiffens the normal equations; the two codes' rounding
+# then differs by up to 1.1e-8 of a value (2.7e-11 without it; phantom stream, 6 s)
+KINK_RTOL = 1e-7
+
+
+def _replay_same(stream, rtol=KINK_RTOL):
     new, ref = HistoryIdentifier(), BatchHistoryIdentifier()
     n = 0
     last = None
@@ -175,7 +181,7 @@ def test_other_settings_give_the_batch_references_models_too(params):
         if b is not None and b.valid:
             n += 1
             fa, fb = _flat(a), _flat(b)
-            assert np.all(np.abs(fa - fb) <= 1e-9 * np.maximum(np.abs(fb), 1e-3)), i
+            assert np.all(np.abs(fa - fb) <= KINK_RTOL * np.maximum(np.abs(fb), 1e-3)), i
     assert n > 1000
     if params.get('select_margin') == 0.0:          # switches on any better fit: 2 here
         assert ref.n_selections >= 2

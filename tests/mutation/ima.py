@@ -298,6 +298,19 @@ MUTANTS = [
            'the elastic share of a stateless model fed the measured force less its friction '
            'as well as its drag (the trend sees no friction: all of it read as a wall)',
            tests=('tests/impedance_master/test_elastic_share.py',)),
+    # -- eleventh round: the friction tables' third-difference prior
+    Mutant('I57', IM + 'history_params.py',
+           '    friction_kink: float = 1e5\n',
+           '    friction_kink: float = 0.0\n',
+           'the default identifier without the third-difference prior: its one-direction '
+           'friction table bends at a wall\'s knee',
+           tests=('tests/impedance_master/test_friction_kink.py',)),
+    Mutant('I58', IM + 'history_prior.py',
+           '        smooth = smooth + p.friction_kink * difference_gram(G, 3)',
+           '        smooth = smooth + p.friction_kink * difference_gram(G, 2)',
+           'the kink prior penalises curvature (second differences): a square-law friction '
+           'costs 100 x more and is flattened',
+           tests=('tests/impedance_master/test_friction_kink.py',)),
     # -- operator and vessel families (issue 12)
     Mutant('I16', IM + 'operator.py',
            '        self._amp = min((self.x_hi - self.x_lo) / span if span > 0 else math.inf,',

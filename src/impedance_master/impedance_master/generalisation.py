@@ -69,7 +69,11 @@ every other vessel x operator x seed, cold start.
   families and operators, 90 worlds): defined and committed during the eighth round,
   before its blind run of fresh7 and before the ninth round's design work, to be run once
   after a round's design is final. The ninth round kept no design change (its oracle
-  analysis, `oracle`, used the seen sets only) and did not run them: still held out.
+  analysis, `oracle`, used the seen sets only) and did not run them; nor did the tenth.
+  Run once after the eleventh round's design was final (friction_kink 1e5).
+* Ninth fresh held-out worlds (`drawn_cases(FRESH9_SEEDS)`, seeds 900-904, the same
+  families and operators, 90 worlds): defined and committed during the eleventh round,
+  before its blind run of fresh8, to be run once after a later round's design is final.
 """
 from __future__ import annotations
 
@@ -99,8 +103,10 @@ FRESH5_SEEDS = (500, 501, 502, 503, 504)
 FRESH6_SEEDS = (600, 601, 602, 603, 604)
 #: seeds of the eighth round's held-out worlds (run once, after its design was final)
 FRESH7_SEEDS = (700, 701, 702, 703, 704)
-#: seeds of the next held-out worlds (not run in the ninth round: no change was kept)
+#: seeds of the ninth round's held-out worlds (run once, after the eleventh round's design)
 FRESH8_SEEDS = (800, 801, 802, 803, 804)
+#: seeds of the next held-out worlds (defined in the eleventh round, not run yet)
+FRESH9_SEEDS = (900, 901, 902, 903, 904)
 
 
 @dataclass(frozen=True)
