@@ -13,6 +13,16 @@ QOS_SENSOR = qos_profile_sensor_data
 QOS_FAST = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=10,
                       reliability=QoSReliabilityPolicy.BEST_EFFORT,
                       durability=QoSDurabilityPolicy.VOLATILE)
+#: the link topics between the master and the slave (two machines in a deployment: the slave's
+#: /slave/force and /slave/impedance taken at the master, the master's /master/command taken at
+#: the slave): QOS_FAST's profile with a deeper receive queue, keep last 100 (100 ms at 1 kHz).
+#: The link must not lose what it was sent: with depth 10 a master process stalled 11.7 ms
+#: lost one /slave/force sample (DDS reporting none lost: the reader's own queue overflowed;
+#: scripts/bench system, split layout, 2026-12-03). A burst after a stall costs one callback a
+#: sample (10-40 us each). Compatible with QOS_FAST publishers.
+QOS_LINK = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=100,
+                      reliability=QoSReliabilityPolicy.BEST_EFFORT,
+                      durability=QoSDurabilityPolicy.VOLATILE)
 #: a 1 kHz state sampled at a lower rate by its consumer (the camera's 30 Hz frames take the
 #: robot's newest joint state): best effort, keep last 1. A consumer that is busy or preempted
 #: for a while takes one message afterwards, not the ten stale ones QOS_FAST would queue

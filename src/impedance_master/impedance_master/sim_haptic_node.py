@@ -15,6 +15,7 @@ Subscribes  /master/rendered_force  geometry_msgs/WrenchStamped (force.x N): the
             /slave/impedance (ImpedanceModel; a malformed one is refused), /slave/force
                                     sent into the master's side of the link (delay,
                                     jitter, loss, outages, latest wins; sim_slave.link.Link).
+                                    QOS_LINK (keep last 100: nothing lost after a stall).
 Parameters: rate Hz; experiment (I | II), operator.family (minjerk | sines | human: the
 motion family, impedance_master.operator) and seed of the scripted hand (held at its last position
 when the script ends); compliant_hand, hand_stiffness N/m, hand_damping N s/m;
@@ -39,7 +40,7 @@ from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.messages import impedance_fields, impedance_key
 from catheter_common.outgoing import CommandOut, WrenchOut
 from catheter_common.params import NodeParams, Param, table
-from catheter_common.qos import QOS_FAST
+from catheter_common.qos import QOS_FAST, QOS_LINK
 from catheter_common.ros_node import clock_ns, node_main
 from impedance_master.haptic import HapticDevice
 from impedance_master.operator import OPERATORS, experiment_trajectory
@@ -100,10 +101,11 @@ class SimHapticNode(Node):
         self.pub_hand = self.create_publisher(WrenchStamped, rel(T.MASTER_HAND_FORCE), QOS_FAST)
         self.create_subscription(WrenchStamped, rel(T.MASTER_RENDERED_FORCE), self._on_rendered,
                                  QOS_FAST)
-        self.create_subscription(ImpedanceModel, rel(T.SLAVE_IMPEDANCE), self._on_impedance,
-                                 QOS_FAST)
-        self.create_subscription(WrenchStamped, rel(T.SLAVE_FORCE), self._on_slave_force,
-                                 QOS_FAST)
+        # the link from the slave: every sample sent is taken, also after a stall (QOS_LINK)
+        self.sub_impedance = self.create_subscription(
+            ImpedanceModel, rel(T.SLAVE_IMPEDANCE), self._on_impedance, QOS_LINK)
+        self.sub_slave_force = self.create_subscription(
+            WrenchStamped, rel(T.SLAVE_FORCE), self._on_slave_force, QOS_LINK)
         # the 1 kHz tick's own objects: one message per stream, reused (serialised at publish,
         # catheter_common.outgoing), and the node clock (the same object for the node's life)
         self._cmd_out = CommandOut(T.FRAME_CATHETER_BASE)

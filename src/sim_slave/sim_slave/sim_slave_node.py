@@ -2,7 +2,7 @@
 
 Subscribes  master/command     catheter_interfaces/MasterCommand (position: insertion m,
                                rotation rad; velocity and acceleration are not used: the
-                               robot's own loop tracks the position), QOS_FAST. A command
+                               robot's own loop tracks the position), QOS_LINK. A command
                                with a non-finite position or rotation is refused (counted,
                                WARN). Every command goes through
                                the slave's side of the UDP-like link (delay, jitter, loss,
@@ -45,7 +45,7 @@ from catheter_common import topics as T
 from catheter_common.checks import finite
 from catheter_common.diagnostics import WARN, Diagnostics
 from catheter_common.params import NodeParams, Param, table
-from catheter_common.qos import QOS_FAST
+from catheter_common.qos import QOS_FAST, QOS_LINK
 from catheter_common.outgoing import set_stamp
 from catheter_common.ros_node import clock_ns, node_main
 from sim_slave.link import Link
@@ -158,8 +158,9 @@ class SimSlaveNode(Node):
             JointState, T.relative(T.SLAVE_JOINT_STATE_DECIMATED), QOS_FAST)
         self._dec_period_ns = int(round(1e9 / p['decimated_rate']))
         self._dec_last = None            # the decimated stream's last period index
+        # the link from the master: every command sent is taken, also after a stall (QOS_LINK)
         self.sub = self.create_subscription(MasterCommand, T.relative(T.MASTER_COMMAND),
-                                            self._on_command, QOS_FAST)
+                                            self._on_command, QOS_LINK)
         self.timer = self.create_timer(1.0 / self.rate, self._tick)
         self.diag.add_updater(self._stats_to_diag)
         self.get_logger().info(
