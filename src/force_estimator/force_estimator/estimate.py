@@ -12,7 +12,7 @@ Pure numpy; no rclpy.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Tuple
+from typing import Optional, Tuple
 
 import numpy as np
 
@@ -138,10 +138,19 @@ def bounded(force: np.ndarray, f_max: float):
     return f.copy(), False
 
 
+def unobservable_direction(cov: np.ndarray) -> Optional[np.ndarray]:
+    """(2,) unit vector of the weakest direction of a force covariance (2, 2) N^2 when its
+    std is above UNOBSERVABLE_STD (the shape does not determine the force along it), else
+    None. The one rule behind 'axial_unobservable' (`classify`) and the FAM inversion's held
+    warm start."""
+    w, v = np.linalg.eigh(cov)
+    return v[:, -1] if w[-1] > UNOBSERVABLE_STD ** 2 else None
+
+
 def classify(cov: np.ndarray, status: str = 'ok') -> str:
     """'axial_unobservable' for an otherwise ok estimate whose weakest direction has a
     std above UNOBSERVABLE_STD."""
-    if status == 'ok' and np.linalg.eigvalsh(cov)[-1] > UNOBSERVABLE_STD ** 2:
+    if status == 'ok' and unobservable_direction(cov) is not None:
         return 'axial_unobservable'
     return status
 

@@ -87,8 +87,8 @@ from typing import Optional
 
 import numpy as np
 
-from force_estimator.estimate import (DOMAIN_UNKNOWN, UNOBSERVABLE_STD, ForceEstimate, bounded,
-                                      domain_distance, failed_estimate, status_of)
+from force_estimator.estimate import (DOMAIN_UNKNOWN, ForceEstimate, bounded, domain_distance,
+                                      failed_estimate, status_of, unobservable_direction)
 from force_estimator.inputs import control_points_to_features
 from force_estimator.inputs import check_control_points
 from force_estimator.uncertainty import (ALIGN_SIGMA, FORCE_PRIOR, SHAPE_NOISE,
@@ -415,13 +415,20 @@ class FamInverseEstimator:
         Jacobian and residual, as `_result` takes them) when its std is above
         UNOBSERVABLE_STD (an estimate there is 'axial_unobservable'), else None."""
         n2 = 2 * self.n_points
-        res = float(np.sqrt(r[:n2] @ r[:n2] / self.n_points))
-        try:
-            lam, V = np.linalg.eigh(force_covariance(J[:n2], max(SHAPE_NOISE, res),
-                                                     FORCE_PRIOR))
-        except np.linalg.LinAlgError:
-            return None
-        return V[:, -1] if lam[-1] > UNOBSERVABLE_STD ** 2 else None
+        cov = self._covariance(J[:n2], float(np.sqrt(r[:n2] @ r[:n2] / self.n_points)))
+        return unobservable_direction(cov)
+
+    @staticmethod
+    def _covariance(J: np.ndarray, res: float) -> np.ndarray:
+        """Force covariance (2, 2) N^2 from the shape rows of the Jacobian (2 n_points, 4)
+        and the fit residual res m (shape noise SHAPE_NOISE per point, or res when larger);
+        the prior's alone when J is not usable."""
+        if np.isfinite(res) and np.all(np.isfinite(J)):
+            try:
+                return force_covariance(J, max(SHAPE_NOISE, res), FORCE_PRIOR)
+            except np.linalg.LinAlgError:
+                pass
+        return np.eye(2) * FORCE_PRIOR ** 2
 
     def estimate(self, control_points) -> FamInverseResult:
         """Full result for one observation: control_points (4, 3) m (z ignored), or (4, 2).
@@ -502,13 +509,7 @@ class FamInverseEstimator:
         """The estimate from the best solution: force bounded by f_max, covariance from the
         Jacobian (shape noise SHAPE_NOISE per point, or the fit residual when larger)."""
         force, clipped = bounded(f, self.f_max)
-        if J is not None and np.isfinite(res) and np.all(np.isfinite(J)):
-            try:
-                cov = force_covariance(J, max(SHAPE_NOISE, res), FORCE_PRIOR)
-            except np.linalg.LinAlgError:
-                cov = np.eye(2) * FORCE_PRIOR ** 2
-        else:
-            cov = np.eye(2) * FORCE_PRIOR ** 2
+        cov = self._covariance(J, res) if J is not None else np.eye(2) * FORCE_PRIOR ** 2
         status, msg = status_of(
             cov, (not conv, 'not_converged', 'the FAM inversion did not converge'),
             (not res <= self.max_residual, 'no_fit', lambda: f'no tip force explains the shape: '
