@@ -193,11 +193,31 @@ def report(title, todo, results, counted):
     print('(targets for the default: normal <= 0.5 x DFR, outage <= 0.25 x DFR)', flush=True)
 
 
+#: the held-out sections run one at a time by --section NAME (each once, after a round's
+#: design is final): name, seeds, title, note
+HELD_OUT = (
+    ('fresh2', FRESH2_SEEDS, 'second fresh held-out worlds',
+     "; held out from the third round's design work (seen in the fourth's)"),
+    ('fresh3', FRESH3_SEEDS, 'third fresh held-out worlds',
+     "; held out from the fourth round's design work (seen in the fifth's)"),
+    ('fresh4', FRESH4_SEEDS, 'fourth fresh held-out worlds',
+     "; held out from the fifth round's design work (seen in the sixth's)"),
+    ('fresh5', FRESH5_SEEDS, 'fifth fresh held-out worlds',
+     "; held out from the sixth round's design work (seen in the seventh's)"),
+    ('fresh6', FRESH6_SEEDS, 'sixth fresh held-out worlds',
+     "; held out from the seventh round's design work (seen in the eighth's)"),
+    ('fresh7', FRESH7_SEEDS, 'seventh fresh held-out worlds',
+     "; held out from the eighth round's design work (seen in the ninth's)"),
+    ('fresh8', FRESH8_SEEDS, 'eighth fresh held-out worlds',
+     "; held out from the ninth to the eleventh round's design work"),
+    ('fresh9', FRESH9_SEEDS, 'ninth fresh held-out worlds',
+     "; held out from the eleventh round's design work on"),
+)
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--section', default='all',
-                    choices=('dev', 'fresh', 'fresh2', 'fresh3', 'fresh4', 'fresh5', 'fresh6',
-                             'fresh7', 'fresh8', 'fresh9', 'all'))
+                    choices=('dev', 'fresh', *(h[0] for h in HELD_OUT), 'all'))
     ap.add_argument('--quick', action='store_true', help='one seed per section')
     ap.add_argument('--jobs', type=int, default=1, help='processes (cases in parallel)')
     ap.add_argument('--draw-seeds', default=None,
@@ -228,23 +248,7 @@ def main(argv=None):
                 ap.error('--draw-seeds must not name the held-out seeds 800-804, 900-904')
             title = f'development draws (seeds {seeds})'
         sections.append((seeds, title, note))
-    for name, all_seeds, title, note in (
-            ('fresh2', FRESH2_SEEDS, 'second fresh held-out worlds',
-             "; held out from the third round's design work (seen in the fourth's)"),
-            ('fresh3', FRESH3_SEEDS, 'third fresh held-out worlds',
-             "; held out from the fourth round's design work (seen in the fifth's)"),
-            ('fresh4', FRESH4_SEEDS, 'fourth fresh held-out worlds',
-             "; held out from the fifth round's design work (seen in the sixth's)"),
-            ('fresh5', FRESH5_SEEDS, 'fifth fresh held-out worlds',
-             "; held out from the sixth round's design work (seen in the seventh's)"),
-            ('fresh6', FRESH6_SEEDS, 'sixth fresh held-out worlds',
-             "; held out from the seventh round's design work (seen in the eighth's)"),
-            ('fresh7', FRESH7_SEEDS, 'seventh fresh held-out worlds',
-             "; held out from the eighth round's design work (seen in the ninth's)"),
-            ('fresh8', FRESH8_SEEDS, 'eighth fresh held-out worlds',
-             "; held out from the ninth to the eleventh round's design work"),
-            ('fresh9', FRESH9_SEEDS, 'ninth fresh held-out worlds',
-             "; held out from the eleventh round's design work")):
+    for name, all_seeds, title, note in HELD_OUT:
         if a.section == name:
             sections.append((list(all_seeds)[:1 if a.quick else None], title, note))
     for seeds, title, note in sections:
