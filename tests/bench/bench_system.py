@@ -34,6 +34,7 @@ The machine has 2 cores shared with other work: timings are noisy.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import pathlib
 import sys
@@ -48,11 +49,14 @@ for pkg in sorted((ROOT / 'src').iterdir()):
         sys.path.insert(0, str(pkg))
 os.environ.setdefault('CATHETER_WS_ROOT', str(ROOT))
 
+from catheter_bringup.stall_probe import StallProbe, coinciding  # noqa: E402
 from catheter_common.ros_testing import isolate_ros_env  # noqa: E402
 
 isolate_ros_env()
 
 ROWS = []
+#: run the machine stall probe beside the real-time runs (--no-probe: without)
+PROBE = True
 
 
 def row(what, ours, ref, unit='', ratio=None, fmt='{:.3g}'):
@@ -204,15 +208,16 @@ def cpu_share(rt):
 def realtime(duration):
     """The split layout beside the one-process layout, quiet and with one core busy."""
     import tempfile as tf
-    runs = {}
+    runs, probes = {}, {}
     with tf.TemporaryDirectory() as tmp:
         for load in ('quiet', 'loaded'):
             for layout in ('one', 'split'):
-                if load == 'loaded':
-                    with CpuLoad():
-                        runs[load, layout] = realtime_run(layout, duration, tmp)
-                else:
+                with contextlib.ExitStack() as stack:
+                    if load == 'loaded':
+                        stack.enter_context(CpuLoad())
+                    probe = stack.enter_context(StallProbe()) if PROBE else None
                     runs[load, layout] = realtime_run(layout, duration, tmp)
+                probes[load, layout] = probe
     ref = bare_timer(duration)
     for load in ('quiet', 'loaded'):
         note(f'-- real time {duration:g} s Exp. II, {load}'
@@ -237,6 +242,30 @@ def realtime(duration):
             row('    period p50', a['p50_ms'], b['p50_ms'], ' ms', fmt='{:.3f}')
             row(f'    period p99, target {tgt_p}', a['p99_ms'], b['p99_ms'], ' ms', fmt='{:.3f}')
             row('    period max', a['max_ms'], b.get('max_ms', float('nan')), ' ms', fmt='{:.2f}')
+            probe = probes[load, 'split']
+            if probe is not None and a.get('gaps') is not None:
+                gaps = a['gaps']
+                cpus = r_split.processes.get(proc, {}).get('cpus')
+                hit = coinciding(gaps, probe.stalls_on(cpus))
+                lost = sum(round(g[1]) - 1 for g in gaps)
+                lost_hit = sum(round(g[1]) - 1 for g, h in zip(gaps, hit, strict=True) if h)
+                note('    gaps > 2 ms: n (ticks missed), of them in a machine stall of '
+                     + (f'CPU {cpus}' if cpus else 'a CPU'),
+                     f'{len(gaps)} ({lost}), {sum(hit)} ({lost_hit})'
+                     + (f"; longest {max(g[1] for g in gaps):.1f} ms at "
+                        f"{gaps[int(np.argmax([g[1] for g in gaps]))][0] - probe.t_start:.2f} s"
+                        if gaps else ''))
+        probe = probes[load, 'split']
+        if probe is not None:
+            sm = probe.summary()
+            cpus = sorted(probe.stalls)
+            note('  machine stalls in the split run (probe: SCHED_FIFO 99 per CPU, wake-ups '
+                 '> 1 ms late): n / longest per CPU, on every CPU at once',
+                 ', '.join(f"cpu{c} {sm[f'cpu{c}_n']} / {sm[f'cpu{c}_max_ms']:.1f} ms"
+                           for c in cpus)
+                 + (f", together {sm['together']}" if 'together' in sm else '')
+                 + f" in {sm['span_s']:.1f} s ({'; '.join(sorted(set(probe.scheduling.values())))})"
+                 + (f'; probe errors: {probe.errors}' if probe.errors else ''))
         lt = lat_split.get('/catheter/tip_wrench')
         lo = lat_one.get('/catheter/tip_wrench')
         if lt and lt['n'] > 0:
@@ -545,7 +574,12 @@ def main():
     ap.add_argument('--split-only', action='store_true',
                     help='only part 2 (the split layout beside the one process, quiet and '
                          'loaded) and its callback costs')
+    ap.add_argument('--no-probe', action='store_true',
+                    help='without the machine stall probe beside the real-time runs (it costs '
+                         'each CPU one wake-up per ms at SCHED_FIFO 99)')
     a = ap.parse_args()
+    global PROBE
+    PROBE = not a.no_probe
     print(f'bench_system on {os.cpu_count()} cores, load average at start '
           f'{os.getloadavg()[0]:.1f} (timings compare within this run)')
     if a.split_only:

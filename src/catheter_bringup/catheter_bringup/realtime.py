@@ -291,10 +291,19 @@ def cpu_delta(before: Dict[str, float], after: Dict[str, float]) -> Dict[str, fl
             if v - before.get(k, 0.0) > 0}
 
 
+#: a period longer than this (s) is a gap of a 1 kHz stream: at least one tick was missed
+GAP_S = 2e-3
+#: at most this many gaps are listed per stream (the longest kept)
+MAX_GAPS = 500
+
+
 def stream_stats(times_s, skip_fraction: float = 0.1) -> Dict[str, float]:
     """Rate and period statistics of a stream from its publish times (s, increasing): the
     first `skip_fraction` of the samples (start-up) left out. n, rate_hz, p50_ms, p99_ms,
-    max_ms; a stream with fewer than 3 samples left gives n and NaNs."""
+    max_ms, and gaps: [start s, length ms] of each period longer than `GAP_S` (time order;
+    the `MAX_GAPS` longest), for telling the process's own stalls from the machine's
+    (`stall_probe.coinciding`); a stream with fewer than 3 samples left gives n, NaNs and
+    no gaps."""
     import numpy as np
     if not 0.0 <= skip_fraction < 1.0:
         raise ValueError(f'skip_fraction must be in [0, 1), got {skip_fraction!r}')
@@ -304,14 +313,19 @@ def stream_stats(times_s, skip_fraction: float = 0.1) -> Dict[str, float]:
     t = t[int(len(t) * skip_fraction):]
     nan = float('nan')
     if t.size < 3:
-        return {'n': int(t.size), 'rate_hz': nan, 'p50_ms': nan, 'p99_ms': nan, 'max_ms': nan}
+        return {'n': int(t.size), 'rate_hz': nan, 'p50_ms': nan, 'p99_ms': nan, 'max_ms': nan,
+                'gaps': []}
     d = np.diff(t)
     if np.any(d < 0):
         raise ValueError('times_s must be non-decreasing')
     span = t[-1] - t[0]
+    big = np.flatnonzero(d > GAP_S)
+    if big.size > MAX_GAPS:
+        big = np.sort(big[np.argsort(d[big], kind='stable')[-MAX_GAPS:]])
     return {'n': int(t.size), 'rate_hz': float((t.size - 1) / span) if span > 0 else nan,
             'p50_ms': float(np.percentile(d, 50) * 1e3),
-            'p99_ms': float(np.percentile(d, 99) * 1e3), 'max_ms': float(d.max() * 1e3)}
+            'p99_ms': float(np.percentile(d, 99) * 1e3), 'max_ms': float(d.max() * 1e3),
+            'gaps': [[float(t[i]), float(d[i] * 1e3)] for i in big]}
 
 
 def latency_stats(lat_s, skip: int = 2) -> Dict[str, float]:
