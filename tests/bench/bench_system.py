@@ -57,6 +57,8 @@ isolate_ros_env()
 ROWS = []
 #: run the machine stall probe beside the real-time runs (--no-probe: without)
 PROBE = True
+#: scenario overrides of every real-time run (--set)
+EXTRA_SETS: list = []
 
 
 def row(what, ours, ref, unit='', ratio=None, fmt='{:.3g}'):
@@ -184,7 +186,7 @@ def realtime_run(layout, duration, tmp, record=()):
     from catheter_bringup.runner import ScenarioRunner
     from catheter_bringup.scenario import load_scenario
     sets = ['mode=realtime', f'duration={duration}', f'link.loss={INJECTED_LOSS}',
-            f'layout={layout}']
+            f'layout={layout}'] + list(EXTRA_SETS)
     if layout == 'one':
         sets.append('realtime_processes=1')          # every node in this one process
     sc = apply_overrides(load_scenario('experiment_ii'), sets)
@@ -577,9 +579,16 @@ def main():
     ap.add_argument('--no-probe', action='store_true',
                     help='without the machine stall probe beside the real-time runs (it costs '
                          'each CPU one wake-up per ms at SCHED_FIFO 99)')
+    ap.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
+                    help='a scenario override for every real-time run (as run_scenario --set), '
+                         'e.g. realtime_cpu_latency_us=0 for runs that hold a CPU latency '
+                         'request of 0 us')
     a = ap.parse_args()
     global PROBE
     PROBE = not a.no_probe
+    EXTRA_SETS[:] = a.set
+    if a.set:
+        print('real-time runs with ' + ', '.join(a.set))
     print(f'bench_system on {os.cpu_count()} cores, load average at start '
           f'{os.getloadavg()[0]:.1f} (timings compare within this run)')
     if a.split_only:

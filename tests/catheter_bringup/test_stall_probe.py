@@ -3,6 +3,7 @@ that it is compared with: a stall made on purpose is seen, overlap is decided ri
 import json
 import os
 import signal
+import struct
 import subprocess
 import sys
 import time
@@ -126,3 +127,54 @@ def test_stall_probe_summary_and_selection_hand_checked():
     assert sm['together'] == 1                 # only the stall at 1 s is on both CPUs
     assert probe.stalls_on([1]) == [[1.0005, 4.0], [7.0, 9.0]]
     assert probe.stalls_on(None) == [[1.0, 3.0], [1.0005, 4.0], [5.0, 2.0], [7.0, 9.0]]
+
+
+def test_hold_cpu_latency_writes_the_request_and_keeps_it_open(tmp_path):
+    path = tmp_path / 'cpu_dma_latency'
+    path.write_bytes(b'')
+    req = R.hold_cpu_latency(7, log=lambda m: None, path=str(path))
+    assert req is not None and req.held and repr(req) == 'CPU latency 7 us'
+    assert path.read_bytes() == struct.pack('=i', 7)      # one s32, native byte order
+    fd = req._fd
+    os.fstat(fd)                                            # still open: the request holds
+    req.close()
+    assert not req.held and 'withdrawn' in repr(req)
+    with pytest.raises(OSError):
+        os.fstat(fd)
+    req.close()                                             # twice is harmless
+
+
+def test_hold_cpu_latency_refuses_bad_values_and_says_when_it_cannot(tmp_path):
+    for bad in (-1, 1.5, True, None):
+        with pytest.raises(ValueError, match='us must be'):
+            R.hold_cpu_latency(bad, log=lambda m: None, path=str(tmp_path / 'x'))
+    said = []
+    assert R.hold_cpu_latency(0, log=said.append, path=str(tmp_path / 'missing' / 'x')) is None
+    assert len(said) == 1 and 'CPU latency request not made' in said[0]
+
+
+def test_hold_cpu_latency_on_this_machine():
+    """The real device: while held, the kernel's aggregate request (what reading the device
+    returns) is 0; without the permission nothing is held and one line says why."""
+    path = R.CPU_DMA_LATENCY
+    said = []
+    req = R.hold_cpu_latency(0, log=said.append)
+    if not (os.path.exists(path) and os.access(path, os.R_OK | os.W_OK)):
+        assert req is None and len(said) == 1
+        return
+    try:
+        assert req is not None and said == []
+        with open(path, 'rb') as f:
+            assert struct.unpack('=i', f.read(4))[0] == 0
+    finally:
+        req.close()
+
+
+def test_scenario_cpu_latency_field():
+    from catheter_bringup.overrides import apply_overrides
+    from catheter_bringup.scenario import load_scenario
+    sc = load_scenario('experiment_ii')
+    assert sc['realtime_cpu_latency_us'] == -1           # off unless asked for
+    assert apply_overrides(sc, ['realtime_cpu_latency_us=0'])['realtime_cpu_latency_us'] == 0
+    with pytest.raises(ValueError, match='realtime_cpu_latency_us'):
+        apply_overrides(sc, ['realtime_cpu_latency_us=-2'])

@@ -21,11 +21,20 @@ the collector's pauses.
   the same executor wake-up.
 - `worker_cpus` / `pin_process`: the split layout's CPU placement: the master process on
   one CPU, the vision process on another (see `worker_cpus`).
+- `hold_cpu_latency`: a PM QoS CPU latency request (``/dev/cpu_dma_latency``) held while
+  the loops run (scenario ``realtime_cpu_latency_us``, off by default), so an idle CPU
+  waits for the next tick polling instead of halting. On the benchmark machine (a virtual
+  machine) a halted virtual CPU is woken by the host late by 1-15 ms about 1.5 times a
+  second (`stall_probe`), which no priority inside the machine can prevent; polling removes
+  those but the host then holds the whole machine for about 100 ms every few seconds (its
+  CPU budget spent polling), so it stays off there. On a machine with dedicated cores it
+  is the usual real-time setting.
 """
 from __future__ import annotations
 
 import gc
 import os
+import struct
 import time
 from typing import Callable, Dict, List, Optional
 
@@ -94,6 +103,57 @@ def set_nice(nice: int, log: Callable[[str], None] = print) -> Optional[int]:
         log(f'[run] nice {nice} not permitted (needs root or CAP_SYS_NICE): normal priority')
         return None
     return old
+
+
+#: the PM QoS CPU latency device of Linux: a request (s32, us) holds while the file is open
+CPU_DMA_LATENCY = '/dev/cpu_dma_latency'
+
+
+class CpuLatencyRequest:
+    """An open PM QoS CPU latency request (`hold_cpu_latency`); `close()` withdraws it (the
+    kernel also does when the process ends)."""
+
+    def __init__(self, fd: int, us: int, path: str):
+        self._fd: Optional[int] = fd
+        self.us = us
+        self.path = path
+
+    @property
+    def held(self) -> bool:
+        return self._fd is not None
+
+    def close(self) -> None:
+        if self._fd is not None:
+            fd, self._fd = self._fd, None
+            os.close(fd)
+
+    def __repr__(self) -> str:
+        return f'CPU latency {self.us} us' + ('' if self.held else ' (withdrawn)')
+
+
+def hold_cpu_latency(us: int, log: Callable[[str], None] = print,
+                     path: str = CPU_DMA_LATENCY) -> Optional[CpuLatencyRequest]:
+    """Ask the kernel to keep every CPU's wake-up latency at most `us` microseconds (0: no
+    idle state deeper than polling) until the returned request is closed: the real-time
+    practice of cyclictest and of RT robot controllers. The price: idle CPUs poll while it
+    is held (a host sees them busy; on the benchmark machine that drew ~100 ms stalls of the
+    whole virtual machine: package README, "Benchmark"). Returns None when the device is
+    missing or not writable (needs root; one log line, nothing changed)."""
+    if isinstance(us, bool) or not isinstance(us, int) or not 0 <= us <= 2_000_000_000:
+        raise ValueError(f'us must be an int in 0..2000000000, got {us!r}')
+    try:
+        fd = os.open(path, os.O_WRONLY)
+    except OSError as exc:
+        log(f'[run] CPU latency request not made ({path}: {exc.strerror or exc}): idle CPUs '
+            'may halt between ticks')
+        return None
+    try:
+        os.write(fd, struct.pack('=i', us))
+    except OSError as exc:
+        os.close(fd)
+        log(f'[run] CPU latency request refused ({path}: {exc.strerror or exc})')
+        return None
+    return CpuLatencyRequest(fd, us, path)
 
 
 #: where Linux keeps the autogroup (session) of the calling process and the group's nice

@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import signal
 import subprocess
 import sys
@@ -48,24 +49,31 @@ def _check_positive(name: str, value: float) -> float:
 def probe_loop(period_s: float = PERIOD_S, threshold_s: float = THRESHOLD_S,
                seconds: Optional[float] = None, stop=lambda: False) -> List[List[float]]:
     """Sleep `period_s` at a time until `seconds` have passed or `stop()` is true; return
-    [due time s (monotonic), lateness ms] of every wake-up later than `threshold_s`."""
+    [due time s (monotonic), lateness ms, major page faults, involuntary context switches]
+    of every wake-up later than `threshold_s` (the last two counted over that period: a
+    stall with neither was not this operating system's doing - the CPU was taken away)."""
     period_s = _check_positive('period_s', period_s)
     threshold_s = _check_positive('threshold_s', threshold_s)
     if seconds is not None:
         seconds = _check_positive('seconds', seconds)
     mono = time.monotonic
+    usage = resource.getrusage
+    me = resource.RUSAGE_SELF
     t0 = mono()
     end = t0 + seconds if seconds is not None else float('inf')
     due = t0 + period_s
     out: List[List[float]] = []
     while True:
+        before = usage(me)
         wait = due - mono()
         if wait > 0:
             time.sleep(wait)
         woke = mono()
         late = woke - due
         if late > threshold_s:
-            out.append([round(due, 6), round(late * 1e3, 3)])
+            after = usage(me)
+            out.append([round(due, 6), round(late * 1e3, 3),
+                        after.ru_majflt - before.ru_majflt, after.ru_nivcsw - before.ru_nivcsw])
         if woke >= end or stop():
             return out
         due += period_s

@@ -14,7 +14,8 @@ from catheter_bringup.rclpy_adapter import (fire_timer, never_done, set_times, s
                                             wrap_timer_callback)
 from catheter_bringup.realtime import (GcWatch, counts_since, cpu_delta, latency_stats,
                                        own_autogroup, quiet_gc, reset_priority,
-                                       set_fifo_priority, set_nice, stream_stats, thread_cpu)
+                                       set_fifo_priority, set_nice, stream_stats, thread_cpu,
+                                       hold_cpu_latency)
 
 #: ns, real time with the local bus: how often DDS is polled for subscriptions outside the bus
 #: (the image worker's 30 Hz topics). One poll builds an rclpy wait set, 0.3-1.4 ms measured:
@@ -202,6 +203,11 @@ class Stepping:
         fifo = set_fifo_priority(prio, self.log) if prio > 0 and loops else None
         if fifo:
             info['scheduling'] = fifo
+        lat_us = int(self.scenario.get('realtime_cpu_latency_us', -1))
+        latency = hold_cpu_latency(lat_us, self.log) if prio > 0 and loops and lat_us >= 0 \
+            else None
+        if latency is not None:
+            info['scheduling'] += f', {latency!r}'
         old_nice = None
         if prio > 0 and self.process == 'vision':
             old_nice = set_nice(VISION_NICE, self.log)
@@ -240,6 +246,8 @@ class Stepping:
             undo()
             if fifo:
                 reset_priority()
+            if latency is not None:
+                latency.close()
             if old_nice is not None:
                 set_nice(old_nice, self.log)
             info['gc'] = watch.summary()
