@@ -275,6 +275,13 @@ def realtime(duration):
                 lt['p99_ms'], lo['p99_ms'] if lo and lo['n'] else float('nan'), ' ms',
                 fmt='{:.1f}')
             note('    estimates (split / one)', f"{lt['n']} / {lo['n'] if lo else 0}")
+            probe = probes[load, 'split']
+            if probe is not None and lt.get('slow') is not None:
+                cpus = r_split.processes.get('vision', {}).get('cpus')
+                hit = coinciding(lt['slow'], probe.stalls_on(cpus))
+                note('    estimates over 33 ms, of them with a machine stall of '
+                     + (f'CPU {cpus}' if cpus else 'a CPU') + ' while in flight',
+                     f"{len(lt['slow'])}, {sum(hit)}")
         else:
             note('image -> tip force latency (split)', 'no estimate in the run')
         link = r_split.processes.get('link', {})

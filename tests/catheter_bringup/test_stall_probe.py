@@ -178,3 +178,15 @@ def test_scenario_cpu_latency_field():
     assert apply_overrides(sc, ['realtime_cpu_latency_us=0'])['realtime_cpu_latency_us'] == 0
     with pytest.raises(ValueError, match='realtime_cpu_latency_us'):
         apply_overrides(sc, ['realtime_cpu_latency_us=-2'])
+
+
+def test_latency_stats_lists_the_slow_ones_with_their_start():
+    lat = [0.5, 0.5, 0.020, 0.040, 0.010, 0.0331]        # the first two: start-up, left out
+    t = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    s = R.latency_stats(lat, times_s=t)
+    assert s['n'] == 4
+    assert [[round(a, 6), round(b, 6)] for a, b in s['slow']] == [[3.96, 40.0], [5.9669, 33.1]]
+    assert 'slow' not in R.latency_stats(lat)
+    with pytest.raises(ValueError, match='times_s'):
+        R.latency_stats(lat, times_s=t[:-1])
+    assert R.latency_stats([0.1], times_s=[1.0])['slow'] == []      # all start-up

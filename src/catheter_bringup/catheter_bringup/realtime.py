@@ -388,17 +388,34 @@ def stream_stats(times_s, skip_fraction: float = 0.1) -> Dict[str, float]:
             'gaps': [[float(t[i]), float(d[i] * 1e3)] for i in big]}
 
 
-def latency_stats(lat_s, skip: int = 2) -> Dict[str, float]:
-    """n, p50_ms, p99_ms, max_ms of latencies (s), the first `skip` left out (start-up)."""
+#: ms, a latency above this is listed by `latency_stats` (the image -> tip force target)
+SLOW_MS = 33.0
+
+
+def latency_stats(lat_s, skip: int = 2, times_s=None) -> Dict[str, float]:
+    """n, p50_ms, p99_ms, max_ms of latencies (s), the first `skip` left out (start-up).
+    With `times_s` (when each latency was noted, s, as many): also slow, [[start s, latency
+    ms], ...] of each latency above `SLOW_MS`, its start being the time noted less the
+    latency (for `stall_probe.coinciding`)."""
     import numpy as np
     a = np.asarray(lat_s, dtype=float)[skip:]
     if a.ndim != 1 or not np.all(np.isfinite(a)):
         raise ValueError('lat_s must be a 1-D sequence of finite latencies')
+    t = None
+    if times_s is not None:
+        t = np.asarray(times_s, dtype=float)[skip:]
+        if t.shape != a.shape or not np.all(np.isfinite(t)):
+            raise ValueError('times_s must be finite times, one per latency')
     nan = float('nan')
     if a.size == 0:
-        return {'n': 0, 'p50_ms': nan, 'p99_ms': nan, 'max_ms': nan}
-    return {'n': int(a.size), 'p50_ms': float(np.percentile(a, 50) * 1e3),
-            'p99_ms': float(np.percentile(a, 99) * 1e3), 'max_ms': float(a.max() * 1e3)}
+        out = {'n': 0, 'p50_ms': nan, 'p99_ms': nan, 'max_ms': nan}
+    else:
+        out = {'n': int(a.size), 'p50_ms': float(np.percentile(a, 50) * 1e3),
+               'p99_ms': float(np.percentile(a, 99) * 1e3), 'max_ms': float(a.max() * 1e3)}
+    if t is not None:
+        out['slow'] = [[float(t[i] - a[i]), float(a[i] * 1e3)]
+                       for i in np.flatnonzero(a * 1e3 > SLOW_MS)]
+    return out
 
 
 def counts_since(before: Dict[str, int], now: Dict[str, int], keys) -> Dict[str, int]:

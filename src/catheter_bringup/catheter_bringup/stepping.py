@@ -255,7 +255,10 @@ class Stepping:
             if self.bus is not None and self.bus.times is not None:
                 info['streams'] = {t: stream_stats(v) for t, v in self.bus.times.items()
                                    if len(v) >= 10}
-                info['latency'] = {t: latency_stats(v) for t, v in self.bus.latency.items()}
+                # with when each was noted, where every publish of the topic gave one
+                info['latency'] = {t: latency_stats(
+                    v, times_s=self.bus.times.get(t) if len(self.bus.times.get(t, ())) == len(v)
+                    else None) for t, v in self.bus.latency.items()}
                 info['link_sent'] = {t: list(v) for t, v in self.bus.sent.items()}
                 info['link_taken'] = {t: list(v) for t, v in self.bus.taken.items()}
                 # what DDS reported lost of them while the loop ran (transport / sender)
