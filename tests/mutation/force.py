@@ -122,9 +122,26 @@ MUTANTS = [
            'the held start steps along the weak direction instead of across it',
            tests=('tests/force_estimator/test_fam_inverse.py',)),
     Mutant('E25', P + 'fam_inverse.py',
-           "                obs, f0, hold=kind == 'hold' and self.hold_unobservable)",
-           "                obs, f0, hold=self.hold_unobservable)",
+           "                obs, f0, hold=({'hold': 'held', 'warm': 'warm'}.get(kind, '')",
+           "                obs, f0, hold=({'hold': 'held', 'warm': 'warm'}.get(kind, 'warm')",
            'every start held, the table starts and the warm start after an ok estimate too '
            '(their force along a weak direction kept wherever they started)',
+           tests=('tests/force_estimator/test_fam_inverse.py',)),
+    # -- issue 15, 2026-12-03: the warm start after an ok estimate held too
+    Mutant('E26', P + 'fam_inverse.py',
+           "                obs, f0, hold=({'hold': 'held', 'warm': 'warm'}.get(kind, '')",
+           "                obs, f0, hold=({'hold': 'held'}.get(kind, '')",
+           'the warm start after an ok estimate moves freely (a straight frame after a bent '
+           'one crawls: 9 solves)', tests=('tests/force_estimator/test_fam_inverse.py',)),
+    Mutant('E27', P + 'fam_inverse.py',
+           '            if v is not None and dropped < 3 and abs(float(x[:2] @ v)) > self.tol:',
+           '            if v is not None and dropped < 1 and abs(float(x[:2] @ v)) > self.tol:',
+           'the force along the weak direction dropped once only (a pull stays 93 mN on a '
+           'straight frame)', tests=('tests/force_estimator/test_fam_inverse.py',)),
+    Mutant('E28', P + 'fam_inverse.py',
+           "            v = self._unobservable(J, r if hold == 'held' else None) if hold else None",
+           "            v = self._unobservable(J, r) if hold else None",
+           'the warm start judged with the residual of a point far from the fit: every '
+           'streamed ok frame taken for unobservable (5 solves instead of 2)',
            tests=('tests/force_estimator/test_fam_inverse.py',)),
 ]

@@ -63,7 +63,12 @@ the threshold and the iteration moves freely. The contact-onset frame after
 straight ones (0.2 mN lateral) had its fit at the shape noise after one solve, then crawled
 along the axial direction through cost changes below one noise unit, 8 solves without
 converging, and then through two table starts: 17 solves, 'not_converged' (force_estimator
-README, round 10).
+README, round 10). The warm start after any other estimate is held the same way where it
+reaches such a point (judged with the shape noise alone: a start still far from the new
+frame's fit is not unobservable because of its residual), after setting the force along
+the weak direction to the prior's mean there (again if the direction turns, at most 3
+times): a straight frame after a bent one took 9 solves crawling along the axial
+direction, now 5-6, with the same answer (issue 15, 2026-12-03).
 
 A weak prior on the force (`FORCE_PRIOR`, the force range, per component) keeps the
 iteration where the shape says nothing: an axial pull leaves an inextensible catheter
@@ -136,9 +141,10 @@ class FamInverseEstimator:
     used only by this and "batch") or "batch" (one `solve_fam_batch` call of three forces
     per iteration). max_solves: no further start begins once an estimate has spent this
     many FAM solves (the best so far is its answer): bounds an estimate's cost at about
-    max_solves + one start's. hold_unobservable: after an 'axial_unobservable' estimate, the
-    warm start keeps the force along the weak direction at the prior's mean while the shape
-    does not determine it (False: it moves freely, as before round 10; for comparisons).
+    max_solves + one start's. hold_unobservable: the warm start keeps the force along the
+    weak direction at the prior's mean while the shape does not determine it (after an
+    'axial_unobservable' estimate from the start, after another where it gets there; False:
+    it moves freely, as before round 10; for comparisons).
     """
 
     def __init__(self, cat, n_arcs: int = 12, n_points: int = 24, f_max: float = 0.45,
@@ -350,9 +356,16 @@ class FamInverseEstimator:
             return r, J, np.inf
         return r, J, cost
 
-    def _solve(self, obs: np.ndarray, x0: np.ndarray, hold: bool = False):
+    def _solve(self, obs: np.ndarray, x0: np.ndarray, hold: str = ''):
         """LM from x0 = (fx, fy[, delta, eps]). Returns (x = (fx, fy, delta, eps), shape cost,
-        iterations, FAM solves, converged); the shape cost excludes the prior rows."""
+        iterations, FAM solves, converged); the shape cost excludes the prior rows.
+
+        hold ('' none): where the force along the weakest direction is unobservable at the
+        current point, step only across it, after setting it once to the prior's mean (0).
+        'held' (the start after an 'axial_unobservable' estimate, already at 0 there): the
+        point's covariance with its residual, as the estimate's; 'warm' (the start after any
+        other estimate): with the shape noise alone, so a start still far from the new
+        frame's fit is not taken for unobservable by its residual."""
         # returns (x, x_eval, ...): x_eval is the last evaluated point (its FAM shape is
         # cached), x may be one Gauss-Newton step below the tolerance beyond it
         x = np.zeros(4)
@@ -365,10 +378,23 @@ class FamInverseEstimator:
         xe = x                                   # the last x with a FAM solve behind it
         mu = 1e-4
         converged = False
+        dropped = 0
         it = 0
         n2 = 2 * self.n_points
         for it in range(1, self.max_iter + 1):  # noqa: B007 (the count is returned)
-            v = self._unobservable(J, r) if hold else None
+            v = self._unobservable(J, r if hold == 'held' else None) if hold else None
+            if v is not None and dropped < 3 and abs(float(x[:2] @ v)) > self.tol:
+                # found unobservable here: the force along v to the prior's mean (0), then
+                # held there (again if the direction turns as the shape changes, at most 3
+                # times)
+                dropped += 1
+                xd = x.copy()
+                xd[:2] -= float(x[:2] @ v) * v
+                rd, Jd, cd = self._eval(xd, obs)
+                if np.isfinite(cd):
+                    x, r, J, cost = xd, rd, Jd, cd
+                    xe = x
+                    v = self._unobservable(J, r if hold == 'held' else None)
             if v is None:
                 A = J.T @ J
                 step = -np.linalg.solve(A + mu * np.diag(np.diag(A)) + 1e-30 * np.eye(4),
@@ -410,12 +436,14 @@ class FamInverseEstimator:
         shape_cost = float(r[:n2] @ r[:n2])
         return x, xe, shape_cost, it, self._n_solves - n0, converged, J[:n2].copy()
 
-    def _unobservable(self, J: np.ndarray, r: np.ndarray) -> Optional[np.ndarray]:
+    def _unobservable(self, J: np.ndarray, r: Optional[np.ndarray]) -> Optional[np.ndarray]:
         """The weakest direction (2,) of the force covariance at the current point (J, r: its
-        Jacobian and residual, as `_result` takes them) when its std is above
+        Jacobian and residual, as `_result` takes them; r None: the shape noise alone, not
+        a residual of a point still far from the fit) when its std is above
         UNOBSERVABLE_STD (an estimate there is 'axial_unobservable'), else None."""
         n2 = 2 * self.n_points
-        cov = self._covariance(J[:n2], float(np.sqrt(r[:n2] @ r[:n2] / self.n_points)))
+        res = 0.0 if r is None else float(np.sqrt(r[:n2] @ r[:n2] / self.n_points))
+        cov = self._covariance(J[:n2], res)
         return unobservable_direction(cov)
 
     @staticmethod
@@ -488,7 +516,8 @@ class FamInverseEstimator:
             if kind == 'table':
                 self._prev_shape = None        # a far warm start could pick another branch
             x, xe, cost, it, solves, conv, J = self._solve(
-                obs, f0, hold=kind == 'hold' and self.hold_unobservable)
+                obs, f0, hold=({'hold': 'held', 'warm': 'warm'}.get(kind, '')
+                              if self.hold_unobservable else ''))
             total += solves
             res = float(np.sqrt(cost / self.n_points))
             if best is None or res < best[1]:
