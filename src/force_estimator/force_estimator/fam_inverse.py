@@ -356,16 +356,13 @@ class FamInverseEstimator:
             return r, J, np.inf
         return r, J, cost
 
-    def _solve(self, obs: np.ndarray, x0: np.ndarray, hold: str = ''):
+    def _solve(self, obs: np.ndarray, x0: np.ndarray, hold: bool = False):
         """LM from x0 = (fx, fy[, delta, eps]). Returns (x = (fx, fy, delta, eps), shape cost,
         iterations, FAM solves, converged); the shape cost excludes the prior rows.
 
-        hold ('' none): where the force along the weakest direction is unobservable at the
-        current point, step only across it, after setting it once to the prior's mean (0).
-        'held' (the start after an 'axial_unobservable' estimate, already at 0 there): the
-        point's covariance with its residual, as the estimate's; 'warm' (the start after any
-        other estimate): with the shape noise alone, so a start still far from the new
-        frame's fit is not taken for unobservable by its residual."""
+        hold: where the force along the weakest direction is unobservable at the current point
+        (`_unobservable`), set it to the prior's mean (0) and step only across it (the warm
+        starts; not the table's: held there, the benchmark frames' errors grew)."""
         # returns (x, x_eval, ...): x_eval is the last evaluated point (its FAM shape is
         # cached), x may be one Gauss-Newton step below the tolerance beyond it
         x = np.zeros(4)
@@ -382,7 +379,7 @@ class FamInverseEstimator:
         it = 0
         n2 = 2 * self.n_points
         for it in range(1, self.max_iter + 1):  # noqa: B007 (the count is returned)
-            v = self._unobservable(J, r if hold == 'held' else None) if hold else None
+            v = self._unobservable(J) if hold else None
             if v is not None and dropped < 3 and abs(float(x[:2] @ v)) > self.tol:
                 # found unobservable here: the force along v to the prior's mean (0), then
                 # held there (again if the direction turns as the shape changes, at most 3
@@ -394,7 +391,7 @@ class FamInverseEstimator:
                 if np.isfinite(cd):
                     x, r, J, cost = xd, rd, Jd, cd
                     xe = x
-                    v = self._unobservable(J, r if hold == 'held' else None)
+                    v = self._unobservable(J)
             if v is None:
                 A = J.T @ J
                 step = -np.linalg.solve(A + mu * np.diag(np.diag(A)) + 1e-30 * np.eye(4),
@@ -436,14 +433,14 @@ class FamInverseEstimator:
         shape_cost = float(r[:n2] @ r[:n2])
         return x, xe, shape_cost, it, self._n_solves - n0, converged, J[:n2].copy()
 
-    def _unobservable(self, J: np.ndarray, r: Optional[np.ndarray]) -> Optional[np.ndarray]:
-        """The weakest direction (2,) of the force covariance at the current point (J, r: its
-        Jacobian and residual, as `_result` takes them; r None: the shape noise alone, not
-        a residual of a point still far from the fit) when its std is above
-        UNOBSERVABLE_STD (an estimate there is 'axial_unobservable'), else None."""
+    def _unobservable(self, J: np.ndarray) -> Optional[np.ndarray]:
+        """The weakest direction (2,) of the force covariance at the current point (J: its
+        Jacobian) with the shape noise alone, when its std is above UNOBSERVABLE_STD (as an
+        estimate's there, 'axial_unobservable'), else None. Not with the point's residual
+        (as `_result`'s covariance): a start still far from a new frame's fit would be taken
+        for unobservable by its residual (a streamed ok frame: 5 solves instead of 2)."""
         n2 = 2 * self.n_points
-        res = 0.0 if r is None else float(np.sqrt(r[:n2] @ r[:n2] / self.n_points))
-        cov = self._covariance(J[:n2], res)
+        cov = self._covariance(J[:n2], 0.0)
         return unobservable_direction(cov)
 
     @staticmethod
@@ -516,8 +513,7 @@ class FamInverseEstimator:
             if kind == 'table':
                 self._prev_shape = None        # a far warm start could pick another branch
             x, xe, cost, it, solves, conv, J = self._solve(
-                obs, f0, hold=({'hold': 'held', 'warm': 'warm'}.get(kind, '')
-                              if self.hold_unobservable else ''))
+                obs, f0, hold=kind in ('hold', 'warm') and self.hold_unobservable)
             total += solves
             res = float(np.sqrt(cost / self.n_points))
             if best is None or res < best[1]:
