@@ -90,7 +90,7 @@ def measured_slope(depth_slope: Optional[DepthSlope], max_slope: float, slope: f
 
 
 def elastic_keep(m: Impedance, x: float, za, sup: Support, elastic: ElasticShare,
-                 gain: float) -> float:
+                 gain: float, square: bool = False) -> float:
     """The factor (in [0, 1]) of the model's flip of the friction kept where the master
     turns outward at a depth the slave has not moved outward at (sixth round): the elastic
     part of the inserting force (a wall) does not reverse. The model already keeps its
@@ -104,6 +104,8 @@ def elastic_keep(m: Impedance, x: float, za, sup: Support, elastic: ElasticShare
     e_model = m.force_z(x, 0.0, 0.0, (0.0, 0.0))
     fr = f_ins - e_model
     e_est = gain * elastic.share(x, f_ins) * f_ins
+    if square:
+        e_est = max(e_est, elastic.square_excess(x, f_ins))
     if not (fr > 0.0 and e_est > e_model):
         return 1.0
     return 1.0 - w * min(1.0, (e_est - e_model) / fr)
@@ -112,7 +114,8 @@ def elastic_keep(m: Impedance, x: float, za, sup: Support, elastic: ElasticShare
 def supported_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorTerm,
                     anchor_length: float, sup: Support, depth_slope: Optional[DepthSlope],
                     max_slope: float, elastic: Optional[ElasticShare] = None,
-                    elastic_gain: float = 0.0, max_model_slope: float = math.inf) -> float:
+                    elastic_gain: float = 0.0, max_model_slope: float = math.inf,
+                    square: bool = False) -> float:
     """'local' anchoring where the model has data; beyond its data (the support `c` near x
     is thin) the model's tables are its priors' guess: extend the model from the nearest
     depth with data instead (weight 1 - c) and keep more of the anchor's measured force
@@ -122,7 +125,7 @@ def supported_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorT
     hold = m.force_z(x, xd, xdd, za)          # the anchor's direction of friction
     flip = m.force_z(x, xd, xdd, z) - hold    # the model's change of direction
     if elastic is not None and flip < 0.0 and a.z1 > 0.0:
-        flip *= elastic_keep(m, x, za, sup, elastic, elastic_gain)
+        flip *= elastic_keep(m, x, za, sup, elastic, elastic_gain, square)
     c = sup.anywhere(x)
     lo, hi = sup.bracket(x) if c < 1.0 else (None, None)
     if lo is not None and hi is not None:

@@ -63,6 +63,10 @@ ELASTIC_MARGIN = 0.015
 #: vessel's Experiment II outage within 10 % (the estimate reads a friction growing
 #: faster than the length, the phantom's capstan, partly as elastic)
 ELASTIC_GAIN = 0.5
+#: keep at least the inserting force above a square-law friction fitted to the forces met
+#: well shallower at a first outward reversal (`ElasticShare.square_excess`, thirteenth
+#: round of issue 12)
+ELASTIC_SQUARE = False
 
 
 class Support:
@@ -255,7 +259,7 @@ class ElasticShare:
     """
 
     __slots__ = ('x_lo', 'margin', 'min_depth', 'min_bins', 'min_speed', 'min_state', '_n',
-                 '_f', '_cum', '_dirty')
+                 '_f', '_cum', '_cum2', '_dirty')
 
     def __init__(self, x_lo: float = -0.07, x_hi: float = 0.25, margin: float = ELASTIC_MARGIN,
                  min_depth: float = 0.005, min_bins: int = 3, min_speed: float = 0.005,
@@ -272,6 +276,7 @@ class ElasticShare:
         self._n = [0.0] * n
         self._f = [0.0] * n
         self._cum = ([0.0] * n, [0.0] * n, [0] * n)    # running sums of f x, n x^2, bins
+        self._cum2 = ([0.0] * n, [0.0] * n)            # running sums of f x^2, n x^4
         self._dirty = False
 
     def add(self, x: float, xd: float, f: float, z1: float = 1.0) -> bool:
@@ -289,23 +294,28 @@ class ElasticShare:
         self._dirty = True
         return True
 
-    def _trend(self, x: float) -> Tuple[Optional[float], float]:
+    def _trend(self, x: float, square: bool = False) -> Tuple[Optional[float], float]:
         """(mu, ramp): the friction trend at depth x (None: no bins at least `margin`
         shallower) and the weight of the share there, min(1, bins - (min_bins - 1))
         counted continuously in x (a hard threshold stepped the rendered force as the
-        master crossed it)."""
+        master crossed it). square: the square law c (`square_rate`) instead of mu."""
         fx, nxx, nb = self._cum
         if self._dirty:
             self._dirty = False
-            a = b = 0.0
+            fxx, nx4 = self._cum2
+            a = b = a2 = b2 = 0.0
             c = 0
             for i, n in enumerate(self._n):
                 xb = self.x_lo + i * BIN
                 if n > 0.0 and xb >= self.min_depth:
+                    x2 = xb * xb
                     a += self._f[i] * xb
-                    b += n * xb * xb
+                    b += n * x2
+                    a2 += self._f[i] * x2
+                    b2 += n * x2 * x2
                     c += 1
                 fx[i], nxx[i], nb[i] = a, b, c
+                fxx[i], nx4[i] = a2, b2
         u = (x - self.margin - self.x_lo) / BIN
         if not u >= 0.0:
             return None, 0.0
@@ -318,7 +328,29 @@ class ElasticShare:
         if not den > 0.0:
             return None, 0.0
         ramp = min(1.0, max(0.0, nb[i] + t * (nb[j] - nb[i]) - (self.min_bins - 1)))
+        if square:      # the square law c of f = c x^2 instead of the line's mu
+            fxx, nx4 = self._cum2
+            return (fxx[i] + t * (fxx[j] - fxx[i])) / (nx4[i] + t * (nx4[j] - nx4[i])), ramp
         return (fx[i] + t * (fx[j] - fx[i])) / den, ramp
+
+    def square_rate(self, x: float) -> Optional[float]:
+        """N/m^2, the square law c of f = c x^2 (least squares through the entry) fitted to
+        the same binned forces as `rate` (at least `margin` shallower than x, `min_bins`
+        bins), or None: the steepest friction growth with length the drawn vessels have
+        (thirteenth round of issue 12)."""
+        c, ramp = self._trend(x, True)
+        return c if ramp >= 1.0 else None
+
+    def square_excess(self, x: float, f: float) -> float:
+        """N, the part of an inserting force f (N) at depth x (m) above the square-law
+        friction c x^2 fitted to the forces met well shallower (`square_rate`; the
+        steepest friction growth with length the drawn vessels have, so a lower bound of
+        a wall's force; thirteenth round of issue 12): 0 without a trend, faded in as
+        `share` is."""
+        c, ramp = self._trend(x, True)
+        if c is None or ramp <= 0.0 or not f > 0.0:
+            return 0.0
+        return ramp * max(0.0, f - max(0.0, c) * x * x)
 
     def rate(self, x: float) -> Optional[float]:
         """N/m, the friction trend mu at depth x (m): the least-squares slope through the
