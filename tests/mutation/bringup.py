@@ -97,9 +97,9 @@ MUTANTS = [
            'round 9: a chunk is never finished when full (one chunk per file)'),
     # -- issue 15, 2026-12-03: the link topics' receive queue (catheter_common.qos.QOS_LINK)
     Mutant('B19', 'src/catheter_common/catheter_common/qos.py',
+           'QOS_LINK = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1000,',
            'QOS_LINK = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=100,',
-           'QOS_LINK = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=10,',
-           'the link receiver keeps 10 samples: a stall over 10 ms loses what the link was sent',
+           'the link receiver keeps 100 samples: a stall over 100 ms loses what the link was sent',
            tests=('tests/catheter_bringup/test_link_qos.py',)),
     Mutant('B20', 'src/impedance_master/impedance_master/sim_haptic_node.py',
            'WrenchStamped, rel(T.SLAVE_FORCE), self._on_slave_force, QOS_LINK)',

@@ -15,12 +15,15 @@ QOS_FAST = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=10,
                       durability=QoSDurabilityPolicy.VOLATILE)
 #: the link topics between the master and the slave (two machines in a deployment: the slave's
 #: /slave/force and /slave/impedance taken at the master, the master's /master/command taken at
-#: the slave): QOS_FAST's profile with a deeper receive queue, keep last 100 (100 ms at 1 kHz).
+#: the slave): QOS_FAST's profile with a deeper receive queue, keep last 1000 (1 s at 1 kHz).
 #: The link must not lose what it was sent: with depth 10 a master process stalled 11.7 ms
 #: lost one /slave/force sample (DDS reporting none lost: the reader's own queue overflowed;
-#: scripts/bench system, split layout, 2026-12-03). A burst after a stall costs one callback a
-#: sample (10-40 us each). Compatible with QOS_FAST publishers.
-QOS_LINK = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=100,
+#: scripts/bench system, split layout, 2026-12-03), and with depth 100 the benchmark
+#: machine's host held the master's CPU ~117 ms and two were lost the same way (the same
+#: day, later: its stall probe saw 100 ms stalls every few seconds in slow phases). A burst
+#: after a stall costs one callback a sample (10-40 us each). Compatible with QOS_FAST
+#: publishers.
+QOS_LINK = QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1000,
                       reliability=QoSReliabilityPolicy.BEST_EFFORT,
                       durability=QoSDurabilityPolicy.VOLATILE)
 #: a 1 kHz state sampled at a lower rate by its consumer (the camera's 30 Hz frames take the
