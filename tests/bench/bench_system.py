@@ -588,8 +588,8 @@ def main():
                          'each CPU one wake-up per ms at SCHED_FIFO 99)')
     ap.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
                     help='a scenario override for every real-time run (as run_scenario --set), '
-                         'e.g. realtime_cpu_latency_us=0 for runs that hold a CPU latency '
-                         'request of 0 us')
+                         'e.g. realtime_cpu_latency_us=-1 for runs without the CPU latency '
+                         'request')
     a = ap.parse_args()
     global PROBE
     PROBE = not a.no_probe
