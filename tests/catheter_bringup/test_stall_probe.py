@@ -174,8 +174,8 @@ def test_scenario_cpu_latency_field():
     from catheter_bringup.overrides import apply_overrides
     from catheter_bringup.scenario import load_scenario
     sc = load_scenario('experiment_ii')
-    assert sc['realtime_cpu_latency_us'] == 0            # idle CPUs poll while loops run
-    assert apply_overrides(sc, ['realtime_cpu_latency_us=-1'])['realtime_cpu_latency_us'] == -1
+    assert sc['realtime_cpu_latency_us'] == -1           # off unless asked for
+    assert apply_overrides(sc, ['realtime_cpu_latency_us=0'])['realtime_cpu_latency_us'] == 0
     with pytest.raises(ValueError, match='realtime_cpu_latency_us'):
         apply_overrides(sc, ['realtime_cpu_latency_us=-2'])
 

@@ -22,13 +22,12 @@ the collector's pauses.
 - `worker_cpus` / `pin_process`: the split layout's CPU placement: the master process on
   one CPU, the vision process on another (see `worker_cpus`).
 - `hold_cpu_latency`: a PM QoS CPU latency request (``/dev/cpu_dma_latency``) held while
-  the loops run (scenario ``realtime_cpu_latency_us``, 0 by default), so an idle CPU
-  waits for the next tick polling instead of halting: the usual real-time setting. On the
-  benchmark machine (a virtual machine) a halted virtual CPU is woken by its host late by
-  1-15 ms about 1.5 times a second (`stall_probe`), which no priority inside the machine
-  can prevent; with the request the quiet split layout's master met 995 Hz and p99 1.5 ms
-  in 4 of 6 alternated runs against 0 of 6 without (package README, "Benchmark"). Not
-  removed by it: the host's ~100 ms holds of the whole machine in its slow phases.
+  the loops run (scenario ``realtime_cpu_latency_us``, off by default), so an idle CPU
+  waits for the next tick polling instead of halting: the usual real-time setting on a
+  machine with dedicated cores. On the benchmark machine (a virtual machine) a halted
+  virtual CPU is woken by its host late by 1-15 ms about 1.5 times a second (`stall_probe`);
+  the request removes those, but after a few minutes of polling the host holds the whole
+  machine ~100 ms at a time (alternated runs: package README, "Benchmark"), so it is off.
 """
 from __future__ import annotations
 
