@@ -1,5 +1,6 @@
 """Identifier input streams shared by the identifier's tests and the ima benchmarks
-(tests/bench/bench_ima.py, bench_ima_fuzz.py): one place for how they are recorded."""
+(tests/bench/bench_ima.py, bench_ima_fuzz.py): one place for how they are recorded; and the
+master's pull-back that the renderer's first-reversal tests share."""
 from __future__ import annotations
 
 from typing import List, Tuple
@@ -42,3 +43,12 @@ def experiment_inputs(**cfg) -> List[Sample]:
     finally:
         experiment.make_identifier = orig
     return got
+
+
+def pull_back(ima, x0: float = 0.056, dx: float = 0.002, n: int = 200):
+    """The master pulls back from x0 by dx (past the presliding length: friction turned) in n
+    calls of `ima.desired_force` at -0.01 m/s; the last desired force (N)."""
+    f = None
+    for i in range(1, n + 1):
+        f = ima.desired_force(x0 - dx * i / n, -0.01, 0.0)
+    return f

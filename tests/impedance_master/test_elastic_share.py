@@ -2,6 +2,8 @@
 and the first outward reversal that keeps it (`anchoring.elastic_keep`, `ImaRenderer`
 elastic_gain), against hand values and numpy least squares."""
 import math
+import pathlib
+import sys
 
 import numpy as np
 import pytest
@@ -12,6 +14,11 @@ from impedance_master import ImaRenderer, Impedance
 from impedance_master.anchoring import elastic_keep
 from impedance_master.impedance import steady_states
 from impedance_master.support import BIN, ELASTIC_GAIN, ELASTIC_MARGIN, ElasticShare, Support
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from streams import pull_back  # noqa: E402
+
+sys.path.pop(0)
 
 MU = 4.0            # N/m, friction growing with the inserted length
 WALL = (0.04, 20.0)  # a wall from 40 mm at 20 N/m
@@ -162,21 +169,15 @@ def _inserted(wall=True, sigma=3e-4, **kw):
     return ima
 
 
-def _pull_back(ima, x0=0.056, dx=0.002, n=200):
-    """The master pulls back from x0 by dx (past the presliding length: friction turned)."""
-    f = None
-    for i in range(1, n + 1):
-        f = ima.desired_force(x0 - dx * i / n, -0.01, 0.0)
-    return f
 
 
 def test_a_first_reversal_at_a_wall_keeps_half_its_elastic_force():
     x = 0.054
     f_ins = _force(x)
     e_wall = WALL[1] * (x - WALL[0])
-    off = _pull_back(_inserted(elastic_gain=None))
+    off = pull_back(_inserted(elastic_gain=None))
     assert off == pytest.approx(-f_ins - DRAG * 0.01, abs=2e-3)     # all of it flipped
-    on = _pull_back(_inserted())
+    on = pull_back(_inserted())
     assert ELASTIC_GAIN == 0.5
     # the elastic estimate at 54 mm is the wall's force (the trend fitted before 39 mm to
     # the measured force less the model's drag)
@@ -193,9 +194,9 @@ def test_a_stateless_model_keeps_the_elastic_force_at_a_first_reversal_too():
     f_ins = _force(x)
     e_wall = WALL[1] * (x - WALL[0])
     z1 = math.tanh(-0.01 / 0.002)       # the stateless law's direction at -10 mm/s
-    off = _pull_back(_inserted(sigma=0.0, elastic_gain=None))
+    off = pull_back(_inserted(sigma=0.0, elastic_gain=None))
     assert off == pytest.approx(f_ins * z1 - DRAG * 0.01, abs=2e-3)
-    on = _pull_back(_inserted(sigma=0.0))
+    on = pull_back(_inserted(sigma=0.0))
     # the trend is fitted to the measured force less the drag (not less the friction too)
     assert on == pytest.approx(f_ins * z1 - DRAG * 0.01 - z1 * 2.0 * ELASTIC_GAIN * e_wall,
                                abs=2e-3)
@@ -204,7 +205,7 @@ def test_a_stateless_model_keeps_the_elastic_force_at_a_first_reversal_too():
 
 def test_a_first_reversal_in_friction_alone_flips_it_all():
     x = 0.054
-    on = _pull_back(_inserted(wall=False))
+    on = pull_back(_inserted(wall=False))
     assert on == pytest.approx(-_force(x, False) - DRAG * 0.01, abs=2e-3)
 
 

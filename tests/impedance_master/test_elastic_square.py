@@ -4,6 +4,8 @@ least the force above it (`anchoring.elastic_keep(square=True)`, `ImaRenderer`
 elastic_square), on a wall stream and a square-law stream built here, against numpy least
 squares."""
 import math
+import pathlib
+import sys
 
 import numpy as np
 import pytest
@@ -12,6 +14,11 @@ from impedance_master import ImaRenderer, Impedance
 from impedance_master.anchoring import elastic_keep
 from impedance_master.impedance import steady_states
 from impedance_master.support import BIN, ELASTIC_SQUARE, ElasticShare, Support
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from streams import pull_back  # noqa: E402
+
+sys.path.pop(0)
 
 MU = 4.0             # N/m, friction growing linearly with the inserted length
 WALL = (0.04, 20.0)  # a wall from 40 mm at 20 N/m
@@ -143,27 +150,22 @@ def _inserted(force, **kw):
     return ima
 
 
-def _pull_back(ima, x0=0.056, dx=0.002, n=200):
-    f = None
-    for i in range(1, n + 1):
-        f = ima.desired_force(x0 - dx * i / n, -0.01, 0.0)
-    return f
 
 
 def test_the_renderer_keeps_the_force_above_the_square_law_at_a_first_reversal():
     assert ELASTIC_SQUARE is False
     x = 0.054
-    off = _pull_back(_inserted(_wall, elastic_gain=0.05))
+    off = pull_back(_inserted(_wall, elastic_gain=0.05))
     ima = _inserted(_wall, elastic_gain=0.05, elastic_square=True)
-    on = _pull_back(ima)
+    on = pull_back(ima)
     f_ins = _wall(x)
     ex = ima.elastic.square_excess(x, f_ins)
     assert ex > 0.1
     assert on == pytest.approx(-f_ins + 2.0 * ex, abs=2e-3)
     assert on > off + 0.15
     # the square law: the same force with and without
-    assert _pull_back(_inserted(_square, elastic_square=True)) == pytest.approx(
-        _pull_back(_inserted(_square)), abs=1e-12)
+    assert pull_back(_inserted(_square, elastic_square=True)) == pytest.approx(
+        pull_back(_inserted(_square)), abs=1e-12)
 
 
 def test_elastic_square_must_be_a_bool():
