@@ -123,13 +123,20 @@ def _pull_back(ima, x0=0.056, dx=0.002, n=200):
 
 def test_the_renderer_counts_the_excess_above_its_band():
     from impedance_master.support import SQUARE_BAND, SQUARE_SIGMAS
-    assert (SQUARE_BAND, SQUARE_SIGMAS) == (0.0, 0.0)
+    assert (SQUARE_BAND, SQUARE_SIGMAS) == (0.0, 2.0)
     x = 0.054
     f_ins = _wall(x)
-    plain = _inserted()
+    plain = _inserted(square_sigmas=0.0)
     ex0 = plain.elastic.square_excess(x, f_ins)
     assert ex0 > 0.1
-    on = _inserted(square_band=0.05)
+    # the default: above twice the shallow forces' scatter about the law (here its misfit
+    # to the linear friction)
+    d = _inserted()
+    sig = d.elastic.square_scatter(x)
+    assert 0.001 < sig < 0.05
+    assert d.elastic.square_excess(x, f_ins) == pytest.approx(ex0 - 2.0 * sig, abs=1e-9)
+    assert _pull_back(d) == pytest.approx(-f_ins + 2.0 * (ex0 - 2.0 * sig), abs=2e-3)
+    on = _inserted(square_band=0.05, square_sigmas=0.0)
     assert (on.elastic.square_band, on.elastic.square_sigmas) == (0.05, 0.0)
     ex = on.elastic.square_excess(x, f_ins)
     assert ex == pytest.approx(ex0 - 0.05, abs=1e-9)

@@ -172,16 +172,17 @@ class ImaRenderer(_Rendered):
             part of the inserting force above the square-law friction c x^2 fitted to the
             forces met at least 15 mm shallower (`ElasticShare.square_excess`: the
             steepest friction growth of the drawn vessels, so what is above it is a wall's;
-            thirteenth round of issue 12). Default False (ELASTIC_SQUARE): on the 540 seen
-            worlds it gains three stiff_wall worlds and loses one to the anchored baseline,
-            at a shallow depth where the square law fitted to forces at the noise's level
-            reads the breathing as a wall (README, Benchmark).
+            thirteenth round of issue 12). Default True (ELASTIC_SQUARE) since the
+            fourteenth round, with `square_sigmas` 2: alone (the thirteenth) it gained three
+            stiff_wall worlds and lost one to the anchored baseline, at a shallow depth where
+            the square law fitted to forces at the noise's level read the breathing as a
+            wall (README, Benchmark).
         square_band, square_sigmas: with `elastic_square`: the force above the square law is
             counted only above a band of the forces' disturbances, `square_band` N plus
             `square_sigmas` x the rms scatter of the shallow forces about the law
             (`ElasticShare.square_scatter`: sensor noise, cardiac and breathing, the law's
             misfit; fourteenth round of issue 12). Defaults SQUARE_BAND = 0 N,
-            SQUARE_SIGMAS = 0.
+            SQUARE_SIGMAS = 2.
         square_lever: with `square_sigmas`: the scatter widened by the square law's own
             uncertainty where it is thrown to x (sqrt(1 + x^4 / sum of the fitted bins'
             depth^4): wide where the law rests on a few shallow bins). Default

@@ -65,16 +65,17 @@ ELASTIC_MARGIN = 0.015
 ELASTIC_GAIN = 0.5
 #: keep at least the inserting force above a square-law friction fitted to the forces met
 #: well shallower at a first outward reversal (`ElasticShare.square_excess`, thirteenth
-#: round of issue 12)
-ELASTIC_SQUARE = False
+#: round of issue 12; the default since the fourteenth, with SQUARE_SIGMAS)
+ELASTIC_SQUARE = True
 #: N, with ELASTIC_SQUARE: the force above the square law counted only above this band
-#: (`ElasticShare` square_band, fourteenth round of issue 12)
+#: (`ElasticShare` square_band, fourteenth round of issue 12; screened at 0.03 N, not kept)
 SQUARE_BAND = 0.0
 #: with ELASTIC_SQUARE: ... and above this many times the shallow forces' rms scatter about
-#: the law (`ElasticShare` square_sigmas, `square_scatter`)
-SQUARE_SIGMAS = 0.0
+#: the law (`ElasticShare` square_sigmas, `square_scatter`: the sensor noise, cardiac and
+#: breathing and the law's misfit the data themselves show; fourteenth round of issue 12)
+SQUARE_SIGMAS = 2.0
 #: with SQUARE_SIGMAS: the scatter widened by the law's uncertainty thrown to the depth
-#: (`ElasticShare` square_lever)
+#: (`ElasticShare` square_lever; screened, not kept: the same counts, less of the walls kept)
 SQUARE_LEVER = False
 
 
