@@ -382,6 +382,17 @@ MUTANTS = [
            'the lever counts every anchor as independent (a bin\'s anchors are one pass: '
            'the breathing does not average out in it)',
            tests=('tests/impedance_master/test_square_band.py',)),
+    Mutant('I72', IM + 'support.py',
+           'SQUARE_SIGMAS = 2.0',
+           'SQUARE_SIGMAS = 0.0',
+           'the default floor without its band (the thirteenth round\'s: one world short)',
+           tests=('tests/impedance_master/test_square_band.py',)),
+    Mutant('I73', IM + 'support.py',
+           'ELASTIC_SQUARE = True',
+           'ELASTIC_SQUARE = False',
+           'the default renderer without the square-law floor kept in round 14',
+           tests=('tests/impedance_master/test_square_band.py',
+                  'tests/impedance_master/test_elastic_square.py')),
     # -- operator and vessel families (issue 12)
     Mutant('I16', IM + 'operator.py',
            '        self._amp = min((self.x_hi - self.x_lo) / span if span > 0 else math.inf,',
