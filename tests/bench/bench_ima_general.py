@@ -43,14 +43,18 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
   design). Not part of ``all``.
 * ``fresh9``: the next held-out worlds (`drawn_cases(FRESH9_SEEDS)`, seeds 900-904, the
   same families and operators, 90 worlds), committed during the eleventh round before its
-  blind run of fresh8, to be run once after a later round's design is final. Not part of
+  blind run of fresh8, and run once, after the fourteenth round's design was final. Not
+  part of ``all``.
+* ``fresh10``: the next held-out worlds (`drawn_cases(FRESH10_SEEDS)`, seeds 1000-1004, the
+  same families and operators, 90 worlds), committed during the fourteenth round before its
+  blind run of fresh9, to be run once after a later round's design is final. Not part of
   ``all``.
 
 Tables per section: every case (MAE normal / outage / max, N); per vessel and per operator;
 the count of cases where the default beats DFR (normal MAE < DFR's, outage MAE < DFR's /
 2, max < DFR's) and where its mean error ('all' intervals) is no worse than the anchored
 baseline's; the averages over cases with the ratios to DFR.
-Options: --section dev|fresh|fresh2|fresh3|fresh4|fresh5|fresh6|fresh7|fresh8|fresh9|all
+Options: --section dev|fresh|fresh2|fresh3|fresh4|fresh5|fresh6|fresh7|fresh8|fresh9|fresh10|all
 (default all = dev and fresh), --quick (one seed), --jobs N (cases run in N processes;
 default 1), --oracle (ninth round: also run the ORACLE renderers of
 `impedance_master.oracle` on every case, the world's true vessel law at the master, and
@@ -75,7 +79,8 @@ for pkg in ('impedance_master', 'sim_slave', 'catheter_common'):
 
 from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS,  # noqa: E402
                                              FRESH3_SEEDS, FRESH4_SEEDS, FRESH5_SEEDS, FRESH6_SEEDS,
-                                             FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS, FRESH_SEEDS,
+                                             FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS,
+                                             FRESH10_SEEDS, FRESH_SEEDS,
                                              MODES,
                                              TUNING,
                                              beats_dfr, case_result, cases, drawn_cases,
@@ -211,7 +216,9 @@ HELD_OUT = (
     ('fresh8', FRESH8_SEEDS, 'eighth fresh held-out worlds',
      "; held out from the ninth to the eleventh round's design work"),
     ('fresh9', FRESH9_SEEDS, 'ninth fresh held-out worlds',
-     "; held out from the eleventh round's design work on"),
+     "; held out from the eleventh to the fourteenth round's design work"),
+    ('fresh10', FRESH10_SEEDS, 'tenth fresh held-out worlds',
+     "; held out from the fourteenth round's design work on"),
 )
 
 def main(argv=None):
@@ -223,7 +230,7 @@ def main(argv=None):
     ap.add_argument('--draw-seeds', default=None,
                     help='comma-separated seeds: the randomised section on these seeds '
                          'instead of the fresh ones (development draws, never the held-out '
-                         '800-804 and 900-904)')
+                         '800-804, 900-904 and 1000-1004)')
     ap.add_argument('--oracle', action='store_true',
                     help='also run the oracle renderers (impedance_master.oracle) on the '
                          'randomised sections and print their table')
@@ -244,8 +251,9 @@ def main(argv=None):
         title, note = 'fresh held-out worlds', ''
         if a.draw_seeds:
             seeds = [int(s) for s in a.draw_seeds.split(',')]
-            if set(seeds) & (set(FRESH8_SEEDS) | set(FRESH9_SEEDS)):
-                ap.error('--draw-seeds must not name the held-out seeds 800-804, 900-904')
+            if set(seeds) & (set(FRESH8_SEEDS) | set(FRESH9_SEEDS) | set(FRESH10_SEEDS)):
+                ap.error('--draw-seeds must not name the held-out seeds 800-804, 900-904, '
+                         '1000-1004')
             title = f'development draws (seeds {seeds})'
         sections.append((seeds, title, note))
     for name, all_seeds, title, note in HELD_OUT:

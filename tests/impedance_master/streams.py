@@ -52,3 +52,16 @@ def pull_back(ima, x0: float = 0.056, dx: float = 0.002, n: int = 200):
     for i in range(1, n + 1):
         f = ima.desired_force(x0 - dx * i / n, -0.01, 0.0)
     return f
+
+
+def insert(ima, m, force, n: int = 93):
+    """Feed renderer `ima` the insertion from 10 mm at 10 mm/s in n steps of 0.5 mm, a copy of
+    model `m` anchored at each step to the measured force `force(x)` (N); returns `ima`."""
+    from impedance_master.impedance import steady_states
+    xd = 0.01
+    z1, z2 = steady_states(xd, m.v_s, m.beta)
+    for i in range(n):
+        x = 0.010 + 0.0005 * i
+        assert ima.set_impedance(m.copy(anchor=(x, xd, 0.0, z1, z2, force(x), 0.0)))
+        ima.desired_force(x, xd, 0.0)
+    return ima

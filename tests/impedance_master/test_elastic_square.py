@@ -12,11 +12,10 @@ import pytest
 
 from impedance_master import ImaRenderer, Impedance
 from impedance_master.anchoring import elastic_keep
-from impedance_master.impedance import steady_states
 from impedance_master.support import BIN, ELASTIC_SQUARE, ElasticShare, Support
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from streams import pull_back  # noqa: E402
+from streams import insert, pull_back  # noqa: E402
 
 sys.path.pop(0)
 
@@ -139,24 +138,17 @@ def test_elastic_keep_with_the_square_floor():
 
 def _inserted(force, **kw):
     """A renderer fed the insertion from 10 to 56 mm at 10 mm/s (a model per 0.5 mm)."""
-    ima = ImaRenderer(blend_time=0.0, max_rate=1e9, **kw)
-    m = _model(force)
-    xd = 0.01
-    z1, z2 = steady_states(xd, m.v_s, m.beta)
-    for i in range(93):
-        x = 0.010 + 0.0005 * i
-        assert ima.set_impedance(m.copy(anchor=(x, xd, 0.0, z1, z2, force(x), 0.0)))
-        ima.desired_force(x, xd, 0.0)
-    return ima
+    return insert(ImaRenderer(blend_time=0.0, max_rate=1e9, **kw), _model(force), force)
 
 
 
 
 def test_the_renderer_keeps_the_force_above_the_square_law_at_a_first_reversal():
-    assert ELASTIC_SQUARE is False
+    assert ELASTIC_SQUARE is True       # the default since the fourteenth round
     x = 0.054
-    off = pull_back(_inserted(_wall, elastic_gain=0.05))
-    ima = _inserted(_wall, elastic_gain=0.05, elastic_square=True)
+    off = pull_back(_inserted(_wall, elastic_gain=0.05, elastic_square=False))
+    # the thirteenth round's floor (no band: test_square_band.py)
+    ima = _inserted(_wall, elastic_gain=0.05, elastic_square=True, square_sigmas=0.0)
     on = pull_back(ima)
     f_ins = _wall(x)
     ex = ima.elastic.square_excess(x, f_ins)
@@ -165,7 +157,7 @@ def test_the_renderer_keeps_the_force_above_the_square_law_at_a_first_reversal()
     assert on > off + 0.15
     # the square law: the same force with and without
     assert pull_back(_inserted(_square, elastic_square=True)) == pytest.approx(
-        pull_back(_inserted(_square)), abs=1e-12)
+        pull_back(_inserted(_square, elastic_square=False)), abs=1e-12)
 
 
 def test_elastic_square_must_be_a_bool():

@@ -9,8 +9,8 @@ import pytest
 
 from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS,
                                              FRESH4_SEEDS, FRESH5_SEEDS, FRESH6_SEEDS,
-                                             FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS, FRESH_SEEDS,
-                                             drawn_cases)
+                                             FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS,
+                                             FRESH10_SEEDS, FRESH_SEEDS, drawn_cases)
 from impedance_master.operator import OPERATORS
 from sim_slave.vessels import DRAW_RULES, VESSELS, draw_vessel, make_vessel, vessel_spec
 
@@ -156,5 +156,18 @@ def test_ninth_fresh_set_is_new_worlds_disjoint_from_every_seen_and_held_out_see
     assert len(todo) == 90
     seen = {c[3] for s in (FRESH_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS, FRESH4_SEEDS, FRESH5_SEEDS,
                            FRESH6_SEEDS, FRESH7_SEEDS, FRESH8_SEEDS)
+            for c in drawn_cases(s)}
+    assert not {c[3] for c in todo} & seen
+
+
+def test_tenth_fresh_set_is_new_worlds_disjoint_from_every_seen_and_held_out_seed():
+    seen_seeds = (set(FRESH_SEEDS) | set(FRESH2_SEEDS) | set(FRESH3_SEEDS) | set(FRESH4_SEEDS)
+                  | set(FRESH5_SEEDS) | set(FRESH6_SEEDS) | set(FRESH7_SEEDS)
+                  | set(FRESH8_SEEDS) | set(FRESH9_SEEDS) | set(DEVELOPMENT_SEEDS))
+    assert not set(FRESH10_SEEDS) & seen_seeds
+    todo = drawn_cases(FRESH10_SEEDS)
+    assert len(todo) == 90
+    seen = {c[3] for s in (FRESH_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS, FRESH4_SEEDS, FRESH5_SEEDS,
+                           FRESH6_SEEDS, FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS)
             for c in drawn_cases(s)}
     assert not {c[3] for c in todo} & seen

@@ -74,6 +74,10 @@ every other vessel x operator x seed, cold start.
 * Ninth fresh held-out worlds (`drawn_cases(FRESH9_SEEDS)`, seeds 900-904, the same
   families and operators, 90 worlds): defined and committed during the eleventh round,
   before its blind run of fresh8, to be run once after a later round's design is final.
+  Run once after the fourteenth round's design was final.
+* Tenth fresh held-out worlds (`drawn_cases(FRESH10_SEEDS)`, seeds 1000-1004, the same
+  families and operators, 90 worlds): defined and committed during the fourteenth round,
+  before its blind run of fresh9, to be run once after a later round's design is final.
 """
 from __future__ import annotations
 
@@ -107,6 +111,8 @@ FRESH7_SEEDS = (700, 701, 702, 703, 704)
 FRESH8_SEEDS = (800, 801, 802, 803, 804)
 #: seeds of the next held-out worlds (defined in the eleventh round, not run yet)
 FRESH9_SEEDS = (900, 901, 902, 903, 904)
+#: seeds of the next held-out worlds (defined in the fourteenth round, not run yet)
+FRESH10_SEEDS = (1000, 1001, 1002, 1003, 1004)
 
 
 @dataclass(frozen=True)

@@ -47,8 +47,8 @@ from impedance_master.anchoring import (AnchorTerm, anchor_term, anchored_force,
 from impedance_master.scoring import SCORE_LAG, SCORE_RATE, OnlineScore
 from impedance_master.support import (ELASTIC_GAIN, ELASTIC_SQUARE,  # noqa: F401
                                      MAX_MODEL_SLOPE, MAX_SLOPE, SLOPE_LENGTH, SLOPE_STEP,
-                                     SUPPORT_HALF, SUPPORT_WIDTH, DepthSlope, ElasticShare,
-                                     Support)
+                                     SQUARE_BAND, SQUARE_LEVER, SQUARE_SIGMAS, SUPPORT_HALF,
+                                     SUPPORT_WIDTH, DepthSlope, ElasticShare, Support)
 
 ANCHORING = ('none', 'full', 'residual', 'local')
 #: m, default reach in depth of the 'local' anchor correction (see ImaRenderer)
@@ -172,10 +172,21 @@ class ImaRenderer(_Rendered):
             part of the inserting force above the square-law friction c x^2 fitted to the
             forces met at least 15 mm shallower (`ElasticShare.square_excess`: the
             steepest friction growth of the drawn vessels, so what is above it is a wall's;
-            thirteenth round of issue 12). Default False (ELASTIC_SQUARE): on the 540 seen
-            worlds it gains three stiff_wall worlds and loses one to the anchored baseline,
-            at a shallow depth where the square law fitted to forces at the noise's level
-            reads the breathing as a wall (README, Benchmark).
+            thirteenth round of issue 12). Default True (ELASTIC_SQUARE) since the
+            fourteenth round, with `square_sigmas` 2: alone (the thirteenth) it gained three
+            stiff_wall worlds and lost one to the anchored baseline, at a shallow depth where
+            the square law fitted to forces at the noise's level read the breathing as a
+            wall (README, Benchmark).
+        square_band, square_sigmas: with `elastic_square`: the force above the square law is
+            counted only above a band of the forces' disturbances, `square_band` N plus
+            `square_sigmas` x the rms scatter of the shallow forces about the law
+            (`ElasticShare.square_scatter`: sensor noise, cardiac and breathing, the law's
+            misfit; fourteenth round of issue 12). Defaults SQUARE_BAND = 0 N,
+            SQUARE_SIGMAS = 2.
+        square_lever: with `square_sigmas`: the scatter widened by the square law's own
+            uncertainty where it is thrown to x (sqrt(1 + x^4 / sum of the fitted bins'
+            depth^4): wide where the law rests on a few shallow bins). Default
+            SQUARE_LEVER = False.
         held_lowpass: s, with the support weighing: while the model is held (not received
             for `stale_time`: a link outage) the anchor's miss is moved, linearly over
             `held_lowpass` s, from the latest sample's (measured force minus the model:
@@ -204,7 +215,8 @@ class ImaRenderer(_Rendered):
                  score_rate: float = SCORE_RATE,
                  elastic_gain: Optional[float] = ELASTIC_GAIN,
                  held_lowpass: Optional[float] = HELD_LOWPASS,
-                 elastic_square: bool = ELASTIC_SQUARE):
+                 elastic_square: bool = ELASTIC_SQUARE, square_band: float = SQUARE_BAND,
+                 square_sigmas: float = SQUARE_SIGMAS, square_lever: bool = SQUARE_LEVER):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -243,7 +255,9 @@ class ImaRenderer(_Rendered):
         if support_half is not None and anchoring == 'local':
             self.support = Support(lo, hi, support_width, support_half)
             if elastic_gain is not None:
-                self.elastic = ElasticShare(lo, hi)
+                self.elastic = ElasticShare(lo, hi, square_band=square_band,
+                                            square_sigmas=square_sigmas,
+                                            square_lever=square_lever)
             if slope_length is not None:
                 self.depth_slope = DepthSlope(positive('slope_length', slope_length))
             if score_memory is not None:
@@ -261,6 +275,10 @@ class ImaRenderer(_Rendered):
         if not isinstance(elastic_square, bool):
             raise ValueError(f'elastic_square must be a bool, got {elastic_square!r}')
         self.elastic_square = elastic_square
+        nonneg('square_band', square_band)
+        nonneg('square_sigmas', square_sigmas)
+        if not isinstance(square_lever, bool):
+            raise ValueError(f'square_lever must be a bool, got {square_lever!r}')
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
         self._bump = 0.0
