@@ -9,6 +9,8 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from impedance_master import ImaRenderer, Impedance
 from impedance_master.anchoring import elastic_keep
@@ -165,3 +167,27 @@ def test_elastic_square_must_be_a_bool():
         ImaRenderer(elastic_square='yes')
     with pytest.raises(ValueError, match='elastic_square'):
         ImaRenderer(elastic_square=math.nan)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.0, 0.08), st.floats(-0.02, 0.05), st.booleans()),
+                min_size=1, max_size=80))
+def test_the_running_sums_extended_on_demand_equal_one_pass(steps):
+    """ElasticShare keeps its running sums valid below the first bin an anchor changed and
+    extends them only as far as a query reads: after any mix of anchors and queries, every
+    answer is exactly that of a fresh ElasticShare given the same anchors and asked once."""
+    live = ElasticShare(square_sigmas=2.0)
+    seen = []
+    for x, f, query in steps:
+        if query:
+            fresh = ElasticShare(square_sigmas=2.0)
+            for a in seen:
+                fresh.add(*a)
+            for q in (x, x + 0.02, 0.06):
+                assert live.rate(q) == fresh.rate(q)
+                assert live.square_scatter(q) == fresh.square_scatter(q)
+                assert live.square_excess(q, 0.3) == fresh.square_excess(q, 0.3)
+        else:
+            a = (x, 0.01, f)
+            if live.add(*a):
+                seen.append(a)
