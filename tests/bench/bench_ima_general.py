@@ -58,7 +58,7 @@ Tables per section: every case (MAE normal / outage / max, N); per vessel and pe
 the count of cases where the default beats DFR (normal MAE < DFR's, outage MAE < DFR's /
 2, max < DFR's) and where its mean error ('all' intervals) is no worse than the anchored
 baseline's; the averages over cases with the ratios to DFR.
-Options: --section dev|fresh|fresh2|fresh3|fresh4|fresh5|fresh6|fresh7|fresh8|fresh9|fresh10|fresh11|all
+Options: --section dev|fresh|fresh2|...|fresh11|all (fresh2 to fresh11: the held-out sets)
 (default all = dev and fresh), --quick (one seed), --jobs N (cases run in N processes;
 default 1), --oracle (ninth round: also run the ORACLE renderers of
 `impedance_master.oracle` on every case, the world's true vessel law at the master, and
