@@ -47,14 +47,18 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
   part of ``all``.
 * ``fresh10``: the next held-out worlds (`drawn_cases(FRESH10_SEEDS)`, seeds 1000-1004, the
   same families and operators, 90 worlds), committed during the fourteenth round before its
-  blind run of fresh9, to be run once after a later round's design is final. Not part of
+  blind run of fresh9, and run once, after the fifteenth round's design was final. Not part
+  of ``all``.
+* ``fresh11``: the next held-out worlds (`drawn_cases(FRESH11_SEEDS)`, seeds 1100-1104, the
+  same families and operators, 90 worlds), committed during the fifteenth round before its
+  blind run of fresh10, to be run once after a later round's design is final. Not part of
   ``all``.
 
 Tables per section: every case (MAE normal / outage / max, N); per vessel and per operator;
 the count of cases where the default beats DFR (normal MAE < DFR's, outage MAE < DFR's /
 2, max < DFR's) and where its mean error ('all' intervals) is no worse than the anchored
 baseline's; the averages over cases with the ratios to DFR.
-Options: --section dev|fresh|fresh2|fresh3|fresh4|fresh5|fresh6|fresh7|fresh8|fresh9|fresh10|all
+Options: --section dev|fresh|fresh2|...|fresh11|all (fresh2 to fresh11: the held-out sets)
 (default all = dev and fresh), --quick (one seed), --jobs N (cases run in N processes;
 default 1), --oracle (ninth round: also run the ORACLE renderers of
 `impedance_master.oracle` on every case, the world's true vessel law at the master, and
@@ -80,7 +84,7 @@ for pkg in ('impedance_master', 'sim_slave', 'catheter_common'):
 from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS,  # noqa: E402
                                              FRESH3_SEEDS, FRESH4_SEEDS, FRESH5_SEEDS, FRESH6_SEEDS,
                                              FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS,
-                                             FRESH10_SEEDS, FRESH_SEEDS,
+                                             FRESH10_SEEDS, FRESH11_SEEDS, FRESH_SEEDS,
                                              MODES,
                                              TUNING,
                                              beats_dfr, case_result, cases, drawn_cases,
@@ -218,7 +222,9 @@ HELD_OUT = (
     ('fresh9', FRESH9_SEEDS, 'ninth fresh held-out worlds',
      "; held out from the eleventh to the fourteenth round's design work"),
     ('fresh10', FRESH10_SEEDS, 'tenth fresh held-out worlds',
-     "; held out from the fourteenth round's design work on"),
+     "; held out from the fourteenth and fifteenth rounds' design work"),
+    ('fresh11', FRESH11_SEEDS, 'eleventh fresh held-out worlds',
+     "; held out from the fifteenth round's design work on"),
 )
 
 def main(argv=None):
@@ -230,7 +236,7 @@ def main(argv=None):
     ap.add_argument('--draw-seeds', default=None,
                     help='comma-separated seeds: the randomised section on these seeds '
                          'instead of the fresh ones (development draws, never the held-out '
-                         '800-804, 900-904 and 1000-1004)')
+                         '800-804, 900-904, 1000-1004 and 1100-1104)')
     ap.add_argument('--oracle', action='store_true',
                     help='also run the oracle renderers (impedance_master.oracle) on the '
                          'randomised sections and print their table')
@@ -251,9 +257,10 @@ def main(argv=None):
         title, note = 'fresh held-out worlds', ''
         if a.draw_seeds:
             seeds = [int(s) for s in a.draw_seeds.split(',')]
-            if set(seeds) & (set(FRESH8_SEEDS) | set(FRESH9_SEEDS) | set(FRESH10_SEEDS)):
+            if set(seeds) & (set(FRESH8_SEEDS) | set(FRESH9_SEEDS) | set(FRESH10_SEEDS)
+                             | set(FRESH11_SEEDS)):
                 ap.error('--draw-seeds must not name the held-out seeds 800-804, 900-904, '
-                         '1000-1004')
+                         '1000-1004, 1100-1104')
             title = f'development draws (seeds {seeds})'
         sections.append((seeds, title, note))
     for name, all_seeds, title, note in HELD_OUT:

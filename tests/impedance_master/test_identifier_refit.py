@@ -14,12 +14,16 @@ import impedance_master.experiment as experiment
 from impedance_master.experiment import ExperimentConfig, run_experiment
 from impedance_master.generalisation import drawn_cases
 from impedance_master.history import HistoryIdentifier, _spd_solve
+from impedance_master.history_params import HistoryParams
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from history_reference import BatchHistoryIdentifier  # noqa: E402
 from streams import experiment_inputs, phantom_samples  # noqa: E402
 
 sys.path.pop(0)
+
+#: the default identifier's friction banks (one per candidate presliding length)
+_K = len(HistoryParams().sigmas)
 
 
 def _dense_row(ident, x, xd, xdd, zs):
@@ -86,7 +90,7 @@ def test_the_accumulated_normal_equations_are_the_batch_sums_of_the_rows():
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.tuples(st.floats(-0.02, 0.1), st.floats(-0.05, 0.05), st.floats(-2, 2),
                           st.lists(st.tuples(st.floats(-1, 1), st.floats(-1.5, 1.5)),
-                                   min_size=3, max_size=3),
+                                   min_size=_K, max_size=_K),
                           st.floats(-1, 1), st.booleans()),
                 min_size=1, max_size=80),
        st.sampled_from([1e-30, 0.999, 1.1]))
@@ -114,7 +118,8 @@ def test_the_forgetting_scale_is_folded_back_before_it_underflows():
     ident._lam = 0.9
     gs = []
     for i in range(60):
-        ident._add_row(0.001 * i, 0.01, 0.1, [(0.5, 0.6), (-0.2, 0.3), (1.0, 1.2)], 0.1)
+        ident._add_row(0.001 * i, 0.01, 0.1,
+                       [(0.5, 0.6), (-0.2, 0.3), (1.0, 1.2), (0.1, 0.2)][:_K], 0.1)
         if i % 5 == 4:
             ident._flush()
             gs.append(ident._g)

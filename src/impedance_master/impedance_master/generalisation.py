@@ -78,6 +78,10 @@ every other vessel x operator x seed, cold start.
 * Tenth fresh held-out worlds (`drawn_cases(FRESH10_SEEDS)`, seeds 1000-1004, the same
   families and operators, 90 worlds): defined and committed during the fourteenth round,
   before its blind run of fresh9, to be run once after a later round's design is final.
+  Run once after the fifteenth round's design was final.
+* Eleventh fresh held-out worlds (`drawn_cases(FRESH11_SEEDS)`, seeds 1100-1104, the same
+  families and operators, 90 worlds): defined and committed during the fifteenth round,
+  before its blind run of fresh10, to be run once after a later round's design is final.
 """
 from __future__ import annotations
 
@@ -111,8 +115,10 @@ FRESH7_SEEDS = (700, 701, 702, 703, 704)
 FRESH8_SEEDS = (800, 801, 802, 803, 804)
 #: seeds of the next held-out worlds (defined in the eleventh round, not run yet)
 FRESH9_SEEDS = (900, 901, 902, 903, 904)
-#: seeds of the next held-out worlds (defined in the fourteenth round, not run yet)
+#: seeds of the tenth held-out worlds (defined in the fourteenth round, run after the fifteenth)
 FRESH10_SEEDS = (1000, 1001, 1002, 1003, 1004)
+#: seeds of the next held-out worlds (defined in the fifteenth round, not run yet)
+FRESH11_SEEDS = (1100, 1101, 1102, 1103, 1104)
 
 
 @dataclass(frozen=True)

@@ -142,6 +142,7 @@ class HistoryIdentifier:
 
         self._last_k = self.selected                      # the candidate of `last`
         self.n_selections = 0
+        self.n_outward = 0        # moving samples learned retracting (up to select_outward)
         self._da = Differentiator(self.rate)      # x'' from x' when not given
         self.gate.reset()
         self._despike = Despiker()
@@ -174,7 +175,7 @@ class HistoryIdentifier:
         self._flush()
         return {'version': self.STATE_VERSION, 'kind': 'HistoryIdentifier',
                 'grid': _json_ready(self), 'n_moving': int(self.n_moving),
-                'selected': int(self.selected),
+                'selected': int(self.selected), 'n_outward': int(self.n_outward),
                 'A': self.information().tolist(), 'b': (self._b_s * self._g).tolist()}
 
     def information(self) -> np.ndarray:
@@ -222,12 +223,19 @@ class HistoryIdentifier:
         if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < self._K:
             raise ValueError(f'state selected must be an int in 0..{self._K - 1}, got {k!r}')
         out['n_moving'], out['selected'] = n, k
+        # a state written before the fifteenth round has no count: its data were learned
+        # over a whole motion, both ways, so it counts as complete
+        no = state.get('n_outward', self.select_outward)
+        if isinstance(no, bool) or not isinstance(no, int) or no < 0:
+            raise ValueError(f'state n_outward must be an int >= 0, got {no!r}')
+        out['n_outward'] = min(no, self.select_outward)
         return out
 
     def _install(self, arrays: dict) -> Optional[Impedance]:
         self.reset()
         self._A_s, self._b_s, self._g = arrays['A'].copy(), arrays['b'].copy(), 1.0
         self.n_moving, self.selected = arrays['n_moving'], arrays['selected']
+        self.n_outward = arrays['n_outward']
         self._last_k = self.selected
         if self.n_moving < self.window * self.rate:
             return None
@@ -309,6 +317,8 @@ class HistoryIdentifier:
         self._sample = (x, xd, xdd, zs, f)
         if abs(xd) >= self.rest_velocity:
             self._add_row(x, xd, xdd, zs, f_fit)
+            if xd < 0.0 and self.n_outward < self.select_outward:
+                self.n_outward += 1
         return self._tick()
 
     def _tick(self) -> Optional[Impedance]:
@@ -440,8 +450,9 @@ class HistoryIdentifier:
         need = obj_cur - self.select_margin * var
         objs = [math.inf] * self._K
         objs[cur] = obj_cur
+        early = self.n_outward < self.select_outward     # the stateless law not yet
         for k in range(self._K):
-            if k != cur:
+            if k != cur and not (early and self.sigmas[k] == 0.0):
                 theta, obj = self._solve_candidate(
                     k, bound=need + 1e-9 * (abs(obj_cur) + abs(need)) + 1e-12)
                 if theta is not None:
