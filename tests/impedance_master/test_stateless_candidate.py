@@ -86,3 +86,25 @@ def test_a_bad_count_in_a_state_is_named(bad):
 def test_a_bad_select_outward_is_named(bad):
     with pytest.raises(ValueError, match='select_outward'):
         HistoryIdentifier(select_outward=bad)
+
+
+def test_a_stateless_model_crosses_the_wire_and_is_rendered():
+    """The identifier's stateless model (sigma 0) through /slave/impedance's message and
+    back: the same law, accepted by the master's renderer (its friction follows the
+    master's velocity)."""
+    from catheter_common.messages import impedance_fields, impedance_msg
+    from impedance_master.impedance import Impedance
+    from impedance_master.rendering import ImaRenderer
+    ident = make_identifier()
+    for s in _stream(4.0, 1.3):
+        ident.update(*s)
+    m = ident.last
+    assert m.sigma == 0.0 and m.anchor is not None
+    back = Impedance.from_fields(impedance_fields(impedance_msg(m)))
+    assert back.sigma == 0.0 and back.anchor == m.anchor
+    for v in (-0.01, 0.0, 0.004):
+        assert back.force(0.02, v, 0.0) == m.force(0.02, v, 0.0)
+    r = ImaRenderer(blend_time=0.0)
+    assert r.set_impedance(back)
+    r.desired_force(0.02, 0.01, 0.0)
+    assert r.model is back
