@@ -11,10 +11,12 @@ the nodes' engineer's. Per input stream:
   refused), non-finite outputs (target 0), outputs above the limit in force (target 0),
   crashes (any exception; target 0);
 * the default identifier (make_identifier): >= n samples of Experiment II slave data on
-  the phantom with 5 % of them corrupted on one channel (range from the absurd to the
-  plausible); counted: samples sent, refused (gated; non-finite values raise the
-  documented ValueError and are counted as refused), non-finite model values (target 0),
-  models outside the envelope (target 0), crashes (target 0);
+  the phantom, and of a smooth_coulomb x human world where it selects the stateless
+  friction law (issue 12, round 15), with 5 % of them corrupted on one channel (range
+  from the absurd to the plausible); counted: samples sent, refused (gated; non-finite
+  values raise the documented ValueError and are counted as refused), non-finite model
+  values (target 0), models outside the envelope (target 0), crashes (target 0), samples
+  after which the latest model is the stateless law;
 * the identifier's worst deviation after a single outlier (or a short burst) from the
   clean run's model at three probe states, and the recovery times (after which it stays
   below 5 mN and below 1 mN; inf: not within the 12 s run).
@@ -118,11 +120,25 @@ def fuzz_renderers(n, seed=0):
     return rows
 
 
-def fuzz_identifier(n, seed=0):
+def stateless_samples():
+    """The identifier's inputs in a world whose friction is stateless (smooth_coulomb x
+    human 302, drawn as the generalisation protocol draws it), where the default selects
+    the stateless law (sigma 0) once the slave has retracted (issue 12, round 15)."""
+    from impedance_master.generalisation import drawn_cases
+    from streams import experiment_inputs
+    v, op, s, params = [c for c in drawn_cases((302,))
+                        if c[:2] == ('smooth_coulomb', 'human')][0]
+    return experiment_inputs(vessel=v, operator=op, seed=s, vessel_params=params)
+
+
+def fuzz_identifier(n, seed=0, clean=None):
+    """(sent, refused, non-finite models, models outside the envelope, crashes, samples
+    after which the latest model is the stateless law) over n inputs: `clean` (default:
+    the phantom's Experiment II samples) repeated, 5 % corrupted on one channel."""
     rng = np.random.default_rng(seed)
-    clean = phantom_samples()
+    clean = phantom_samples() if clean is None else clean
     ident = make_identifier()
-    sent = refused = nonfinite = outside = crashes = 0
+    sent = refused = nonfinite = outside = crashes = stateless = 0
     for i in range(n):
         s = list(clean[i % len(clean)])
         if i and i % len(clean) == 0:
@@ -143,11 +159,12 @@ def fuzz_identifier(n, seed=0):
             continue
         refused += ident.n_rejected - before
         if out is not None:
+            stateless += out.sigma == 0.0
             if not all(math.isfinite(v) for v in out.to_fields().values()):
                 nonfinite += 1
             elif out.valid and not DEFAULT_ENVELOPE.accepts(out):
                 outside += 1
-    return sent, refused, nonfinite, outside, crashes
+    return sent, refused, nonfinite, outside, crashes, stateless
 
 
 def outlier_deviation():
@@ -203,11 +220,13 @@ def main(argv=None):
           f'{"over limit":>10} {"crashes":>8}   (targets: 0, 0, 0)')
     for row in fuzz_renderers(a.n):
         print(f'{row[0]:<14} {row[1]:8d} {row[2]:8d} {row[3]:14d} {row[4]:10d} {row[5]:8d}')
-    print('\n## Default identifier (Experiment II phantom data, 5 % of samples corrupted)')
-    print(f'{"sent":>8} {"refused":>8} {"non-finite model":>16} {"outside envelope":>16} '
-          f'{"crashes":>8}   (targets: 0, 0, 0)')
-    s = fuzz_identifier(a.n)
-    print(f'{s[0]:8d} {s[1]:8d} {s[2]:16d} {s[3]:16d} {s[4]:8d}')
+    print('\n## Default identifier (5 % of samples corrupted): Experiment II phantom data; '
+          'smooth_coulomb x human 302 data (the stateless law selected)')
+    print(f'{"data":<16} {"sent":>8} {"refused":>8} {"non-finite model":>16} '
+          f'{"outside envelope":>16} {"crashes":>8} {"stateless":>9}   (targets: 0, 0, 0)')
+    for name, clean in (('phantom', None), ('smooth_coulomb', stateless_samples())):
+        s = fuzz_identifier(a.n, clean=clean)
+        print(f'{name:<16} {s[0]:8d} {s[1]:8d} {s[2]:16d} {s[3]:16d} {s[4]:8d} {s[5]:9d}')
     print('\n## Identifier: worst deviation of the published model after an outlier (at 3, 6, '
           '9 s; probes at 20/35/50 mm) and the time until it stays below 1 mN')
     print(f'{"outlier":<24} {"worst deviation N":>17} {"< 5 mN after s":>15} '
