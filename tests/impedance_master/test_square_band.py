@@ -144,28 +144,3 @@ def test_the_renderer_names_a_bad_band():
         ImaRenderer(square_band=-0.1)
     with pytest.raises(ValueError, match='square_sigmas'):
         ImaRenderer(square_sigmas=math.nan, elastic_gain=None)
-
-
-def test_the_lever_widens_the_band_by_the_laws_uncertainty_at_the_depth():
-    sd = 0.01
-    plain, xs, fs = _noisy(lambda x: CQ * x * x, sd, 11, square_sigmas=2.0)
-    lever, _, _ = _noisy(lambda x: CQ * x * x, sd, 11, square_sigmas=2.0, square_lever=True)
-    for x in (0.025, 0.040, 0.056):
-        c, s = _ref(xs, fs, x)
-        b = np.unique(np.round(xs / BIN).astype(int))
-        b = b[(b * BIN >= 0.005 - 1e-12) & (b <= math.floor(round((x - 0.015) / BIN, 9)))]
-        x4 = float(np.sum((b * BIN) ** 4))
-        f = c * x * x + 0.2
-        assert plain.square_excess(x, f) == pytest.approx(0.2 - 2.0 * s, abs=1e-7)
-        assert lever.square_excess(x, f) == pytest.approx(
-            0.2 - 2.0 * s * math.sqrt(1.0 + x ** 4 / x4), abs=1e-7)
-    # the law thrown far from a few shallow bins (8-10 mm at 25 mm): a band more than
-    # twice the plain one; deep in the data (bins to 41 mm at 56 mm) less than 1.5 times
-    x = 0.025
-    f = plain.square_rate(x) * x * x + 0.2
-    assert 0.2 - lever.square_excess(x, f) > 2.0 * (0.2 - plain.square_excess(x, f))
-    x = 0.056
-    f = plain.square_rate(x) * x * x + 0.2
-    assert 0.2 - lever.square_excess(x, f) < 1.5 * (0.2 - plain.square_excess(x, f))
-    with pytest.raises(ValueError, match='square_lever'):
-        ElasticShare(square_lever=1)

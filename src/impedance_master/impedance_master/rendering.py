@@ -47,7 +47,7 @@ from impedance_master.anchoring import (AnchorTerm, anchor_term, anchored_force,
 from impedance_master.scoring import SCORE_LAG, SCORE_RATE, OnlineScore
 from impedance_master.support import (ELASTIC_GAIN, ELASTIC_SQUARE,  # noqa: F401
                                      MAX_MODEL_SLOPE, MAX_SLOPE, SLOPE_LENGTH, SLOPE_STEP,
-                                     SQUARE_BAND, SQUARE_LEVER, SQUARE_SIGMAS, SUPPORT_HALF,
+                                     SQUARE_BAND, SQUARE_SIGMAS, SUPPORT_HALF,
                                      SUPPORT_WIDTH, DepthSlope, ElasticShare, Support)
 
 ANCHORING = ('none', 'full', 'residual', 'local')
@@ -183,10 +183,6 @@ class ImaRenderer(_Rendered):
             (`ElasticShare.square_scatter`: sensor noise, cardiac and breathing, the law's
             misfit; fourteenth round of issue 12). Defaults SQUARE_BAND = 0 N,
             SQUARE_SIGMAS = 2.
-        square_lever: with `square_sigmas`: the scatter widened by the square law's own
-            uncertainty where it is thrown to x (sqrt(1 + x^4 / sum of the fitted bins'
-            depth^4): wide where the law rests on a few shallow bins). Default
-            SQUARE_LEVER = False.
         held_lowpass: s, with the support weighing: while the model is held (not received
             for `stale_time`: a link outage) the anchor's miss is moved, linearly over
             `held_lowpass` s, from the latest sample's (measured force minus the model:
@@ -216,7 +212,7 @@ class ImaRenderer(_Rendered):
                  elastic_gain: Optional[float] = ELASTIC_GAIN,
                  held_lowpass: Optional[float] = HELD_LOWPASS,
                  elastic_square: bool = ELASTIC_SQUARE, square_band: float = SQUARE_BAND,
-                 square_sigmas: float = SQUARE_SIGMAS, square_lever: bool = SQUARE_LEVER):
+                 square_sigmas: float = SQUARE_SIGMAS):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -256,8 +252,7 @@ class ImaRenderer(_Rendered):
             self.support = Support(lo, hi, support_width, support_half)
             if elastic_gain is not None:
                 self.elastic = ElasticShare(lo, hi, square_band=square_band,
-                                            square_sigmas=square_sigmas,
-                                            square_lever=square_lever)
+                                            square_sigmas=square_sigmas)
             if slope_length is not None:
                 self.depth_slope = DepthSlope(positive('slope_length', slope_length))
             if score_memory is not None:
@@ -277,8 +272,6 @@ class ImaRenderer(_Rendered):
         self.elastic_square = elastic_square
         nonneg('square_band', square_band)
         nonneg('square_sigmas', square_sigmas)
-        if not isinstance(square_lever, bool):
-            raise ValueError(f'square_lever must be a bool, got {square_lever!r}')
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
         self._bump = 0.0

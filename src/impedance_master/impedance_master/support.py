@@ -74,9 +74,6 @@ SQUARE_BAND = 0.0
 #: the law (`ElasticShare` square_sigmas, `square_scatter`: the sensor noise, cardiac and
 #: breathing and the law's misfit the data themselves show; fourteenth round of issue 12)
 SQUARE_SIGMAS = 2.0
-#: with SQUARE_SIGMAS: the scatter widened by the law's uncertainty thrown to the depth
-#: (`ElasticShare` square_lever; screened, not kept: the same counts, less of the walls kept)
-SQUARE_LEVER = False
 
 
 class Support:
@@ -270,18 +267,17 @@ class ElasticShare:
     The square law (thirteenth round): `square_rate` c of f = c x^2 through the same bins,
     `square_excess` the force above it. Fourteenth round: that excess is counted only
     above `square_band` N plus `square_sigmas` x `square_scatter` (the anchors' rms
-    scatter about the law), the latter widened, with `square_lever`, by the law's own
-    uncertainty where it is thrown to x (one independent sample per bin).
+    scatter about the law).
     """
 
     __slots__ = ('x_lo', 'margin', 'min_depth', 'min_bins', 'min_speed', 'min_state',
-                 'square_band', 'square_sigmas', 'square_lever', '_n', '_f', '_f2', '_cum',
-                 '_cum2', '_cum3', '_built')
+                 'square_band', 'square_sigmas', '_n', '_f', '_f2', '_cum', '_cum2', '_cum3',
+                 '_built')
 
     def __init__(self, x_lo: float = -0.07, x_hi: float = 0.25, margin: float = ELASTIC_MARGIN,
                  min_depth: float = 0.005, min_bins: int = 3, min_speed: float = 0.005,
                  min_state: float = 0.95, square_band: float = 0.0,
-                 square_sigmas: float = 0.0, square_lever: bool = False):
+                 square_sigmas: float = 0.0):
         if not x_lo < x_hi:
             raise ValueError(f'x_lo must be below x_hi, got {x_lo!r}, {x_hi!r}')
         self.x_lo = float(x_lo)
@@ -292,16 +288,13 @@ class ElasticShare:
         self.min_state = float(min_state)
         self.square_band = nonneg('square_band', square_band)
         self.square_sigmas = nonneg('square_sigmas', square_sigmas)
-        if not isinstance(square_lever, bool):
-            raise ValueError(f'square_lever must be a bool, got {square_lever!r}')
-        self.square_lever = square_lever
         n = int(math.ceil((x_hi - x_lo) / BIN)) + 1
         self._n = [0.0] * n
         self._f = [0.0] * n
         self._f2 = [0.0] * n
         self._cum = ([0.0] * n, [0.0] * n, [0] * n)    # running sums of f x, n x^2, bins
         self._cum2 = ([0.0] * n, [0.0] * n)            # running sums of f x^2, n x^4
-        self._cum3 = ([0.0] * n, [0.0] * n, [0.0] * n)  # running sums of n, f^2, bins' x^4
+        self._cum3 = ([0.0] * n, [0.0] * n)            # running sums of n, f^2
         #: the running sums hold for the bins below this index (an anchor makes those from
         #: its bin on stale; a query extends them only as far as it reads)
         self._built = 0
@@ -328,7 +321,7 @@ class ElasticShare:
         shallower) and the weight of the share there, min(1, bins - (min_bins - 1))
         counted continuously in x (a hard threshold stepped the rendered force as the
         master crossed it). square: the square law c (`square_rate`) instead of mu."""
-        c, _, ramp, _ = self._fit(x, square)
+        c, _, ramp = self._fit(x, square)
         return c, ramp
 
     def _extend(self, j: int) -> None:
@@ -338,14 +331,14 @@ class ElasticShare:
         reads, as they were: rebuilding all 320 bins on every new model cost 25-40 us)."""
         fx, nxx, nb = self._cum
         fxx, nx4 = self._cum2
-        ns, f2s, x4b = self._cum3
+        ns, f2s = self._cum3
         k = self._built
         if k > 0:
             a, b, c = fx[k - 1], nxx[k - 1], nb[k - 1]
             a2, b2 = fxx[k - 1], nx4[k - 1]
-            a3, b3, c3 = ns[k - 1], f2s[k - 1], x4b[k - 1]
+            a3, b3 = ns[k - 1], f2s[k - 1]
         else:
-            a = b = a2 = b2 = a3 = b3 = c3 = 0.0
+            a = b = a2 = b2 = a3 = b3 = 0.0
             c = 0
         for i in range(k, j + 1):
             n = self._n[i]
@@ -358,22 +351,21 @@ class ElasticShare:
                 b2 += n * x2 * x2
                 a3 += n
                 b3 += self._f2[i]
-                c3 += x2 * x2
                 c += 1
             fx[i], nxx[i], nb[i] = a, b, c
             fxx[i], nx4[i] = a2, b2
-            ns[i], f2s[i], x4b[i] = a3, b3, c3
+            ns[i], f2s[i] = a3, b3
         self._built = j + 1
 
     def _fit(self, x: float, square: bool, scatter: bool = False
-             ) -> Tuple[Optional[float], float, float, float]:
-        """(mu or c, sigma, ramp, x4) of `_trend`; with `scatter` and `square`: sigma (N),
-        the rms scatter of the binned anchors' forces about the square law c x^2 (n - 1
-        degrees of freedom), and x4 (m^4), the sum of the fitted bins' depth^4; else 0."""
+             ) -> Tuple[Optional[float], float, float]:
+        """(mu or c, sigma, ramp) of `_trend`; with `scatter` and `square`: sigma (N), the
+        rms scatter of the binned anchors' forces about the square law c x^2 (n - 1 degrees
+        of freedom); else 0."""
         fx, nxx, nb = self._cum
         u = (x - self.margin - self.x_lo) / BIN
         if not u >= 0.0:
-            return None, 0.0, 0.0, 0.0
+            return None, 0.0, 0.0
         i = int(u)
         if i >= len(nb) - 1:
             i, u = len(nb) - 1, float(len(nb) - 1)
@@ -383,22 +375,21 @@ class ElasticShare:
             self._extend(j)
         den = nxx[i] + t * (nxx[j] - nxx[i])
         if not den > 0.0:
-            return None, 0.0, 0.0, 0.0
+            return None, 0.0, 0.0
         ramp = min(1.0, max(0.0, nb[i] + t * (nb[j] - nb[i]) - (self.min_bins - 1)))
         if not square:
-            return (fx[i] + t * (fx[j] - fx[i])) / den, 0.0, ramp, 0.0
+            return (fx[i] + t * (fx[j] - fx[i])) / den, 0.0, ramp
         # the square law c of f = c x^2 instead of the line's mu
         fxx, nx4 = self._cum2
         sfx = fxx[i] + t * (fxx[j] - fxx[i])
         c = sfx / (nx4[i] + t * (nx4[j] - nx4[i]))
         if not scatter:
-            return c, 0.0, ramp, 0.0
+            return c, 0.0, ramp
         # the least-squares residual sum: sum f^2 - c sum f x^2
-        ns, f2s, x4b = self._cum3
+        ns, f2s = self._cum3
         rss = f2s[i] + t * (f2s[j] - f2s[i]) - c * sfx
         n = ns[i] + t * (ns[j] - ns[i])
-        return (c, math.sqrt(max(0.0, rss) / max(1.0, n - 1.0)), ramp,
-                x4b[i] + t * (x4b[j] - x4b[i]))
+        return c, math.sqrt(max(0.0, rss) / max(1.0, n - 1.0)), ramp
 
     def square_rate(self, x: float) -> Optional[float]:
         """N/m^2, the square law c of f = c x^2 (least squares through the entry) fitted to
@@ -413,7 +404,7 @@ class ElasticShare:
         about the square law `square_rate` at x, or None where there is no square law:
         the sensor noise, the cardiac and breathing disturbances and the law's misfit
         together (fourteenth round of issue 12)."""
-        _, sig, ramp, _ = self._fit(x, True, True)
+        _, sig, ramp = self._fit(x, True, True)
         return sig if ramp >= 1.0 else None
 
     def square_excess(self, x: float, f: float) -> float:
@@ -424,14 +415,9 @@ class ElasticShare:
         disturbances, `square_band` N plus `square_sigmas` x `square_scatter` (what the
         shallow forces themselves scatter about the law is no evidence of a wall;
         fourteenth round): 0 without a trend, faded in as `share` is."""
-        c, sig, ramp, x4 = self._fit(x, True, self.square_sigmas > 0.0)
+        c, sig, ramp = self._fit(x, True, self.square_sigmas > 0.0)
         if c is None or ramp <= 0.0 or not f > 0.0:
             return 0.0
-        if self.square_lever and x4 > 0.0:
-            # the law's own uncertainty at x: one independent sample per 1 mm bin (the
-            # breathing does not average out within a pass), c's scatter sigma /
-            # sqrt(sum x_b^4) thrown to x as x^2, with the force's own scatter
-            sig *= math.sqrt(1.0 + x ** 4 / x4)
         band = self.square_band + self.square_sigmas * sig
         return ramp * max(0.0, f - max(0.0, c) * x * x - band)
 
