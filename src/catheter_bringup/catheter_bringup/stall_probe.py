@@ -31,6 +31,8 @@ import sys
 import time
 from typing import Dict, List, Optional, Sequence
 
+from catheter_common.checks import positive
+
 #: s, the probe's sleep
 PERIOD_S = 1e-3
 #: s, a wake-up later than this is a stall
@@ -40,10 +42,10 @@ PROBE_PRIORITY = 99
 
 
 def _check_positive(name: str, value: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 \
-            or value != value or value == float('inf'):
+    """`catheter_common.checks.positive` (a finite number > 0), a bool refused too."""
+    if isinstance(value, bool):
         raise ValueError(f'{name} must be a finite number > 0, got {value!r}')
-    return float(value)
+    return positive(name, value)
 
 
 def probe_loop(period_s: float = PERIOD_S, threshold_s: float = THRESHOLD_S,
@@ -97,8 +99,9 @@ def _pin_and_raise(cpu: Optional[int], priority: int) -> str:
 
 class StallProbe:
     """Context manager: one probe process per CPU this process may use, for the `with`
-    block. After it: `stalls` ({cpu: [[due s, late ms], ...]}), `scheduling` ({cpu: what
-    was granted}). A probe that could not start or report leaves its CPU out (`errors`)."""
+    block. After it: `stalls` ({cpu: [[due s, late ms, major faults, involuntary context
+    switches], ...]}, as `probe_loop` gives them), `scheduling` ({cpu: what was granted}).
+    A probe that could not start or report leaves its CPU out (`errors`)."""
 
     def __init__(self, period_s: float = PERIOD_S, threshold_s: float = THRESHOLD_S,
                  cpus: Optional[Sequence[int]] = None):
