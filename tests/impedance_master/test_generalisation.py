@@ -10,7 +10,8 @@ import pytest
 from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS,
                                              FRESH4_SEEDS, FRESH5_SEEDS, FRESH6_SEEDS,
                                              FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS,
-                                             FRESH10_SEEDS, FRESH11_SEEDS, FRESH_SEEDS,
+                                             FRESH10_SEEDS, FRESH11_SEEDS, FRESH12_SEEDS,
+                                             FRESH_SEEDS,
                                              drawn_cases)
 from impedance_master.operator import OPERATORS
 from sim_slave.vessels import DRAW_RULES, VESSELS, draw_vessel, make_vessel, vessel_spec
@@ -179,6 +180,17 @@ def test_eleventh_fresh_set_is_new_worlds_disjoint_from_every_seen_and_held_out_
                FRESH6_SEEDS, FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS, FRESH10_SEEDS)
     assert not set(FRESH11_SEEDS) & (set().union(*earlier) | set(DEVELOPMENT_SEEDS))
     todo = drawn_cases(FRESH11_SEEDS)
+    assert len(todo) == 90
+    seen = {c[3] for s in earlier for c in drawn_cases(s)}
+    assert not {c[3] for c in todo} & seen
+
+
+def test_twelfth_fresh_set_is_new_worlds_disjoint_from_every_seen_and_held_out_seed():
+    earlier = (FRESH_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS, FRESH4_SEEDS, FRESH5_SEEDS,
+               FRESH6_SEEDS, FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS, FRESH10_SEEDS,
+               FRESH11_SEEDS)
+    assert not set(FRESH12_SEEDS) & (set().union(*earlier) | set(DEVELOPMENT_SEEDS))
+    todo = drawn_cases(FRESH12_SEEDS)
     assert len(todo) == 90
     seen = {c[3] for s in earlier for c in drawn_cases(s)}
     assert not {c[3] for c in todo} & seen
