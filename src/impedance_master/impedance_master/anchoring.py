@@ -30,7 +30,7 @@ import math
 from typing import NamedTuple, Optional
 
 from impedance_master.impedance import Impedance
-from impedance_master.support import SLOPE_STEP, DepthSlope, ElasticShare, Support
+from impedance_master.support import HINGE_F, SLOPE_STEP, DepthSlope, ElasticShare, Support
 
 
 #: the share of the anchor's miss kept after a full reversal of the friction direction
@@ -90,14 +90,17 @@ def measured_slope(depth_slope: Optional[DepthSlope], max_slope: float, slope: f
 
 
 def elastic_keep(m: Impedance, x: float, za, sup: Support, elastic: ElasticShare,
-                 gain: float, square: bool = False) -> float:
+                 gain: float, square: bool = False, hinge_gain: float = 0.0,
+                 hinge_f: float = HINGE_F) -> float:
     """The factor (in [0, 1]) of the model's flip of the friction kept where the master
     turns outward at a depth the slave has not moved outward at (sixth round): the elastic
     part of the inserting force (a wall) does not reverse. The model already keeps its
     static force there (f(x, z = 0)); where `gain` x the measured elastic estimate
     (`ElasticShare`) of its inserting force f_ins is larger, the flip is cut so that the
     force left after a full reversal keeps that estimate, weighed by how unseen the outward
-    direction is there (n_half / (n + n_half) of the outward anchors near x)."""
+    direction is there (n_half / (n + n_half) of the outward anchors near x). With
+    `hinge_gain` > 0 (seventeenth round, opt-in) the estimate is at least hinge_gain x
+    the fitted wall's force k (x - x_w)+ (`ElasticShare.hinge`, F ratio `hinge_f`)."""
     n = sup.count(x, -1.0)
     w = sup.n_half / (n + sup.n_half)
     f_ins = m.force_z(x, 0.0, 0.0, za)
@@ -106,6 +109,10 @@ def elastic_keep(m: Impedance, x: float, za, sup: Support, elastic: ElasticShare
     e_est = gain * elastic.share(x, f_ins) * f_ins
     if square:
         e_est = max(e_est, elastic.square_excess(x, f_ins))
+    if hinge_gain > 0.0:
+        h = elastic.hinge(hinge_f)
+        if h is not None:
+            e_est = max(e_est, hinge_gain * h.k * max(0.0, x - h.x_w))
     if not (fr > 0.0 and e_est > e_model):
         return 1.0
     return 1.0 - w * min(1.0, (e_est - e_model) / fr)
@@ -115,7 +122,8 @@ def supported_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorT
                     anchor_length: float, sup: Support, depth_slope: Optional[DepthSlope],
                     max_slope: float, elastic: Optional[ElasticShare] = None,
                     elastic_gain: float = 0.0, max_model_slope: float = math.inf,
-                    square: bool = False) -> float:
+                    square: bool = False, hinge_gain: float = 0.0,
+                    hinge_f: float = HINGE_F) -> float:
     """'local' anchoring where the model has data; beyond its data (the support `c` near x
     is thin) the model's tables are its priors' guess: extend the model from the nearest
     depth with data instead (weight 1 - c) and keep more of the anchor's measured force
@@ -125,7 +133,8 @@ def supported_force(m: Impedance, z, x: float, xd: float, xdd: float, a: AnchorT
     hold = m.force_z(x, xd, xdd, za)          # the anchor's direction of friction
     flip = m.force_z(x, xd, xdd, z) - hold    # the model's change of direction
     if elastic is not None and flip < 0.0 and a.z1 > 0.0:
-        flip *= elastic_keep(m, x, za, sup, elastic, elastic_gain, square)
+        flip *= elastic_keep(m, x, za, sup, elastic, elastic_gain, square, hinge_gain,
+                             hinge_f)
     c = sup.anywhere(x)
     lo, hi = sup.bracket(x) if c < 1.0 else (None, None)
     if lo is not None and hi is not None:

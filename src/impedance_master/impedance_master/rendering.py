@@ -45,7 +45,8 @@ from impedance_master.safety import (ERROR, OK, SAFE_MAX_RATE, WARN,  # noqa: F4
 from impedance_master.anchoring import (AnchorTerm, anchor_term, anchored_force,
                                        supported_force)
 from impedance_master.scoring import SCORE_LAG, SCORE_RATE, OnlineScore
-from impedance_master.support import (ELASTIC_GAIN, ELASTIC_SQUARE,  # noqa: F401
+from impedance_master.support import (ELASTIC_GAIN, ELASTIC_SQUARE, HINGE_F,  # noqa: F401
+                                     HINGE_GAIN,
                                      MAX_MODEL_SLOPE, MAX_SLOPE, SLOPE_LENGTH, SLOPE_STEP,
                                      SQUARE_BAND, SQUARE_SIGMAS, SUPPORT_HALF,
                                      SUPPORT_WIDTH, DepthSlope, ElasticShare, Support)
@@ -191,6 +192,13 @@ class ImaRenderer(_Rendered):
             over the same time once models arrive again (continuous: a switch's bumpless
             term sees the same blend before and after; sixth round of issue 12; default
             HELD_LOWPASS = 0.3 s). None: off (the fifth round).
+        elastic_hinge, hinge_f: with `elastic_gain`: the first outward reversal keeps at
+            least `elastic_hinge` x the force of a wall fitted to the inward forces,
+            k (x - x_w)+ (`wall_fit.fit_hinge`: friction linear and square in the length,
+            a linear wall with its damper; accepted at an F ratio of at least `hinge_f`,
+            default HINGE_F = 300; seventeenth round of issue 12: a stiff wall entered
+            before the elastic share's 15 mm margin read it was flipped whole). Default
+            HINGE_GAIN = 0.7; None: off (the sixteenth round).
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
     (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
     `n_bad_input`, `n_clamped`, `energy` (J, observer), `n_passivity` (steps with added
@@ -212,7 +220,9 @@ class ImaRenderer(_Rendered):
                  elastic_gain: Optional[float] = ELASTIC_GAIN,
                  held_lowpass: Optional[float] = HELD_LOWPASS,
                  elastic_square: bool = ELASTIC_SQUARE, square_band: float = SQUARE_BAND,
-                 square_sigmas: float = SQUARE_SIGMAS):
+                 square_sigmas: float = SQUARE_SIGMAS,
+                 elastic_hinge: Optional[float] = HINGE_GAIN,
+                 hinge_f: float = HINGE_F):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -272,6 +282,9 @@ class ImaRenderer(_Rendered):
         self.elastic_square = elastic_square
         nonneg('square_band', square_band)
         nonneg('square_sigmas', square_sigmas)
+        self.elastic_hinge = (0.0 if elastic_hinge is None
+                              else positive('elastic_hinge', elastic_hinge))
+        self.hinge_f = positive('hinge_f', hinge_f)
         self.model: Optional[Impedance] = None
         self._pending: Optional[Impedance] = None
         self._bump = 0.0
@@ -364,7 +377,8 @@ class ImaRenderer(_Rendered):
             term = term._replace(rho=term.rho + self._q * (self._rho_lp - term.rho))
         f = supported_force(m, z, x, xd, xdd, term, self.anchor_length, self.support,
                             self.depth_slope, self.max_slope, self.elastic, self.elastic_gain,
-                            self.max_model_slope, self.elastic_square)
+                            self.max_model_slope, self.elastic_square, self.elastic_hinge,
+                            self.hinge_f)
         w = self.score.weight * self.support.anywhere(x) if self.score is not None else 0.0
         if w > 0.0:
             f += w * (anchored_force(m, z, x, xd, xdd, term) - f)
