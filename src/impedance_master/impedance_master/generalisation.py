@@ -82,6 +82,7 @@ every other vessel x operator x seed, cold start.
 * Eleventh fresh held-out worlds (`drawn_cases(FRESH11_SEEDS)`, seeds 1100-1104, the same
   families and operators, 90 worlds): defined and committed during the fifteenth round,
   before its blind run of fresh10, to be run once after a later round's design is final.
+  Run once after the seventeenth round's design was final (the fitted wall's keep).
 * Twelfth fresh held-out worlds (`drawn_cases(FRESH12_SEEDS)`, seeds 1200-1204, the same
   families and operators, 90 worlds): defined and committed during the seventeenth round,
   before its blind run of fresh11, to be run once after a later round's design is final.
@@ -120,7 +121,7 @@ FRESH8_SEEDS = (800, 801, 802, 803, 804)
 FRESH9_SEEDS = (900, 901, 902, 903, 904)
 #: seeds of the tenth held-out worlds (defined in the fourteenth round, run after the fifteenth)
 FRESH10_SEEDS = (1000, 1001, 1002, 1003, 1004)
-#: seeds of the next held-out worlds (defined in the fifteenth round, not run yet)
+#: seeds of the eleventh held-out worlds (defined in the fifteenth round, run after the 17th)
 FRESH11_SEEDS = (1100, 1101, 1102, 1103, 1104)
 #: seeds of the next held-out worlds (defined in the seventeenth round, not run yet)
 FRESH12_SEEDS = (1200, 1201, 1202, 1203, 1204)
