@@ -57,8 +57,9 @@ from impedance_master.rendering import DfrRenderer, ImaRenderer  # noqa: E402
 SETS = {'f1': G.FRESH_SEEDS, 'f2': G.FRESH2_SEEDS, 'f3': G.FRESH3_SEEDS,
         'f4': G.FRESH4_SEEDS, 'f5': G.FRESH5_SEEDS, 'f6': G.FRESH6_SEEDS,
         'f7': G.FRESH7_SEEDS, 'f8': G.FRESH8_SEEDS, 'f9': G.FRESH9_SEEDS,
-        'f10': G.FRESH10_SEEDS}
-#: the sets the sixteenth round screened on (seen; f7 and f8 were run blind but never
+        'f10': G.FRESH10_SEEDS, 'f11': G.FRESH11_SEEDS}
+#: the sets the sixteenth and seventeenth rounds screened on (seen; f11, run blind in the
+#: seventeenth, is seen and may be named; f7 and f8 were run blind but never
 #: recorded for screening, kept so for comparability with the rounds before)
 SEEN = 'f1,f2,f3,f4,f5,f6,f9,f10'
 REPLAY_MODES = ('ima', 'anchored', 'dfr')
