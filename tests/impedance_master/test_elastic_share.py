@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 from impedance_master import ImaRenderer, Impedance
 from impedance_master.anchoring import elastic_keep
 from impedance_master.impedance import steady_states
-from impedance_master.support import BIN, ELASTIC_GAIN, ELASTIC_MARGIN, ElasticShare, Support
+from impedance_master.support import (BIN, ELASTIC_GAIN, ELASTIC_MARGIN, HINGE_GAIN, ElasticShare,
+                                     Support)
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from streams import pull_back  # noqa: E402
@@ -156,7 +157,9 @@ DRAG = 2.0         # N s/m: 0.02 N at 10 mm/s, in the measured force and the mod
 def _inserted(wall=True, sigma=3e-4, **kw):
     """A renderer fed the insertion from 10 to 56 mm at 10 mm/s (anchors every 0.5 mm,
     measured force = the vessel's static force + drag, the model: all of the static force
-    friction, presliding length sigma)."""
+    friction, presliding length sigma). The fitted wall's keep (seventeenth round, its own
+    tests in test_wall_fit.py) off unless asked: these tests are of the elastic share."""
+    kw.setdefault('elastic_hinge', None)
     ima = ImaRenderer(blend_time=0.0, max_rate=1e9, **kw)
     m = _friction_model(wall, DRAG, sigma)
     xd = 0.01
@@ -183,6 +186,20 @@ def test_a_first_reversal_at_a_wall_keeps_half_its_elastic_force():
     # the measured force less the model's drag)
     assert on == pytest.approx(-f_ins - DRAG * 0.01 + 2.0 * ELASTIC_GAIN * e_wall, abs=2e-3)
     assert on > off + 0.2
+
+
+def test_the_default_keeps_the_fitted_walls_larger_share_on_the_same_stream():
+    """Seventeenth round: by default the flip keeps at least 0.7 of the fitted wall's force
+    (`wall_fit`), more than the elastic share's 0.5 here."""
+    x = 0.054
+    f_ins = _force(x)
+    e_wall = WALL[1] * (x - WALL[0])
+    share = pull_back(_inserted())
+    default = pull_back(_inserted(elastic_hinge=HINGE_GAIN))
+    assert HINGE_GAIN == 0.7
+    # (within 8 mN: the anchors every 0.5 mm are binned at 1 mm before the wall is fitted)
+    assert default == pytest.approx(-f_ins - DRAG * 0.01 + 2.0 * HINGE_GAIN * e_wall, abs=8e-3)
+    assert default > share + 0.05
 
 
 def test_a_stateless_model_keeps_the_elastic_force_at_a_first_reversal_too():

@@ -140,6 +140,7 @@ def test_elastic_keep_with_the_square_floor():
 
 def _inserted(force, **kw):
     """A renderer fed the insertion from 10 to 56 mm at 10 mm/s (a model per 0.5 mm)."""
+    kw.setdefault('elastic_hinge', None)     # the fitted wall's keep: test_wall_fit.py
     return insert(ImaRenderer(blend_time=0.0, max_rate=1e9, **kw), _model(force), force)
 
 

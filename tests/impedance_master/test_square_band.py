@@ -109,6 +109,7 @@ def _inserted(**kw):
     xs = [0.005 * i for i in range(17)]
     m = Impedance(0.0, 0.0, 0.0, 0.0, x0=0.0, dx=0.005, sigma=3e-4, beta=0.0,
                   S=[0.0] * 17, F=[_wall(x) for x in xs], B=[0.0] * 17, C=[0.0] * 17)
+    kw.setdefault('elastic_hinge', None)     # the fitted wall's keep: test_wall_fit.py
     return insert(ImaRenderer(blend_time=0.0, max_rate=1e9, elastic_gain=0.05,
                               elastic_square=True, **kw), m, _wall)
 
