@@ -1,5 +1,5 @@
 """Where a wall starts and how stiff it is, from the force met while inserting (the
-seventeenth round of issue 12; an opt-in of `ImaRenderer`, `elastic_hinge`).
+seventeenth round of issue 12; `ImaRenderer` `elastic_hinge`, on by default).
 
 The inward anchors' forces, binned by depth (`support.ElasticShare`: 1 mm bins, the
 measured force less the model's velocity terms, with the bins' mean speed), are fitted by
