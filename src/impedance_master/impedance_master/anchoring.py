@@ -99,8 +99,9 @@ def elastic_keep(m: Impedance, x: float, za, sup: Support, elastic: ElasticShare
     (`ElasticShare`) of its inserting force f_ins is larger, the flip is cut so that the
     force left after a full reversal keeps that estimate, weighed by how unseen the outward
     direction is there (n_half / (n + n_half) of the outward anchors near x). With
-    `hinge_gain` > 0 (seventeenth round; the renderer passes 0.7) the estimate is at least hinge_gain x
-    the fitted wall's force k (x - x_w)+ (`ElasticShare.hinge`, F ratio `hinge_f`)."""
+    `hinge_gain` > 0 (seventeenth round; the renderer passes 0.7) the estimate is at least
+    hinge_gain x the fitted wall's force k (x - x_w)+ (`ElasticShare.hinge`, F ratio
+    `hinge_f`)."""
     n = sup.count(x, -1.0)
     w = sup.n_half / (n + sup.n_half)
     f_ins = m.force_z(x, 0.0, 0.0, za)
