@@ -18,6 +18,15 @@ Usage (from the repository root, after `. scripts/env.sh`):
     python tests/bench/ima_screen.py record DIR [--ident JSON] [--sets f1,f2,...] [--jobs N]
     python tests/bench/ima_screen.py replay DIR MODE OUT.pkl [--render JSON] [--sets ...]
     python tests/bench/ima_screen.py score DFR.pkl ANCHORED.pkl RESULT.pkl [...]
+    python tests/bench/ima_screen.py replay DIR ima OUT.pkl --oracle deep[,first_out,visited]
+        [--oracle-everywhere]
+
+`--oracle` (eighteenth round) bounds what a better renderer could gain where: in the named
+classes of the master's state (`sample_class`: 'deep', deeper than the slave's data;
+'first_out', moving outward deeper than the slave ever moved outward; 'visited', the rest)
+the replay renders the reference itself, during the outage intervals of the error metric
+only (everywhere with `--oracle-everywhere`). It is a bound, not a renderer: the reference
+is the future the master cannot know.
 
 Sets are the seen fresh sets by name (f1 = FRESH_SEEDS 100-104, f2 = 200-204, ..., f10 =
 1000-1004); the default is every set seen by the sixteenth round (f1-f6, f9, f10: 720
@@ -50,7 +59,7 @@ from impedance_master.experiment import ExperimentConfig, experiment_world  # no
 from impedance_master.generalisation import beats_dfr, case_result, drawn_cases  # noqa: E402
 from impedance_master.haptic import DeviceParams, HapticDevice  # noqa: E402
 from impedance_master.identification import make_identifier  # noqa: E402
-from impedance_master.metrics import tracking_metrics, twin_reference  # noqa: E402
+from impedance_master.metrics import outage_mask, tracking_metrics, twin_reference  # noqa: E402
 from impedance_master.operator import experiment_trajectory  # noqa: E402
 from impedance_master.rendering import DfrRenderer, ImaRenderer  # noqa: E402
 
@@ -63,6 +72,57 @@ SETS = {'f1': G.FRESH_SEEDS, 'f2': G.FRESH2_SEEDS, 'f3': G.FRESH3_SEEDS,
 #: recorded for screening, kept so for comparability with the rounds before)
 SEEN = 'f1,f2,f3,f4,f5,f6,f9,f10'
 REPLAY_MODES = ('ima', 'anchored', 'dfr')
+#: classes of the master's state for `--oracle` (`sample_class`)
+ORACLE_CLASSES = ('deep', 'first_out', 'visited')
+#: m, how far beyond the slave's deepest anchor a state counts as unseen
+ORACLE_MARGIN = 1e-3
+
+
+def sample_class(x: float, xd: float, deepest_in: float, deepest_out: float,
+                 margin: float = ORACLE_MARGIN) -> str:
+    """Where the master's state (x m, xd m/s) is against the slave's data so far (the
+    deepest anchor moving inward, `deepest_in`, and outward, `deepest_out`, m; -inf if
+    none): 'deep' more than `margin` deeper than the deepest inward one (the model
+    extrapolates in depth), 'first_out' moving outward more than `margin` deeper than the
+    deepest outward one (the friction's reversal there is unseen), 'visited' otherwise."""
+    if x > deepest_in + margin:
+        return 'deep'
+    if xd < 0.0 and x > deepest_out + margin:
+        return 'first_out'
+    return 'visited'
+
+
+class SlaveReach:
+    """The slave's deepest anchors so far, moving inward and outward (m; -inf before any),
+    from the models the master received; `of(x, xd)` the `sample_class` of a master state."""
+
+    def __init__(self):
+        self.deepest_in = -math.inf
+        self.deepest_out = -math.inf
+
+    def add(self, anchor) -> None:
+        """Count a model's `Anchor` (None, or at rest: nothing)."""
+        if anchor is None or anchor.xd == 0.0:
+            return
+        if anchor.xd > 0.0:
+            self.deepest_in = max(self.deepest_in, anchor.x)
+        else:
+            self.deepest_out = max(self.deepest_out, anchor.x)
+
+    def of(self, x: float, xd: float) -> str:
+        return sample_class(x, xd, self.deepest_in, self.deepest_out)
+
+
+def _oracle_classes(oracle, mode: str) -> frozenset:
+    """The set of oracle classes, checked (known names; mode 'ima', whose models carry the
+    anchors that `sample_class` needs)."""
+    names = frozenset(oracle)
+    bad = sorted(names - set(ORACLE_CLASSES))
+    if bad:
+        raise ValueError(f'unknown oracle class {bad[0]!r}; known: {", ".join(ORACLE_CLASSES)}')
+    if names and mode != 'ima':
+        raise ValueError(f'an oracle needs mode ima, got {mode!r}')
+    return names
 
 
 def worlds(sets: str = SEEN):
@@ -117,11 +177,16 @@ def record(world, ident_params=None) -> dict:
     return {'world': world, 'n': n, 'arrivals': arrivals, 'reference': ref}
 
 
-def replay(world, rec: dict, mode: str, render_params=None):
+def replay(world, rec: dict, mode: str, render_params=None, oracle=(),
+           oracle_everywhere: bool = False):
     """The `CaseResult` of one mode ('ima' with `render_params`, 'anchored', 'dfr') on a
-    recording, built as `run_experiment` builds it."""
+    recording, built as `run_experiment` builds it. `oracle`: classes (`ORACLE_CLASSES`)
+    of the master's state in which the reference is rendered instead, in the outage
+    intervals of the metric (everywhere if `oracle_everywhere`): a bound, see the module
+    doc."""
     if mode not in REPLAY_MODES:
         raise ValueError(f'mode must be one of {REPLAY_MODES}, got {mode!r}')
+    oracle = _oracle_classes(oracle, mode)
     cfg = _config(world)
     traj = experiment_trajectory(cfg.experiment, seed=cfg.seed, operator=cfg.operator)
     n, dt = rec['n'], 1.0 / cfg.rate
@@ -136,6 +201,11 @@ def replay(world, rec: dict, mode: str, render_params=None):
                         anchor_length=math.inf if anchored else cfg.anchor_length,
                         **({} if anchored else (render_params or {})))
     arr, i, na = rec['arrivals'], 0, len(rec['arrivals'])
+    t = np.arange(n) * dt
+    ref = rec['reference']
+    where = (np.ones(n, dtype=bool) if oracle_everywhere
+             else outage_mask(t, cfg.outages, cfg.delay))
+    reach = SlaveReach()
     f_hand = np.zeros(n)
     f_des = 0.0
     for k in range(n):
@@ -148,10 +218,12 @@ def replay(world, rec: dict, mode: str, render_params=None):
                 r.set_force(f)
             elif imp is not None:
                 r.set_impedance(imp)
+                reach.add(imp.anchor)
         f_des = r.desired_force() if mode == 'dfr' else r.desired_force(dev.x, dev.xd, dev.xdd)
+        if oracle and where[k] and reach.of(dev.x, dev.xd) in oracle:
+            f_des = float(ref[k])
         f_hand[k] = dev.f_hand
-    return case_result(tracking_metrics(np.arange(n) * dt, f_hand, rec['reference'],
-                                        cfg.outages, cfg.delay))
+    return case_result(tracking_metrics(t, f_hand, ref, cfg.outages, cfg.delay))
 
 
 def _record_job(args):
@@ -164,10 +236,10 @@ def _record_job(args):
 
 
 def _replay_job(args):
-    world, d, mode, render = args
+    world, d, mode, render, oracle, everywhere = args
     with open(os.path.join(d, key(world) + '.pkl'), 'rb') as fh:
         rec = pickle.load(fh)
-    return key(world), replay(world, rec, mode, render)
+    return key(world), replay(world, rec, mode, render, oracle, everywhere)
 
 
 def score(dfr: dict, anchored: dict, result: dict) -> str:
@@ -199,6 +271,10 @@ def main(argv=None):
     b.add_argument('mode', choices=REPLAY_MODES)
     b.add_argument('out')
     b.add_argument('--render', default='{}', help='ImaRenderer keyword arguments, JSON')
+    b.add_argument('--oracle', default='',
+                   help=f'render the reference in these classes ({",".join(ORACLE_CLASSES)})')
+    b.add_argument('--oracle-everywhere', action='store_true',
+                   help='the oracle in every interval, not the outages only')
     for p in (a, b):
         p.add_argument('--sets', default=SEEN)
         p.add_argument('--jobs', type=int, default=2)
@@ -226,9 +302,13 @@ def main(argv=None):
                 pass
     else:
         render = json.loads(args.render)
+        try:
+            oracle = _oracle_classes((c for c in args.oracle.split(',') if c), args.mode)
+        except ValueError as e:
+            ap.error(str(e))
+        jobs = [(w, args.dir, args.mode, render, oracle, args.oracle_everywhere) for w in todo]
         with Pool(args.jobs) as pool:
-            res = dict(pool.imap_unordered(
-                _replay_job, [(w, args.dir, args.mode, render) for w in todo], chunksize=4))
+            res = dict(pool.imap_unordered(_replay_job, jobs, chunksize=4))
         with open(args.out, 'wb') as fh:
             pickle.dump(res, fh)
     print(f'{args.cmd}: {len(todo)} worlds, {time.time() - t0:.0f} s', file=sys.stderr)
