@@ -265,6 +265,7 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
     metrics['id_status'] = id_status
     if ima:
         metrics['renderer'] = {'switches': renderer.n_switches, 'ignored': renderer.n_ignored,
+                               'pre_anchors': renderer.n_pre_anchors,
                                'clamped': renderer.n_clamped,
                                'passivity_steps': renderer.n_passivity}
     else:

@@ -22,7 +22,11 @@ a residual of at most that band would. A model outside the `envelope` is not pub
 (status 'out_of_envelope', the previous model is held).
 
 Each published model carries an `impedance.Anchor`: the slave's state, measured force and
-low-passed residual at the sample it was made at.
+low-passed residual at the sample it was made at. Before the first model (status 'filling')
+every `solve_every` samples yields an INVALID linear model that carries only the anchor
+(residual 0): no model to render, but where the slave has been and what force it met there
+(nineteenth round of issue 12: a renderer that counted only the models' anchors did not
+know the first second of the insertion, where a wall's onset often is).
 """
 from __future__ import annotations
 
@@ -156,6 +160,7 @@ class HistoryIdentifier:
         self.theta = np.zeros(self.P)
         self.last: Optional[Impedance] = None
         self._sample = None          # (x, xd, xdd, zs, f) of the latest sample
+        self._filling: Optional[Impedance] = None   # the latest anchor-only model (filling)
         self._res = 0.0              # low-passed residual f - model at the slave's state
         self.scale = self.clip_floor / max(self.clip_factor, 1.0)
         self.envelope_reason: Optional[str] = None
@@ -278,8 +283,10 @@ class HistoryIdentifier:
         Non-finite values: ValueError naming the argument. Impossible samples (see
         `gating.SampleGate`) are counted and ignored.
 
-        Returns None until `window` seconds of motion have been seen, then the latest model
-        (a new one every `solve_every` samples; the same object in between).
+        Returns None before the first sample at a `solve_every` tick; until `window`
+        seconds of motion have been seen, an invalid anchor-only model (status 'filling',
+        `_filling_model`); then the latest model (a new one every `solve_every` samples;
+        the same object in between).
         """
         x = finite('x', x)
         xd = finite('xd', xd)
@@ -329,8 +336,22 @@ class HistoryIdentifier:
             self._since_solve = 0
             if self.n_moving >= self.window * self.rate:
                 return self._solve(moved=self._moving_in_batch > 0)
+            self._filling = self._filling_model()
+            return self._filling
+        return self.last if self.last is not None else self._filling
+
+    def _filling_model(self) -> Optional[Impedance]:
+        """Before the first model: an invalid linear model (m = c = k = offset = 0, status
+        'filling') carrying the latest sample as its `Anchor` (residual 0: there is no model
+        yet). A renderer does not render it; it counts where the slave was (`ImaRenderer`
+        folds these anchors in with the first valid model). None before any sample."""
+        smp = self._sample
+        if smp is None:
             return None
-        return self.last
+        x, xd, xdd, zs, f = smp
+        z = zs[self.selected]
+        return Impedance(0.0, 0.0, 0.0, 0.0, False, status='filling',
+                         anchor=Anchor(x, xd, xdd, z[0], z[1], f, 0.0))
 
     def _add_row(self, x, xd, xdd, zs, f) -> None:
         """Accumulate one sample's row (2 nonzeros per table block at the grid cell of x,

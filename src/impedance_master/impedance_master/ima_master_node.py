@@ -175,7 +175,12 @@ class ImaMasterNode(Node):
             imp = Impedance(imp.m, imp.c, imp.k, imp.offset, imp.valid)
         self._last_key, self._last_imp = key, imp
         self.diag.count('models_received')
+        pre = getattr(self.renderer, 'n_pre_anchors', 0)
         if not self.renderer.set_impedance(imp):
+            if getattr(self.renderer, 'n_pre_anchors', 0) > pre:
+                # the identifier's warm-up ('filling'): no model yet, its anchor is kept
+                self.diag.count('models_filling')
+                return
             self.diag.count('models_ignored_invalid')
             self.diag.event('model_invalid', WARN, 'models marked invalid by the identifier '
                             'are ignored (the previous model stays in use)')

@@ -132,7 +132,7 @@ class ImpedanceIdentifierNode(Node):
             if out is not self.model:
                 self.diag.count('model_updates')
             self.model = out
-            if self.ident.status != 'ok':
+            if self.ident.status not in ('ok', 'filling'):     # filling: anchor-only models
                 self.diag.count('held_' + self.ident.status)
 
     def _publish(self) -> None:

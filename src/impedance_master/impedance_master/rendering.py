@@ -13,7 +13,10 @@ What it refuses, and what then reaches the hand:
 
 * a model that is not valid (identifier warming up) or outside the `envelope`
   (`envelope.ModelEnvelope`: m = 1e308, k = 1e300, a tampered state): refused, counted
-  (`n_ignored`, `n_refused`), the current model stays in use;
+  (`n_ignored`, `n_refused`), the current model stays in use (an invalid model that
+  carries an anchor before any model is in use, the identifier's 'filling' models, is not
+  rendered either: its anchor, inside the envelope, is kept as where the slave was and
+  counted with the first model, `n_pre_anchors`);
 * a master state that is not finite or outside the state box (`state_box`: the envelope's
   workspace with margins, default x in [-0.07, 0.25] m, |x'| <= 1 m/s, |x''| <= 100
   m/s^2; x = -1.7e308 is not a hand): counted (`n_bad_input`), the FALLBACK holds the last
@@ -35,6 +38,7 @@ diagnostics.
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import Optional, Tuple
 
 from catheter_common.checks import nonneg, positive
@@ -59,6 +63,9 @@ RECOVER_TIME = 0.05
 #: s, while the model is held (a link outage) the anchor's miss moves over this time from
 #: the latest sample's to the identifier's low-passed one (and back after; sixth round)
 HELD_LOWPASS = 0.3
+#: anchors of invalid ('filling') models kept before the first model (the latest; 10 s at
+#: the identifier's 50 models per second)
+MAX_PRE_ANCHORS = 500
 
 
 def _same(a: Impedance, b: Optional[Impedance]) -> bool:
@@ -199,8 +206,18 @@ class ImaRenderer(_Rendered):
             default HINGE_F = 300; seventeenth round of issue 12: a stiff wall entered
             before the elastic share's 15 mm margin read it was flipped whole). Default
             HINGE_GAIN = 0.7; None: off (the sixteenth round).
+        pre_anchors: keep the anchors of invalid models offered before the first model
+            (the default identifier's 'filling' models, one per 20 ms of its first second
+            of motion) and count them with the first model's anchor in the support, the
+            measured slope and the elastic share (default True; nineteenth round of issue
+            12: without them the renderer's data began about 1.5 s into the run, often
+            past a wall's onset, and the wall fit could not see it). False: they are
+            ignored like any invalid model (`n_ignored`), the eighteenth round.
     Attributes: `model` (in use), `n_switches`, `n_ignored` (invalid models), `n_refused`
-    (outside the envelope), `n_dropped` (dropped after a non-finite evaluation),
+    (outside the envelope), `n_pre_anchors` (anchors of invalid models kept before the
+    first model: the support, measured slope and elastic share count them with the first
+    model, the nineteenth round of issue 12), `n_dropped` (dropped after a non-finite
+    evaluation),
     `n_bad_input`, `n_clamped`, `energy` (J, observer), `n_passivity` (steps with added
     damping), `in_fallback`.
     """
@@ -222,7 +239,7 @@ class ImaRenderer(_Rendered):
                  elastic_square: bool = ELASTIC_SQUARE, square_band: float = SQUARE_BAND,
                  square_sigmas: float = SQUARE_SIGMAS,
                  elastic_hinge: Optional[float] = HINGE_GAIN,
-                 hinge_f: float = HINGE_F):
+                 hinge_f: float = HINGE_F, pre_anchors: bool = True):
         self._out = SafeOutput(limit, max_rate, dt, fallback_time)
         self.dt = self._out.dt
         self.blend_time = blend_time
@@ -301,6 +318,11 @@ class ImaRenderer(_Rendered):
         self._bad_now = False
         self.n_switches = 0
         self.n_ignored = 0
+        if not isinstance(pre_anchors, bool):
+            raise ValueError(f'pre_anchors must be a bool, got {pre_anchors!r}')
+        self.pre_anchors = pre_anchors
+        self.n_pre_anchors = 0
+        self._pre: deque = deque(maxlen=MAX_PRE_ANCHORS)
         self.n_refused = 0
         self.n_dropped = 0
         self.n_bad_input = 0
@@ -337,7 +359,11 @@ class ImaRenderer(_Rendered):
         if not isinstance(imp, Impedance):
             raise ValueError(f'imp must be an Impedance, got {type(imp).__name__}')
         if not imp.valid:
-            self.n_ignored += 1
+            if (self.pre_anchors and imp.anchor is not None and self.model is None
+                    and self._pending is None):
+                self._keep_pre_anchor(imp)
+            else:
+                self.n_ignored += 1
             return False
         if _same(imp, self._pending) or (self._pending is None and _same(imp, self.model)):
             self._age = 0.0
@@ -352,6 +378,33 @@ class ImaRenderer(_Rendered):
         self._age = 0.0
         self._refused_since_accept = False
         return True
+
+    def _keep_pre_anchor(self, imp: Impedance) -> None:
+        """Before any model: keep the anchor of an invalid model (the identifier's
+        'filling' models: where the slave was and the force it met) if it is new and inside
+        the envelope; counted with the first model (`_count_anchor`)."""
+        a = imp.anchor
+        if self._pre and self._pre[-1] == a:
+            return                              # the same model again (re-sent)
+        why = self.envelope.check(imp)
+        if why is not None:
+            self.n_refused += 1
+            self.last_reason = f'model refused: {why}'
+            return
+        self._pre.append(a)
+        self.n_pre_anchors += 1
+
+    def _count_anchor(self, new: Impedance, a) -> None:
+        """Count anchor `a` (the slave's sample) where the slave has measured: the support,
+        the measured slope over depth, the elastic share (its force less `new`'s velocity
+        terms there) and the opt-in score's count."""
+        self.support.add(a.x, a.xd)
+        if self.depth_slope is not None:
+            self.depth_slope.add(a.x, a.xd, a.f, a.z1)
+        if self.elastic is not None:
+            za = (a.z1, a.z2)
+            self.elastic.add(a.x, a.xd, a.f - new.force_z(a.x, a.xd, a.xdd, za)
+                             + new.force_z(a.x, 0.0, 0.0, za), a.z1)
 
     def _eval(self, x: float, xd: float, xdd: float) -> float:
         m = self.model
@@ -409,15 +462,12 @@ class ImaRenderer(_Rendered):
             self._xa, self._za, self._za2, self._rho = term
             self._rho_lp = a.r
             if self.support is not None:
-                self.support.add(a.x, a.xd)
-                if self.depth_slope is not None:
-                    self.depth_slope.add(a.x, a.xd, a.f, a.z1)
-                if self.elastic is not None:
-                    za = (a.z1, a.z2)
-                    self.elastic.add(a.x, a.xd, a.f - new.force_z(a.x, a.xd, a.xdd, za)
-                                     + new.force_z(a.x, 0.0, 0.0, za), a.z1)
+                while self._pre:                # where the slave was before the first model
+                    self._count_anchor(new, self._pre.popleft())
+                self._count_anchor(new, a)
                 if self.score is not None:
                     self.score.observe(new, term, a)
+        self._pre.clear()                       # counted above, or not used
         self.model = new
         self.n_switches += 1
         if self._out.in_fallback:       # a good model after a fault: take over bumplessly
