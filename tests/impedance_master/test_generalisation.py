@@ -11,6 +11,7 @@ from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FR
                                              FRESH4_SEEDS, FRESH5_SEEDS, FRESH6_SEEDS,
                                              FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS,
                                              FRESH10_SEEDS, FRESH11_SEEDS, FRESH12_SEEDS,
+                                             FRESH13_SEEDS,
                                              FRESH_SEEDS,
                                              drawn_cases)
 from impedance_master.operator import OPERATORS
@@ -191,6 +192,17 @@ def test_twelfth_fresh_set_is_new_worlds_disjoint_from_every_seen_and_held_out_s
                FRESH11_SEEDS)
     assert not set(FRESH12_SEEDS) & (set().union(*earlier) | set(DEVELOPMENT_SEEDS))
     todo = drawn_cases(FRESH12_SEEDS)
+    assert len(todo) == 90
+    seen = {c[3] for s in earlier for c in drawn_cases(s)}
+    assert not {c[3] for c in todo} & seen
+
+
+def test_thirteenth_fresh_set_is_new_worlds_disjoint_from_every_seen_and_held_out_seed():
+    earlier = (FRESH_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS, FRESH4_SEEDS, FRESH5_SEEDS,
+               FRESH6_SEEDS, FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS, FRESH10_SEEDS,
+               FRESH11_SEEDS, FRESH12_SEEDS)
+    assert not set(FRESH13_SEEDS) & (set().union(*earlier) | set(DEVELOPMENT_SEEDS))
+    todo = drawn_cases(FRESH13_SEEDS)
     assert len(todo) == 90
     seen = {c[3] for s in earlier for c in drawn_cases(s)}
     assert not {c[3] for c in todo} & seen

@@ -86,6 +86,10 @@ every other vessel x operator x seed, cold start.
 * Twelfth fresh held-out worlds (`drawn_cases(FRESH12_SEEDS)`, seeds 1200-1204, the same
   families and operators, 90 worlds): defined and committed during the seventeenth round,
   before its blind run of fresh11, to be run once after a later round's design is final.
+  Run once after the nineteenth round's design was final (the warm-up anchors).
+* Thirteenth fresh held-out worlds (`drawn_cases(FRESH13_SEEDS)`, seeds 1300-1304, the same
+  families and operators, 90 worlds): defined and committed during the nineteenth round,
+  before its blind run of fresh12, to be run once after a later round's design is final.
 """
 from __future__ import annotations
 
@@ -123,8 +127,10 @@ FRESH9_SEEDS = (900, 901, 902, 903, 904)
 FRESH10_SEEDS = (1000, 1001, 1002, 1003, 1004)
 #: seeds of the eleventh held-out worlds (defined in the fifteenth round, run after the 17th)
 FRESH11_SEEDS = (1100, 1101, 1102, 1103, 1104)
-#: seeds of the next held-out worlds (defined in the seventeenth round, not run yet)
+#: seeds of the twelfth held-out worlds (defined in the seventeenth round, run after the 19th)
 FRESH12_SEEDS = (1200, 1201, 1202, 1203, 1204)
+#: seeds of the next held-out worlds (defined in the nineteenth round, not run yet)
+FRESH13_SEEDS = (1300, 1301, 1302, 1303, 1304)
 
 
 @dataclass(frozen=True)
