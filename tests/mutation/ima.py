@@ -34,8 +34,14 @@ MUTANTS = [
            '        if False:',
            'a model whose evaluation overflows is not dropped for the right reason'),
     Mutant('I05', IM + 'rendering.py',
-           '        why = self.envelope.check(imp)\n        if why is not None:\n            self.n_refused += 1\n            self._refused_since_accept',
-           '        why = None\n        if why is not None:\n            self.n_refused += 1\n            self._refused_since_accept',
+           '        why = self.envelope.check(imp)\n'
+           '        if why is not None:\n'
+           '            self.n_refused += 1\n'
+           '            self._refused_since_accept',
+           '        why = None\n'
+           '        if why is not None:\n'
+           '            self.n_refused += 1\n'
+           '            self._refused_since_accept',
            'models outside the envelope (m = 1e308, k = 1e300) are rendered'),
     # -- the identifiers (issue 10 item 2, issue 14)
     Mutant('I06', IM + 'history.py',
@@ -334,8 +340,11 @@ MUTANTS = [
            'elastic_keep ignores the square-law floor it is asked for',
            tests=('tests/impedance_master/test_elastic_square.py',)),
     Mutant('I63', IM + 'rendering.py',
-           '                            self.max_model_slope, self.elastic_square, self.elastic_hinge,\n                            self.hinge_f)',
-           '                            self.max_model_slope, False, self.elastic_hinge,\n                            self.hinge_f)',
+           '                            self.max_model_slope, self.elastic_square, '
+           'self.elastic_hinge,\n'
+           '                            self.hinge_f)',
+           '                            self.max_model_slope, False, self.elastic_hinge,\n'
+           '                            self.hinge_f)',
            'the renderer drops its elastic_square setting',
            tests=('tests/impedance_master/test_elastic_square.py',)),
     Mutant('I64', IM + 'support.py',
@@ -482,7 +491,12 @@ MUTANTS = [
            'a re-sent filling model counted again',
            tests=('tests/impedance_master/test_pre_anchors.py',)),
     Mutant('I85', IM + 'rendering.py',
-           '        why = self.envelope.check(imp)\n        if why is not None:\n            self.n_refused += 1\n            self.last_reason = f\'model refused: {why}\'\n            return\n        self._pre.append(a)',
+           '        why = self.envelope.check(imp)\n'
+           '        if why is not None:\n'
+           '            self.n_refused += 1\n'
+           '            self.last_reason = f\'model refused: {why}\'\n'
+           '            return\n'
+           '        self._pre.append(a)',
            '        self._pre.append(a)',
            'a warm-up anchor outside the envelope kept',
            tests=('tests/impedance_master/test_pre_anchors.py',)),
