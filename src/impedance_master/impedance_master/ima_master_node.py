@@ -175,9 +175,9 @@ class ImaMasterNode(Node):
             imp = Impedance(imp.m, imp.c, imp.k, imp.offset, imp.valid)
         self._last_key, self._last_imp = key, imp
         self.diag.count('models_received')
-        pre = getattr(self.renderer, 'n_pre_anchors', 0)
+        pre = self.renderer.n_pre_anchors           # mode ima / ima_thesis: an ImaRenderer
         if not self.renderer.set_impedance(imp):
-            if getattr(self.renderer, 'n_pre_anchors', 0) > pre:
+            if self.renderer.n_pre_anchors > pre:
                 # the identifier's warm-up ('filling'): no model yet, its anchor is kept
                 self.diag.count('models_filling')
                 return

@@ -396,8 +396,8 @@ class ImaRenderer(_Rendered):
 
     def _count_anchor(self, new: Impedance, a) -> None:
         """Count anchor `a` (the slave's sample) where the slave has measured: the support,
-        the measured slope over depth, the elastic share (its force less `new`'s velocity
-        terms there) and the opt-in score's count."""
+        the measured slope over depth and the elastic share (its force less `new`'s
+        velocity terms there)."""
         self.support.add(a.x, a.xd)
         if self.depth_slope is not None:
             self.depth_slope.add(a.x, a.xd, a.f, a.z1)
