@@ -5,6 +5,8 @@ Invariants (default identifier):
 * an impossible sample (range, jump) is refused and counted and changes nothing;
 * one or two outliers in a row on any channel, of any finite size, move the published
   model by less than 1 mN at the probe states (the input median of 5 removes them);
+* a run of forces outside the robust band that ends within `burst_samples` (a sensor
+  burst) moves it by less than 2 mN (held back, then dropped); a longer one is learned;
 * after any finite input sequence the identifier returns models inside the envelope and
   is never stuck: clean data afterwards bring it back to the clean model.
 """
@@ -106,17 +108,84 @@ def test_one_or_two_outliers_move_the_model_by_less_than_a_millinewton(at, chann
     assert ident.status == 'ok'
 
 
-def test_a_burst_of_outliers_is_clipped_to_the_robust_band():
-    """Five samples in a row of 5 N (inside the gate, through the median): each enters the
-    fit at most the robust band (1 N) from the model, so the model moves by tens of mN,
-    not the 0.13 N the raw burst gives (measured without the clip)."""
-    ident = make_identifier()
+def burst_run(value, n, at=3000, **params):
+    """(identifier, worst deviation from the clean models after `at`) with `n` samples in a
+    row of force `value` from sample `at`."""
+    ident = make_identifier(**params)
     worst = 0.0
     for i, s in enumerate(CLEAN):
-        out = ident.update(*(s[:3] + (5.0,) if 3000 <= i < 3005 else s))
-        if i >= 3000 and out is not None:
+        out = ident.update(*(s[:3] + (value,) if at <= i < at + n else s))
+        if i >= at and out is not None:
             worst = max(worst, deviation(out, CLEAN_MODELS[i]))
-    assert ident.n_clipped >= 3 and worst < 0.04
+    return ident, worst
+
+
+def test_a_burst_of_outliers_is_clipped_to_the_robust_band():
+    """Without the burst hold (burst_samples 0, the nineteenth round): five samples in a row
+    of 5 N (inside the gate, through the median) each enter the fit at most the robust
+    band (1 N) from the model, so the model moves by tens of mN, not the 0.13 N the raw
+    burst gives (measured without the clip)."""
+    ident, worst = burst_run(5.0, 5, burst_samples=0)
+    assert ident.n_clipped >= 3 and 0.01 < worst < 0.04
+    assert ident.n_bursts == 0
+
+
+@pytest.mark.parametrize('value,n', [(5.0, 3), (5.0, 5), (-5.0, 5), (2.0, 10)])
+def test_a_burst_shorter_than_burst_samples_is_dropped(value, n):
+    """Twentieth round: samples outside the robust band are held back; the force comes back
+    inside within burst_samples (10), so the run was a sensor burst: dropped, counted, the
+    model moves by less than 2 mN (the clean samples lost with it; the hold off: tens of
+    mN, above)."""
+    ident, worst = burst_run(value, n)
+    assert ident.n_bursts == 1 and 3 <= ident.n_burst_samples <= n
+    assert ident.n_clipped == 0 and worst < 2e-3
+
+
+def test_a_change_that_persists_past_burst_samples_is_learned_as_before():
+    """A force offset of +1.5 N from 3 s on persists: after burst_samples the held samples
+    are learned (clipped as before, none dropped), and the models 1 s later are those of the
+    identifier without the hold within 1 % of the change."""
+    held, plain = make_identifier(), make_identifier(burst_samples=0)
+    for i, s in enumerate(CLEAN[:4000]):
+        s = s[:3] + (s[3] + 1.5,) if i >= 3000 else s
+        a, b = held.update(*s), plain.update(*s)
+    assert held.n_bursts == 0 and held.n_burst_samples == 0 and held.n_clipped > 10
+    assert deviation(a, b) < 0.015
+    assert deviation(a, CLEAN_MODELS[3999]) > 0.3           # it did learn the change
+
+
+def test_after_a_real_change_a_later_burst_is_dropped_again():
+    """A +1.5 N change for 0.3 s is learned (it persisted); once the force is back inside
+    the band the hold is armed again: a 5 N burst 1.2 s later is dropped."""
+    ident = make_identifier()
+    for i, s in enumerate(CLEAN[:5000]):
+        if 3000 <= i < 3300:
+            s = s[:3] + (s[3] + 1.5,)
+        elif 4500 <= i < 4505:
+            s = s[:3] + (5.0,)
+        ident.update(*s)
+    assert ident.n_clipped > 10 and ident.n_bursts == 1
+
+
+def test_a_resync_drops_the_held_samples():
+    """A position jump the gate re-accepts restarts the states; samples held from before
+    it are neither learned nor counted as a burst."""
+    ident = make_identifier()
+    for s in CLEAN[:3000]:
+        ident.update(*s)
+    for s in CLEAN[3000:3006]:
+        ident.update(*(s[:3] + (5.0,)))
+    assert ident._held
+    x, xd, xdd, f = CLEAN[3006]
+    for _ in range(3):
+        ident.update(x + 0.02, xd, xdd, f)
+    assert ident._held == [] and ident.n_bursts == 0
+
+
+@pytest.mark.parametrize('bad', [-1, 1.5, True, 'ten'])
+def test_burst_samples_is_validated(bad):
+    with pytest.raises(ValueError, match='burst_samples'):
+        HistoryParams(burst_samples=bad)
 
 
 @settings(max_examples=10, deadline=None)

@@ -36,7 +36,7 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from catheter_common.checks import check_fields, positive
+from catheter_common.checks import check_fields, finite, nonneg, positive
 from impedance_master.haptic import DeviceParams, HapticDevice
 from impedance_master.identification import SlidingWindowIdentifier, make_identifier
 from impedance_master.metrics import (default_eval_start, error_stats, outage_mask,
@@ -79,7 +79,11 @@ class ExperimentConfig:
     mode 'anchored' renders 'full' at any distance (the anchored baseline);
     ident_params: {name: value} HistoryParams overrides of the default identifier;
     render_params: {name: value} further keyword arguments of the ImaRenderer (modes ima
-    and ima_thesis; e.g. support_half).
+    and ima_thesis; e.g. support_half);
+    sensor_faults: ((start s, samples, value N), ...): the slave's force sensor reads
+    `value` for `samples` samples from `start` (a sensor burst: an electrical glitch, a
+    corrupted frame). The identifier and DFR get the faulty reading; the reference is the
+    true force (twentieth round of issue 12; README, Fail-safe invariants).
     """
     experiment: str = 'II'
     mode: str = 'ima'
@@ -109,6 +113,7 @@ class ExperimentConfig:
     anchor_length: Optional[float] = None
     ident_params: Tuple[Tuple[str, object], ...] = ()
     render_params: Tuple[Tuple[str, object], ...] = ()
+    sensor_faults: Tuple[Tuple[float, int, float], ...] = ()
 
     def __post_init__(self):
         for name in ('vessel_params', 'operator_params', 'ident_params', 'render_params'):
@@ -129,6 +134,19 @@ class ExperimentConfig:
             positive('duration', self.duration)
         if self.pretrain not in (None, 'I', 'II'):
             raise ValueError(f"pretrain must be None, 'I' or 'II', got {self.pretrain!r}")
+        faults = []
+        for i, fault in enumerate(self.sensor_faults):
+            try:
+                start, count, value = fault
+            except (TypeError, ValueError):
+                raise ValueError(f'sensor_faults[{i}] must be (start s, samples, value N), '
+                                 f'got {fault!r}') from None
+            if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+                raise ValueError(f'sensor_faults[{i}] samples must be an int >= 1, '
+                                 f'got {count!r}')
+            faults.append((nonneg(f'sensor_faults[{i}] start', start), count,
+                           finite(f'sensor_faults[{i}] value', value)))
+        object.__setattr__(self, 'sensor_faults', tuple(faults))
 
 
 @dataclass
@@ -212,6 +230,10 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
     imp = None
     ima = cfg.mode != 'dfr'
     delay = cfg.delay
+    faulty = {}
+    for start, count, value in cfg.sensor_faults:
+        k0 = int(round(start * cfg.rate))
+        faulty.update((k, value) for k in range(k0, k0 + count))
     for k in range(n):
         t = k * dt
         xh, vh, ah = traj.sample(t)
@@ -221,6 +243,8 @@ def run_experiment(config: Optional[ExperimentConfig] = None, **overrides) -> Ex
         if got is not None:
             cmd = got
         s = slave.step(t, cmd)
+        if k in faulty:
+            s = s._replace(f_meas=faulty[k])
         if ident is not None:
             out = ident.update(s.x, s.xd, s.xdd, s.f_meas)
             if out is not None:

@@ -99,10 +99,6 @@ class SampleGate:
         return None
 
 
-def _median5(a: float, b: float, c: float, d: float, e: float) -> float:
-    return sorted((a, b, c, d, e))[2]
-
-
 class Despiker:
     """Running median of 5 on each channel of the accepted samples (x, xd, xdd, f): an
     isolated outlier, or two in a row, on any channel never reaches the fit (a median of 5
@@ -120,14 +116,15 @@ class Despiker:
         self._i = 0
 
     def __call__(self, x: float, xd: float, xdd: Optional[float], f: float):
-        s = (x, xd, xdd, f)
         if self._buf is None:
-            self.reset(s)
+            self.reset((x, xd, xdd, f))
         buf = self._buf
-        buf[self._i] = s
-        self._i = (self._i + 1) % 5
+        i = self._i
+        buf[i] = (x, xd, xdd, f)
+        self._i = 0 if i == 4 else i + 1
         a, b, c, d, e = buf
-        out = [_median5(a[k], b[k], c[k], d[k], e[k]) for k in (0, 1, 3)]
-        mdd = None if xdd is None or any(v[2] is None for v in buf) else \
-            _median5(a[2], b[2], c[2], d[2], e[2])
-        return out[0], out[1], mdd, out[2]
+        dd = (a[2], b[2], c[2], d[2], e[2])
+        mdd = None if xdd is None or None in dd else sorted(dd)[2]
+        return (sorted((a[0], b[0], c[0], d[0], e[0]))[2],
+                sorted((a[1], b[1], c[1], d[1], e[1]))[2], mdd,
+                sorted((a[3], b[3], c[3], d[3], e[3]))[2])

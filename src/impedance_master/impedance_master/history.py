@@ -62,6 +62,8 @@ class HistoryIdentifier:
     Attributes after update: `status` ('filling', 'ok', 'at_rest', 'out_of_envelope',
     'ill_conditioned'), `n_samples`, `n_moving`, `n_solves`, `n_held`, `n_rejected` and
     `rejected` (from the gate), `n_clipped` (forces clipped to the robust band),
+    `n_bursts` and `n_burst_samples` (runs of forces outside that band shorter than
+    `burst_samples`, dropped as sensor bursts),
     `n_out_of_envelope`, `scale` (N, running mean absolute residual), `last`.
     """
 
@@ -131,11 +133,10 @@ class HistoryIdentifier:
         self._A_s = np.zeros((self.P, self.P))
         self._b_s = np.zeros(self.P)
         self._g = 1.0
-        # the current batch's rows, accumulated as they arrive: per grid cell j the 17 x 17
-        # sum of the rows' outer products on the row's nonzero positions (`_row_pos[j]`)
-        nr = self._row_pos[0].size
-        self._acc = np.zeros((self.n_nodes - 1, nr, nr))
-        self._acc_b = np.zeros((self.n_nodes - 1, nr))
+        # the current batch's rows as they arrive, per grid cell j (lists of the row's
+        # nonzeros in `_row_pos[j]` order, with the force appended); `_flush` sums each
+        # cell's rows with one matrix product
+        self._batch: list = [[] for _ in range(self.n_nodes - 1)]
         self._touched: list = []          # cells j with rows in the batch, in arrival order
         self._rows = 0
         self._moving_in_batch = 0
@@ -155,6 +156,10 @@ class HistoryIdentifier:
         self.n_solves = 0
         self.n_held = 0
         self.n_clipped = 0
+        self.n_bursts = 0
+        self.n_burst_samples = 0
+        self._held: list = []        # samples outside the robust band, not yet learned
+        self._burst_confirmed = False
         self.n_out_of_envelope = 0
         self.status = 'filling'
         self.theta = np.zeros(self.P)
@@ -300,6 +305,8 @@ class HistoryIdentifier:
                     st.reset(x, st.z1, st.z2)
             self._da = Differentiator(self.rate)
             self._despike.reset((x, xd, xdd_in, f))
+            self._held = []                   # held from before the jump: not learned
+            self._burst_confirmed = False
         x, xd, xdd_in, f = self._despike(x, xd, xdd_in, f)
         xdd_diff = self._da(xd)
         xdd = xdd_diff if xdd_in is None else xdd_in
@@ -310,8 +317,40 @@ class HistoryIdentifier:
         model = self.last
         if model is not None and model.valid:
             pred = model.force(x, xd, xdd, z)
-            r = f - pred
             band = max(self.clip_floor, self.clip_factor * self.scale)
+            if self.clip_factor > 0.0 and self.burst_samples > 0:
+                if abs(f - pred) > band:
+                    if not self._burst_confirmed:
+                        self._held.append((x, xd, xdd, zs, f, pred))
+                        if len(self._held) <= self.burst_samples:
+                            return self._tick()     # a sensor burst or a real change: wait
+                        self._burst_confirmed = True    # it persists: a real change
+                        held, self._held = self._held, []
+                        for smp in held:
+                            self._learn(*smp, self._band())
+                        return self._tick()
+                else:
+                    if self._held:              # it ended within burst_samples: a burst
+                        self.n_bursts += 1
+                        self.n_burst_samples += len(self._held)
+                        self._held = []
+                    self._burst_confirmed = False
+            self._learn(x, xd, xdd, zs, f, pred, band)
+        else:
+            self._learn(x, xd, xdd, zs, f, None, 0.0)
+        return self._tick()
+
+    def _band(self) -> float:
+        """N, half-width of the robust band about the model's prediction."""
+        return max(self.clip_floor, self.clip_factor * self.scale)
+
+    def _learn(self, x, xd, xdd, zs, f, pred, band) -> None:
+        """Learn one accepted sample: its force clipped to the robust band (`_band()`, N)
+        about `pred` (the model's prediction at the sample; None: no model yet, learned as
+        measured), the residual's scale and low-pass, the latest sample (the next anchor),
+        its row if moving."""
+        if pred is not None:
+            r = f - pred
             if self.clip_factor > 0.0 and abs(r) > band:
                 self.n_clipped += 1
                 r = math.copysign(band, r)
@@ -326,7 +365,6 @@ class HistoryIdentifier:
             self._add_row(x, xd, xdd, zs, f_fit)
             if xd < 0.0 and self.n_outward < self.select_outward:
                 self.n_outward += 1
-        return self._tick()
 
     def _tick(self) -> Optional[Impedance]:
         """One sample period: a new model every `solve_every` samples."""
@@ -354,8 +392,10 @@ class HistoryIdentifier:
                          anchor=Anchor(x, xd, xdd, z[0], z[1], f, 0.0))
 
     def _add_row(self, x, xd, xdd, zs, f) -> None:
-        """Accumulate one sample's row (2 nonzeros per table block at the grid cell of x,
-        linear interpolation weights w0, w; the mass) into its cell's batch sums."""
+        """Add one sample's row (2 nonzeros per table block at the grid cell of x, linear
+        interpolation weights w0, w; the mass) and its force to its cell's batch (summed at
+        `_flush`: one matrix product per cell and batch instead of an outer product per
+        sample)."""
         G = self.n_nodes
         u = (x - self.x_min) / self.dx
         if u <= 0.0:
@@ -371,19 +411,16 @@ class HistoryIdentifier:
             dz = z2 - z1
             row += (w0 * z1, w * z1, w0 * dz, w * dz)
         vz = xd / self._V
-        row += (w0 * vz, w * vz, xdd / self._A)
-        v = np.array(row)
-        if j not in self._touched:
+        row += (w0 * vz, w * vz, xdd / self._A, f)
+        rows = self._batch[j]
+        if not rows:
             self._touched.append(j)
-        acc = self._acc[j]
-        acc += np.multiply.outer(v, v)
-        acc = self._acc_b[j]
-        acc += v * f
+        rows.append(row)
         self._rows += 1
         self.n_moving += 1
 
     def _flush(self) -> None:
-        """End the batch: A <- lam^k A + (the batch's rows' sum), b likewise, k its rows (the
+        """End the batch: A <- lam^k A + (the batch's rows' V^T V), b likewise, k its rows (the
         rows of one batch are not forgotten against each other). Lazily: the scale g takes
         the forgetting, the batch's cell sums are added divided by g; g is folded back into
         the stored matrix when it falls below `_G_MIN`."""
@@ -394,10 +431,12 @@ class HistoryIdentifier:
         g = self._g * self._lam ** k
         flat = self._A_s.reshape(-1)
         for j in self._touched:
-            flat[self._row_flat[j]] += self._acc[j].reshape(-1) / g
-            self._b_s[self._row_pos[j]] += self._acc_b[j] / g
-            self._acc[j] = 0.0
-            self._acc_b[j] = 0.0
+            rows = np.array(self._batch[j])
+            v = rows[:, :-1]
+            vt = v.T
+            flat[self._row_flat[j]] += (vt @ v).reshape(-1) / g
+            self._b_s[self._row_pos[j]] += (vt @ rows[:, -1]) / g
+            self._batch[j] = []
         self._touched.clear()
         if g < self._G_MIN:
             self._A_s *= g

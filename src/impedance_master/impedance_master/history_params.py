@@ -110,6 +110,13 @@ class HistoryParams:
             fed with residuals clipped at 3 scales). One outlier of any size moves the fit
             as one sample with that residual would (clip_factor 0: no clipping).
         scale_time: s.
+        burst_samples: samples outside that band in a row that are held back, not learned
+            (twentieth round of issue 12): if the force comes back inside the band within
+            `burst_samples` samples, the run was a sensor burst and is dropped (counted in
+            `n_bursts`, `n_burst_samples`); if it stays outside longer, it is a real change
+            and the held samples are learned, clipped, as before. 0: off (learn every
+            sample clipped, the nineteenth round). A 5 ms burst of 5 N used to move the
+            rendered force by 0.1 N for seconds (README, Fail-safe invariants).
     """
 
     x_min: float = 0.0
@@ -140,6 +147,7 @@ class HistoryParams:
     clip_floor: float = 1.0
     clip_factor: float = 10.0
     scale_time: float = 1.0
+    burst_samples: int = 10
 
     def __post_init__(self):
         finite('x_min', self.x_min)
@@ -150,6 +158,7 @@ class HistoryParams:
         integer('solve_every', self.solve_every, 1, 100_000)
         integer('select_every', self.select_every, 1, 100_000)
         integer('select_outward', self.select_outward, 0, 10_000_000)
+        integer('burst_samples', self.burst_samples, 0, 10_000)
         sig = self.sigmas
         if isinstance(sig, list):
             object.__setattr__(self, 'sigmas', tuple(sig))

@@ -173,7 +173,7 @@ class ImpedanceIdentifierNode(Node):
         if self.model is not None:
             d.set('model_valid', str(self.model.valid))
             d.set('model_kind', 'table' if self.model.kind else 'linear')
-        for k in ('n_rejected', 'n_clipped', 'n_out_of_envelope'):
+        for k in ('n_rejected', 'n_clipped', 'n_bursts', 'n_burst_samples', 'n_out_of_envelope'):
             if hasattr(self.ident, k):
                 d.set(k[2:], getattr(self.ident, k))
         if self.sf is not None and self.sf.rejected:
