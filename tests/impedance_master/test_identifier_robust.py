@@ -150,6 +150,7 @@ def test_a_change_that_persists_past_burst_samples_is_learned_as_before():
         s = s[:3] + (s[3] + 1.5,) if i >= 3000 else s
         a, b = held.update(*s), plain.update(*s)
     assert held.n_bursts == 0 and held.n_burst_samples == 0 and held.n_clipped > 10
+    assert held.n_moving == plain.n_moving                  # every held sample learned
     assert deviation(a, b) < 0.015
     assert deviation(a, CLEAN_MODELS[3999]) > 0.3           # it did learn the change
 
