@@ -19,7 +19,12 @@ the nodes' engineer's. Per input stream:
   after which the latest model is the stateless law;
 * the identifier's worst deviation after a single outlier (or a short burst) from the
   clean run's model at three probe states, and the recovery times (after which it stays
-  below 5 mN and below 1 mN; inf: not within the 12 s run).
+  below 5 mN and below 1 mN; inf: not within the 12 s run);
+* what reaches the operator's hand after force-sensor bursts at the slave (5 N, 1-20
+  samples, at 3, 6 and 9 s of Experiment II, `ExperimentConfig.sensor_faults`): the
+  largest change of the hand force from the clean run and the last time it exceeds 5 mN,
+  for the default IMA, the IMA without the identifier's burst hold (burst_samples 0, the
+  nineteenth round) and DFR.
 """
 from __future__ import annotations
 
@@ -38,6 +43,7 @@ for pkg in ('impedance_master', 'sim_slave', 'catheter_common'):
         sys.path.insert(0, p)
 
 from impedance_master.envelope import DEFAULT_ENVELOPE  # noqa: E402
+from impedance_master.experiment import ExperimentConfig, run_experiment  # noqa: E402
 from impedance_master.identification import make_identifier  # noqa: E402
 from impedance_master.impedance import Impedance  # noqa: E402
 from impedance_master.rendering import DfrRenderer, ImaRenderer  # noqa: E402
@@ -175,7 +181,8 @@ def outlier_deviation():
     ref = make_identifier()
     ref_models = [ref.update(*s) for s in clean]
     kinds = [('force 1e6 N', 3, 1e6, 1), ('force 5 N', 3, 5.0, 1), ('force 5 N x2', 3, 5.0, 2),
-             ('force 5 N x5', 3, 5.0, 5), ('position 1e300', 0, 1e300, 1),
+             ('force 5 N x5', 3, 5.0, 5), ('force 5 N x10', 3, 5.0, 10),
+             ('force 5 N x20', 3, 5.0, 20), ('position 1e300', 0, 1e300, 1),
              ('position +2 cm', 0, 0.02, 1), ('velocity 1e300', 1, 1e300, 1),
              ('velocity 0.5 m/s', 1, 0.5, 1), ('acceleration 50 m/s^2', 2, 50.0, 1)]
     rows = []
@@ -209,6 +216,25 @@ def outlier_deviation():
     return rows
 
 
+def burst_at_hand(lengths=(1, 3, 5, 10, 20), value=5.0):
+    """[(label, burst samples, largest |change of the hand force| N, last time s it is
+    above 5 mN or None)] for bursts of `value` N at 3, 6 and 9 s (Experiment II seed 0)."""
+    variants = (('IMA default', 'ima', ()), ('IMA, no burst hold', 'ima', (('burst_samples', 0),)),
+                ('DFR', 'dfr', ()))
+    rows = []
+    for label, mode, ident in variants:
+        clean = run_experiment(ExperimentConfig(mode=mode, ident_params=ident))
+        for n in lengths:
+            r = run_experiment(ExperimentConfig(
+                mode=mode, ident_params=ident,
+                sensor_faults=tuple((t, n, value) for t in (3.0, 6.0, 9.0))))
+            d = np.abs(r.series['f_hand'] - clean.series['f_hand'])
+            above = np.nonzero(d > 5e-3)[0]
+            rows.append((label, n, float(d.max()),
+                         float(r.series['t'][above[-1]]) if above.size else None))
+    return rows
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--n', type=int, default=100_000, help='inputs per stream')
@@ -233,6 +259,12 @@ def main(argv=None):
           f'{"< 1 mN after s":>15}')
     for label, worst, rec5, rec1 in outlier_deviation():
         print(f'{label:<24} {worst:17.5f} {rec5:15.3f} {rec1:15.3f}')
+    print('\n## At the hand: force-sensor bursts of 5 N at the slave at 3, 6 and 9 s '
+          '(Experiment II seed 0), change of the hand force from the clean run')
+    print(f'{"renderer":<20} {"samples":>7} {"largest change N":>16} {"last > 5 mN at s":>17}')
+    for label, n, worst, last in burst_at_hand():
+        print(f'{label:<20} {n:7d} {worst:16.4f} '
+              f'{"-" if last is None else format(last, ".3f"):>17}')
     print(f'\n(total {time.perf_counter() - t0:.0f} s)')
 
 
