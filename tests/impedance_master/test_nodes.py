@@ -376,3 +376,17 @@ def test_identifier_node_writes_a_new_table_model_into_its_message(ros):
     assert node._msg is first                 # written in place, not a new message
     _same_msg(out[1], impedance_msg(b, 5, T.FRAME_CATHETER_BASE))
     assert out[0].c == 2.0 and list(out[0].s_table) == [0.1, 0.2, 0.3]
+
+
+def test_identifier_node_reports_the_sensor_bursts_it_dropped(ros):
+    """Twentieth round of issue 12: the default identifier's dropped bursts reach the
+    diagnostics as `bursts` / `burst_samples` beside `clipped`."""
+    node = ros.add(ImpedanceIdentifierNode(context=ros.context))
+    for i in range(3000):                       # the core, fed directly: a sweep, then a burst
+        t = i * 1e-3
+        x, xd = 0.03 + 0.01 * math.sin(3.0 * t), 0.03 * math.cos(3.0 * t)
+        f = 5.0 if 2500 <= i < 2505 else 2.0 * xd + 0.1 + 3.0 * x
+        node.ident.update(x, xd, None, f)
+    node._to_diag()
+    assert node.diag.value('bursts') == '1' and int(node.diag.value('burst_samples')) >= 3
+    assert node.diag.value('clipped') == '0'
