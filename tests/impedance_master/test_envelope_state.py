@@ -40,6 +40,17 @@ def test_force_bound_is_the_brute_force_maximum(lin, n, tabs, beta, x0, dx):
     assert env.force_bound(imp) == pytest.approx(best, rel=1e-9, abs=1e-12)
 
 
+@pytest.mark.parametrize('x0,n', [(0.0, 17), (-0.05, 17), (0.15, 12)])
+def test_force_bound_overflowing_is_inf_on_both_paths(x0, n):
+    """Twentieth round: a grid wholly inside the workspace takes a Python-float path
+    (x0 0: the default identifier's grid), one reaching outside the numpy path; a table
+    whose bound overflows is inf on both, and refused."""
+    big = [1.5e308] * n
+    imp = Impedance(0.0, 1.0, 0.0, 0.0, x0=x0, dx=0.005, S=[0.0] * n, F=big, B=big, C=big)
+    assert DEFAULT_ENVELOPE.force_bound(imp) == math.inf
+    assert DEFAULT_ENVELOPE.check(imp) is not None
+
+
 def test_envelope_accepts_the_identifiers_models_and_refuses_absurd_ones():
     ident = make_identifier()
     t, x, xd, xdd = OperatorTrajectory(duration=4.0, seed=3).arrays()
