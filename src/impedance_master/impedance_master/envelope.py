@@ -146,7 +146,7 @@ class ModelEnvelope:
         b2 = 2.0 + imp.beta
         S, C, F, B = imp.S, imp.C, imp.F, imp.B
         vals = [abs(k * x + off + s) + abs(c + d) * vmax + (abs(f) + b2 * abs(b))
-                for x, s, d, f, b in zip(nodes, S, C, F, B)]
+                for x, s, d, f, b in zip(nodes, S, C, F, B, strict=True)]
         for x, i in ((self.x_lo, 0), (self.x_hi, -1)):
             vals.append(abs(k * x + off + S[i]) + abs(c + C[i]) * vmax
                         + (abs(F[i]) + b2 * abs(B[i])))
