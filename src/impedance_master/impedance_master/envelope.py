@@ -125,7 +125,7 @@ class ModelEnvelope:
             else:
                 n = len(imp.S)
                 nodes = imp.x0 + imp.dx * np.arange(n)
-                if min(nodes[0], nodes[-1]) > self.x_lo and max(nodes[0], nodes[-1]) < self.x_hi:
+                if nodes[0] > self.x_lo and nodes[-1] < self.x_hi:     # dx > 0 (Impedance)
                     return self._table_bound(imp, nodes.tolist())
                 x = np.concatenate([xs, nodes[(nodes > self.x_lo) & (nodes < self.x_hi)]])
                 grid = lambda t: np.interp(x, nodes, np.asarray(t, dtype=float))  # noqa: E731

@@ -317,7 +317,7 @@ class HistoryIdentifier:
         model = self.last
         if model is not None and model.valid:
             pred = model.force(x, xd, xdd, z)
-            band = max(self.clip_floor, self.clip_factor * self.scale)
+            band = self._band()
             if self.clip_factor > 0.0 and self.burst_samples > 0:
                 if abs(f - pred) > band:
                     if not self._burst_confirmed:
