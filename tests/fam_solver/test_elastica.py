@@ -65,3 +65,48 @@ def test_point_force_small_load_matches_beam_theory():
 def test_zero_load_is_straight():
     ref = solve_elastica(Catheter(0.05, 1e-4), Loads())
     assert ref.tip[0] == pytest.approx(0.05, abs=1e-15) and ref.tip[1] == 0.0
+
+
+@pytest.mark.parametrize('bad,name', [
+    (dict(rtol=0.0), 'rtol'), (dict(rtol=-1e-8), 'rtol'), (dict(rtol=1.0), 'rtol'),
+    (dict(rtol=1.5), 'rtol'), (dict(rtol=1), 'rtol'),
+    (dict(cat=(1.0, 1.0)), 'cat'), (dict(loads=(0.0, 1.0)), 'loads'),
+])
+def test_bad_input_raises_value_error_naming_the_argument(bad, name):
+    args = dict(cat=Catheter(1.0, 1.0), loads=Loads(tip_force=(0.0, 1.0)))
+    args.update(bad)
+    with pytest.raises(ValueError, match=name):
+        solve_elastica(**args)
+
+
+def test_arc_angles_are_tangent_increments_over_100_equal_pieces():
+    """Shape's promise for the reference rod: arc_angles are the tangent-angle increments over
+    100 equal pieces (arc_lengths L/100 each): on a pure-moment circular arc every piece turns
+    by exactly theta/100."""
+    cat = Catheter(0.05, 2e-4)
+    th = 1.7
+    ref = solve_elastica(cat, Loads(tip_moment=th * cat.ei / cat.length))
+    assert ref.arc_angles.shape == (100,)
+    np.testing.assert_allclose(ref.arc_angles, th / 100, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ref.arc_lengths, cat.length / 100, rtol=1e-15)
+    assert abs(ref.arc_lengths.sum() - cat.length) < 1e-15
+    # a general load: the increments of angles_at at k/100, summing to the tip angle
+    ref = solve_elastica(cat, Loads(tip_force=(-0.01, 0.05)))
+    k = np.arange(101) / 100
+    np.testing.assert_allclose(ref.arc_angles, np.diff(ref.angles_at(k)), atol=1e-14)
+    assert abs(ref.arc_angles.sum() - ref.tip_angle) < 1e-12
+
+
+@pytest.mark.parametrize('rtol', [1e-6, 1e-8])
+def test_loose_tolerance_scales_with_the_catheter(rtol, closed_form):
+    """A soft, short catheter (EI/L ~ 1e-3 N m) at a loose rtol: the shooting tolerance is
+    relative to EI/L (the docstring's |M(L) - m_tip| <= 10 rtol EI/L), so the tip still
+    matches the elliptic-integral solution to about rtol."""
+    cat = Catheter(length=0.065, ei=6e-5)
+    alpha = 5.0
+    ref = solve_elastica(cat, Loads(tip_force=(0.0, alpha * cat.ei / cat.length ** 2)),
+                         rtol=rtol)
+    exact, th = closed_form(alpha)
+    assert ref.converged and ref.residual <= 10 * rtol * cat.ei / cat.length
+    assert np.max(np.abs(ref.tip / cat.length - exact)) < 100 * rtol
+    assert abs(ref.tip_angle - th) < 100 * rtol
