@@ -1,5 +1,8 @@
 """Arc closed forms and the Bezier handle length lambda (derivation checks)."""
+import math
+
 import numpy as np
+import pytest
 from hypothesis import given, settings, strategies as st
 
 from fam_solver import arcs, bezier_lambda
@@ -89,3 +92,50 @@ def test_bezier_midpoint_on_circle_and_small_radial_error():
         r = 1 / phi
         e.append(np.max(np.abs(np.abs(_bezier_points(phi, t) - 1j * r) - r)) / r)
     assert 40 < e[1] / e[0] < 90
+
+
+def _series(phi, terms=40):
+    """g, q, g', q' by their Taylor series (module docstring) summed term by term in Python
+    complex arithmetic, far past the truncation (|phi| <= 3: terms below 1e-30)."""
+    i, f = 1j, math.factorial
+    g = sum((i * phi) ** n / f(n + 1) for n in range(terms))
+    q = sum((i * phi) ** n * (n + 1) / f(n + 2) for n in range(terms))
+    gp = sum(n * i ** n * phi ** (n - 1) / f(n + 1) for n in range(1, terms))
+    qp = sum(n * (n + 1) * i ** n * phi ** (n - 1) / f(n + 2) for n in range(1, terms))
+    return g, q, gp, qp
+
+
+PHIS = [-3.0, -2.4, -1.7, -1.0, -0.99, -0.3, -1e-3, 0.0, 2e-4, 0.999, 1.0, 1.3, 2.0, 2.45, 3.0]
+
+
+def test_arc_funcs_to_round_off_on_both_sides_of_the_series_switch():
+    """The docstring's promise: series below |phi| < 1 with truncation below 3e-16, exact
+    closed forms above: g, q, g', q' equal the long series to round-off everywhere."""
+    got = arcs.arc_funcs(np.array(PHIS))
+    for k, phi in enumerate(PHIS):
+        for j, ref in enumerate(_series(phi)):
+            assert abs(got[j][k] - ref) < 3e-15, (phi, j, abs(got[j][k] - ref))
+
+
+def test_g_only_equals_the_chord_on_both_sides_of_its_series_switch():
+    for phi in (0.0, 1e-9, -3e-5, 2e-4, 0.9999e-3, -0.9999e-3, 1.0001e-3, 0.01, 0.5, 2.5):
+        ref = _series(phi)[0]
+        assert abs(arcs.g_only(phi) - ref) < 2e-16, phi
+    x = np.array(PHIS)
+    assert np.max(np.abs(arcs.g_only(x) - arcs.arc_funcs(x)[0])) < 3e-15
+
+
+@pytest.mark.parametrize('n', [255, 256, 257, 300, 513, 700])
+def test_row_product_in_blocks_equals_the_plain_product(n):
+    """row_product splits a long product into row blocks (to stay in one BLAS thread): every
+    row, including a last partial block, is computed."""
+    V = np.random.default_rng(n).standard_normal((n, arcs._K))
+    np.testing.assert_allclose(arcs.row_product(V, arcs._CCOEF8), V @ arcs._CCOEF8,
+                               rtol=1e-13, atol=1e-13)
+    # and the long Vandermonde path of arc_funcs equals the element-wise one
+    phi = np.linspace(-0.99, 0.99, n)
+    long = arcs.arc_funcs(phi)
+    short = [arcs.arc_funcs(phi[k:k + 1]) for k in (0, n // 2, n - 1)]
+    for j in range(4):
+        assert [long[j][k] for k in (0, n // 2, n - 1)] == pytest.approx(
+            [s[j][0] for s in short], abs=1e-15)
