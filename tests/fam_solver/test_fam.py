@@ -5,6 +5,7 @@ from hypothesis import assume, given, settings, strategies as st
 
 from fam_solver import Catheter, Loads, solve_elastica, solve_fam, solve_fam_batch
 from fam_solver import equations, linsolve, problem
+from fam_solver.model import arc_shape
 
 CAT = Catheter(length=0.04, ei=7.5e-4)        # thesis flexure
 BLAZER = Catheter(length=0.065, ei=6e-5)
@@ -230,6 +231,9 @@ def test_never_nan_and_reports_convergence(fx, fy, m, follower, n, model):
 
 @pytest.mark.parametrize('bad,name', [
     (lambda: Catheter(-1.0, 1.0), 'length'), (lambda: Catheter(1.0, 0.0), 'ei'),
+    (lambda: Catheter(0.0, 1.0), 'length'),
+    (lambda: arc_shape(1.0, [0.1, 0.2, 0.3], fractions=[0.5, 0.0, 0.5]), 'fractions'),
+    (lambda: arc_shape(1.0, [0.1, 0.2], fractions=[1.0, -0.0]), 'fractions'),
     (lambda: Catheter(float('nan'), 1.0), 'length'), (lambda: Catheter(1.0, float('inf')), 'ei'),
     (lambda: Loads(tip_force=(float('nan'), 0.0)), 'tip_force'),
     (lambda: Loads(tip_force=(1.0, 2.0, 3.0)), 'tip_force'),
@@ -307,3 +311,16 @@ def test_denormal_lateral_load_past_buckling_is_finite(fy):
         tip = np.asarray(sh.tip if hasattr(sh, 'tip') else sh.tips[0])
         assert np.all(np.isfinite(tip))
         assert tip[1] >= 0.0                           # never on the side opposite the load
+
+
+def test_load_parameter_is_the_dimensionless_load():
+    """(sum |F|) L^2/EI + |M| L/EI: hand-checked, and unchanged when the catheter is scaled by c
+    with forces scaled by 1/c^2 and moments by 1/c (the same dimensionless problem)."""
+    ld = Loads(tip_force=(3.0, -4.0), tip_moment=-2.0, point_forces=((0.5, 0.0, 1.0),))
+    assert ld.load_parameter(Catheter(2.0, 4.0)) == pytest.approx((5 + 1) * 4 / 4 + 2 * 2 / 4)
+    for c in (0.01, 7.0):
+        big = Loads(tip_force=(3.0 / c ** 2, -4.0 / c ** 2), tip_moment=-2.0 / c,
+                    point_forces=((0.5, 0.0, 1.0 / c ** 2),))
+        assert big.load_parameter(Catheter(2.0 * c, 4.0)) == pytest.approx(7.0, rel=1e-14)
+    assert Loads(tip_moment=0.5).load_parameter(Catheter(0.065, 6e-5)) == pytest.approx(
+        0.5 * 0.065 / 6e-5)
