@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from fam_solver import Catheter, Loads
 from fam_solver import solve_fam as _solve_fam
+from fam_solver.model import arc_shape
 from fam_solver.sensitivity import shape_sensitivity
 
 CAT = Catheter(length=0.065, ei=6.0e-5)
@@ -82,6 +83,8 @@ def test_bad_input():
         shape_sensitivity(sh, (0.0, 0.1, 0.0), S, CAT.ei)
     with pytest.raises(ValueError, match='ei'):
         shape_sensitivity(sh, (0.0, 0.1), S, -1.0)
+    with pytest.raises(ValueError, match='ei'):
+        shape_sensitivity(sh, (0.0, 0.1), S, 0.0)
     with pytest.raises(ValueError, match='s must'):
         shape_sensitivity(sh, (0.0, 0.1), [0.5, 1.5], CAT.ei)
     with pytest.raises(ValueError, match='tip_moment'):
@@ -111,3 +114,14 @@ def test_property_predicts_a_small_force_change(mag, ang, dmag):
     # buckling (mag 0.031 N at 172 deg: |dp| 2.8 m/N, err 1.2e-6 m at |df| 6e-5 N)
     g = np.abs(dp).max()
     assert err < 50.0 * dmag ** 2 + 10.0 * (g * dmag) ** 2 / CAT.length + 1e-13
+
+
+def test_a_shape_that_did_not_converge_is_refused():
+    """The sensitivity is the implicit-function theorem at r(phi, F) = 0: a shape whose solve
+    did not converge (same arc angles, flagged) gets a ValueError, not a silent derivative."""
+    sh = solve_fam(CAT, Loads(tip_force=(0.0, 0.1)), n_arcs=12)
+    assert shape_sensitivity(sh, (0.0, 0.1), S, CAT.ei)[1].shape == (S.size, 2, 2)
+    bad = arc_shape(CAT.length, sh.arc_angles, converged=False, iterations=50,
+                    arc_model='exact', warning='not converged')
+    with pytest.raises(ValueError, match='converged'):
+        shape_sensitivity(bad, (0.0, 0.1), S, CAT.ei)
