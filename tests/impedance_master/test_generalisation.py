@@ -206,3 +206,34 @@ def test_thirteenth_fresh_set_is_new_worlds_disjoint_from_every_seen_and_held_ou
     assert len(todo) == 90
     seen = {c[3] for s in earlier for c in drawn_cases(s)}
     assert not {c[3] for c in todo} & seen
+
+
+# ---- issue 12's criterion and case results, by hand (mutation sweep W09-W12)
+def test_beats_dfr_needs_all_three_parts():
+    from impedance_master.generalisation import CaseResult, beats_dfr
+    dfr = CaseResult(normal=0.08, outage=0.20, all=0.1, max=0.6)
+    assert beats_dfr(CaseResult(0.01, 0.09, 0.03, 0.3), dfr)
+    assert not beats_dfr(CaseResult(0.08, 0.09, 0.03, 0.3), dfr)     # normal not below
+    assert not beats_dfr(CaseResult(0.01, 0.10, 0.03, 0.3), dfr)     # outage not below half
+    assert not beats_dfr(CaseResult(0.01, 0.15, 0.03, 0.3), dfr)     # below DFR, above half
+    assert not beats_dfr(CaseResult(0.01, 0.09, 0.03, 0.6), dfr)     # largest error not below
+
+
+def test_case_result_takes_the_largest_error_of_both_intervals():
+    from impedance_master.generalisation import case_result
+    m = {'normal': {'mae': 0.01, 'max': 0.05}, 'outage': {'mae': 0.02, 'max': 0.3},
+         'all': {'mae': 0.012, 'max': 0.3}}
+    r = case_result(m)
+    assert (r.normal, r.outage, r.all, r.max) == (0.01, 0.02, 0.012, 0.3)
+    m['normal']['max'] = 0.4
+    assert case_result(m).max == 0.4
+
+
+def test_held_out_cases_leave_the_tuning_family_out():
+    from impedance_master.generalisation import TUNING, cases
+    held = cases([1, 2])
+    assert len(held) == (len(VESSELS) * len(OPERATORS) - 1) * 2
+    assert not any((v, op) == TUNING for v, op, _ in held)
+    every = cases([1, 2], include_tuning=True)
+    assert sum((v, op) == TUNING for v, op, _ in every) == 2
+    assert set(held) < set(every)

@@ -1,6 +1,9 @@
 """HapticDevice.step runs its substeps on local names (a speed change): it must give the very
 same numbers as the previous implementation, kept here verbatim as the reference (attribute
-lookups, `_friction`), bit for bit, for rigid and compliant hands, saturating and not."""
+lookups, `_friction`), bit for bit, for the rigid hand, saturating and not. (The compliant
+hand's step changed on purpose since: its target is interpolated over the substeps, see
+test_haptic_device.py; the reference keeps the old held target, so it is compared on the
+rigid hand only.)"""
 import math
 
 from hypothesis import given, settings
@@ -76,12 +79,11 @@ STEP = st.tuples(st.floats(-8, 8), st.floats(-0.1, 0.1), st.floats(-2, 2), st.fl
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(STEP, min_size=1, max_size=40), st.booleans(), st.booleans(),
-       st.integers(0, 10))
-def test_step_gives_the_reference_numbers_bit_for_bit(steps, compliant, weak, seed):
+@given(st.lists(STEP, min_size=1, max_size=40), st.booleans(), st.integers(0, 10))
+def test_step_gives_the_reference_numbers_bit_for_bit(steps, weak, seed):
     # weak: a small current / voltage limit, so the saturation branches run too
     params = DeviceParams(i_max=0.3, v_max=1.0) if weak else DeviceParams()
-    kw = dict(hand_stiffness=300.0 if compliant else None, hand_damping=15.0, seed=seed)
+    kw = dict(hand_stiffness=None, hand_damping=15.0, seed=seed)
     a, b = HapticDevice(params, **kw), HapticDevice(params, **kw)
     for fd, x, v, acc in steps:
         got = a.step(fd, x, v, acc)

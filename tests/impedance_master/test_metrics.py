@@ -70,3 +70,17 @@ def test_error_stats_invariants(errs):
     s = error_stats(np.asarray(errs))
     assert s['mae'] <= s['rmse'] + 1e-12 <= s['max'] + 2e-12
     assert s['n'] == len(errs)
+
+
+def test_error_stats_by_hand():
+    # mutation sweep W03: RMSE and MAE differ as soon as the errors differ in size
+    s = error_stats([3.0, -4.0])
+    assert s == {'mae': 3.5, 'rmse': pytest.approx(12.5 ** 0.5), 'max': 4.0, 'n': 2}
+
+
+def test_error_stats_leave_out_missing_references():
+    # mutation sweep W04: a sample without a reference (NaN) is left out, not propagated
+    s = error_stats([1.0, np.nan, -3.0, np.inf])
+    assert s == {'mae': 2.0, 'rmse': pytest.approx(5.0 ** 0.5), 'max': 3.0, 'n': 2}
+    empty = error_stats([np.nan])
+    assert empty['n'] == 0 and np.isnan(empty['mae'])

@@ -18,7 +18,7 @@ TI = 'tests/impedance_master/'
 TS = 'tests/sim_slave/'
 MT = TI + 'test_metrics.py'
 GT = TI + 'test_generalisation.py'
-HT = TI + 'test_core.py'
+HT = TI + 'test_haptic_device.py'
 FT = TI + 'test_filters.py'
 WT = TI + 'test_wall_fit.py'
 LT = TS + 'test_link.py'
@@ -615,7 +615,8 @@ MUTANTS = [
            'the force feed-forward in the wrong units', tests=(HT,)),
     Mutant('W15', IM + 'haptic.py',
            '        if i_ref > p.i_max or i_ref < -p.i_max:\n'
-           '            i_ref = max(-p.i_max, min(p.i_max, i_ref))  # saturated: no integration (anti-windup)\n'
+           '            i_ref = max(-p.i_max, min(p.i_max, i_ref))  # saturated: no integration'
+           ' (anti-windup)\n'
            '        else:\n'
            '            self._int_f += p.ki * e * self.dt',
            '        self._int_f += p.ki * e * self.dt',
@@ -673,7 +674,8 @@ MUTANTS = [
            'an outage [start, start + length) loses one more packet at its end',
            tests=(LT,)),
     Mutant('W28', S + 'link.py',
-           '        heapq.heappush(self._heap, (t + cfg.delay + u_jit * cfg.jitter, seq, t, payload))',
+           '        heapq.heappush(self._heap, (t + cfg.delay + u_jit * cfg.jitter, seq, t, '
+           'payload))',
            '        heapq.heappush(self._heap, (t + cfg.delay, seq, t, payload))',
            'the jitter never applied', tests=(LT,)),
     Mutant('W29', S + 'link.py',

@@ -106,3 +106,29 @@ def test_rotation_axis_follows_and_holds():
         sim.step(3.0, 0.0, math.nan)
     with pytest.raises(ValueError, match='rotation'):
         SlaveSimulation(rotation=SlaveRobot(rate=500.0))
+
+
+def test_quantisation_rounds_to_the_nearest_step_unbiased():
+    # mutation sweep W40: truncating would bias every reading by half a step
+    q = ForceSensor(noise_std=0.0, resolution=0.01)
+    assert q.measure(0.0049) == 0.0 and q.measure(0.0051) == pytest.approx(0.01)
+    assert q.measure(-0.0051) == pytest.approx(-0.01) and q.measure(-0.0049) == 0.0
+    noisy = ForceSensor(noise_std=0.01, resolution=0.01, seed=2)
+    y = np.array([noisy.measure(0.2033) for _ in range(20000)])
+    assert abs(y.mean() - 0.2033) < 5 * 0.0105 / math.sqrt(y.size)
+
+
+def test_the_vessel_force_is_taken_where_the_robot_is():
+    """Mutation sweep W42: the force at the robot's position and velocity (a twin vessel
+    driven by the same samples gives the same true force), not at the command, which the
+    stage reaches only later."""
+    sim = SlaveSimulation(vessel=VesselModel(seed=3), sensor=ForceSensor(noise_std=0.0))
+    twin = VesselModel(seed=3)
+    lag = 0.0
+    for k in range(400):
+        t = k * 1e-3
+        s = sim.step(t, 0.03 * min(t / 0.2, 1.0))
+        lag = max(lag, abs(sim.robot.command - s.x))
+        assert s.f_true == twin.force(t, s.x, s.xd)
+        assert s.f_meas == s.f_true
+    assert lag > 1e-3                        # the command did lead the robot

@@ -119,6 +119,7 @@ class HapticDevice:
         self.xd = 0.0
         self.xdd = 0.0
         self._started = False
+        self._hand_last = (self.x, 0.0)
         self._rng = random.Random(self.seed)
 
     def _friction(self, v: float) -> float:
@@ -151,6 +152,7 @@ class HapticDevice:
         p = self.p
         if not self._started:
             self.x, self.xd = xh, vh
+            self._hand_last = (xh, vh)
             self._started = True
         kf = p.kt / p.radius
         # --- force loop, Eq. 36 (on the last measured handle force) ---
@@ -182,6 +184,12 @@ class HapticDevice:
         kt, radius, mass = p.kt, p.radius, p.moving_mass
         coulomb, viscous, tanh = p.coulomb_friction, p.viscous_friction, math.tanh
         ks, kd_hand = self.hand_stiffness, self.hand_damping
+        # the compliant hand's target moves through the period from the last period's script
+        # sample to this one (as the rigid handle's velocity does): held at the period's end
+        # instead, the spring lagged the handle by half a period of travel on average, and
+        # the force read at the period's end was low by ks v dt / 2 (3 mN at 20 mm/s)
+        xh0, vh0 = self._hand_last
+        self._hand_last = (xh, vh)
         for s in range(n):
             ei = i_ref - i
             volt = kp_i * ei + int_i
@@ -204,7 +212,9 @@ class HapticDevice:
                 a = ah
                 f_hand = mass * a + f_mot + (coulomb * tanh(v / 1e-3) + viscous * v)
             else:
-                f_hand = ks * (xh - x) + kd_hand * (vh - v)
+                frac = (s + 1) / n
+                f_hand = (ks * (xh0 + (xh - xh0) * frac - x)
+                          + kd_hand * (vh0 + (vh - vh0) * frac - v))
                 a = (f_hand - f_mot - (coulomb * tanh(v / 1e-3) + viscous * v)) / mass
                 v += a * h
                 x += v * h
