@@ -739,4 +739,9 @@ MUTANTS = [
            '        for k in range(1, steps):',
            '        for k in range(2, steps):',
            'advance() skips a period (the simulated physics runs slow)', tests=(SST,)),
+    Mutant('W44', IM + 'haptic.py',
+           '                f_hand = (ks * (xh0 + (xh - xh0) * frac - x)',
+           '                f_hand = (ks * (xh - x)',
+           "the compliant hand's target held at the period's end (the force read low by "
+           'ks v dt / 2)', tests=(HT,)),
 ]
