@@ -25,6 +25,8 @@ LT = TS + 'test_link.py'
 LST = TS + 'test_link_side.py'
 RBT = TS + 'test_robot.py'
 SST = TS + 'test_sensor_slave.py'
+CT = TI + 'test_core.py'
+OT = TI + 'test_operators.py'
 
 MUTANTS = [
     # -- what reaches the hand (issue 10 item 1)
@@ -744,4 +746,40 @@ MUTANTS = [
            '                f_hand = (ks * (xh - x)',
            "the compliant hand's target held at the period's end (the force read low by "
            'ks v dt / 2)', tests=(HT,)),
+    # -- the thesis's identifier (the baseline every comparison quotes) and the operators
+    Mutant('W45', IM + 'sliding_window.py',
+           '                self._accumulate(S, old, -1.0)',
+           '                self._accumulate(S, old, 1.0)',
+           'the oldest sample added again instead of leaving the window', tests=(CT,)),
+    Mutant('W46', IM + 'sliding_window.py',
+           '        r22 = 1.0 + mu + self.stiffness_ridge',
+           '        r22 = 1.0 + mu',
+           'the stiffness ridge ignored', tests=(CT,)),
+    Mutant('W47', IM + 'sliding_window.py',
+           '        if S[4] / self.n * sx[1] * sx[1] < self.min_velocity_rms ** 2:',
+           '        if S[4] / self.n * sx[1] * sx[1] < self.min_velocity_rms:',
+           'the rest test compares a mean square with a speed', tests=(CT,)),
+    Mutant('W48', IM + 'sliding_window.py',
+           'b1 / d1 + mu * p1',
+           'b1 / d1',
+           'the ridge pulls the damping toward 0, not toward the last good estimate',
+           tests=(CT,)),
+    Mutant('W49', IM + 'sliding_window.py',
+           '        if not self.use_offset:     # decouple the offset',
+           '        if False:     # decouple the offset',
+           "offset=False (the thesis's Eq. 29) still fits an offset", tests=(CT,)),
+    Mutant('W50', IM + 'operator.py',
+           '            D / T * 30.0 * s2 * (1.0 - 2.0 * s + s2),',
+           '            D / T * 20.0 * s2 * (1.0 - 2.0 * s + s2),',
+           "a minimum-jerk segment's velocity not the derivative of its position",
+           tests=(OT,)),
+    Mutant('W51', IM + 'operator.py',
+           '            D / (T * T) * 60.0 * s * (1.0 - 3.0 * s + 2.0 * s2))',
+           '            D / (T * T) * 60.0 * s * (1.0 - 3.0 * s - 2.0 * s2))',
+           "a minimum-jerk segment's acceleration not the derivative of its velocity",
+           tests=(OT,)),
+    Mutant('W52', IM + 'operator.py',
+           '        if t - t0 > T:\n            return x0 + D, 0.0, 0.0',
+           '        if t - t0 > T:\n            return x0, 0.0, 0.0',
+           'after a segment the hand jumps back to its start', tests=(OT,)),
 ]
