@@ -537,3 +537,34 @@ def test_force_z_is_force_for_models_with_states_and_linear_models():
         z = (rng.uniform(-1, 1), rng.uniform(-1.5, 1.5))
         assert m.force_z(x, xd, xdd, z) == m.force(x, xd, xdd, z)
         assert lin.force_z(x, xd, xdd, z) == lin.force(x, xd, xdd)
+
+
+def test_sliding_window_without_offset_fits_eq29_exactly():
+    """offset=False is the thesis's Eq. 29: no constant term, even where the data have one
+    (mutation sweep W49); on data without one it recovers (m, c, k)."""
+    kw = dict(window=1.0, rate=1000.0, cutoff=None, mass_ridge=0.0, stiffness_ridge=0.0,
+              ridge=1e-9, offset=False)
+    ident = SlidingWindowIdentifier(**kw)
+    for s in zip(*linear_data(2000, o=0.1), strict=True):
+        imp = ident.update(*s)
+    assert imp.valid and imp.offset == 0.0
+    ident = SlidingWindowIdentifier(**kw)
+    for s in zip(*linear_data(2000, o=0.0), strict=True):
+        imp = ident.update(*s)
+    assert (imp.m, imp.c, imp.k, imp.offset) == pytest.approx((0.05, 2.0, 30.0, 0.0), rel=1e-4)
+
+
+def test_sliding_window_stiffness_ridge_pulls_k_toward_zero():
+    """The stiffness ridge pulls k toward 0 (mutation sweep W46): a heavy one leaves k near 0
+    (the other terms absorb what they can of k x), none recovers k."""
+    x, xd, xdd, f = linear_data(2000)
+    ks = {}
+    for ridge in (0.0, 1e3):
+        ident = SlidingWindowIdentifier(window=1.0, rate=1000.0, cutoff=None, mass_ridge=0.0,
+                                        stiffness_ridge=ridge, ridge=1e-9)
+        for s in zip(x, xd, xdd, f, strict=True):
+            imp = ident.update(*s)
+        ks[ridge] = imp
+    assert ks[0.0].k == pytest.approx(30.0, rel=1e-4)
+    assert abs(ks[1e3].k) < 0.05 * 30.0
+    assert ks[1e3].valid and np.isfinite(ks[1e3].c) and np.isfinite(ks[1e3].offset)
