@@ -106,3 +106,46 @@ def test_log_limited_logs_warnings_and_errors_of_one_kind(ros):
     d.log_limited('k', 'a warning', WARN)
     d.log_limited('k', 'an error', ERROR)
     d.log_limited('k', 'a warning again', WARN)
+
+
+def test_an_event_clears_exactly_hold_seconds_after_it_was_raised(ros):
+    """Active for hold s of node clock, [t, t + hold): one ns before the end still active, at
+    the end cleared (mutant K08 kept it at t + hold and survived)."""
+    c = SimClockNode(ros, 'diag_hold')
+    d = Diagnostics(c.node, period=1000.0)
+    d.event('clamped', WARN, 'clamped', hold=0.5)          # at 1.0 s
+    c.at(1.5 - 1e-9)
+    assert d.level()[0] == WARN
+    c.at(1.5)
+    assert d.level() == (OK, 'ok')
+
+
+def test_a_lower_event_does_not_replace_a_held_condition_of_the_same_name(ros):
+    """A held ERROR stays (held, not timed) when an event of a lower level with its name
+    comes (mutant K09 let the WARN replace it, which then cleared by itself)."""
+    c = SimClockNode(ros, 'diag_keep')
+    d = Diagnostics(c.node, period=1000.0)
+    d.condition('link', ERROR, 'link down')
+    d.event('link', WARN, 'one late packet', hold=0.5)
+    assert d.level() == (ERROR, 'link down')
+    c.at(5.0)
+    assert d.level() == (ERROR, 'link down')
+    d.event('link', ERROR, 'still down', hold=0.5)         # an event of the same level
+    assert d.level() == (ERROR, 'still down')              # replaces it (and times out)
+    c.at(6.0)
+    assert d.level() == (OK, 'ok')
+
+
+def test_published_rates_are_the_increase_over_the_period(ros):
+    """<counter>_rate_hz: the counter's increase since the last status over the node-clock
+    time since then (mutant K11 published the total over dt and survived)."""
+    c = SimClockNode(ros, 'diag_rate')
+    d = Diagnostics(c.node, period=1000.0)                 # built at 1.0 s
+    d.count('frames', 3)
+    c.at(3.0)
+    kv = {x.key: x.value for x in d.status().values}
+    assert kv['frames'] == '3' and kv['frames_rate_hz'] == '1.50'     # 3 in 2 s
+    d.count('frames', 2)
+    c.at(3.5)
+    kv = {x.key: x.value for x in d.status().values}
+    assert kv['frames'] == '5' and kv['frames_rate_hz'] == '4.00'     # 2 more in 0.5 s

@@ -53,3 +53,31 @@ def test_any_header_decodes_consistently_or_is_refused(h, w, step, enc, n):
     ch = CHANNELS[enc]
     assert a.dtype == np.uint8 and a.shape[:2] == (msg.height, msg.width)
     assert (a.ndim == 2) == (ch == 1) and msg.step * msg.height <= n
+
+
+def test_a_step_shorter_than_a_colour_row_is_refused_by_name():
+    """bgr8 3 px wide needs step >= 9 bytes: step 5 is refused saying so, not by a numpy
+    reshape error (mutant K18 compared step with the width in pixels and survived)."""
+    msg = Image(height=2, width=3, encoding='bgr8', step=5)
+    msg.data = bytes(30)
+    with pytest.raises(ValueError, match=r'step 5 < width 3 x 3 channels'):
+        image_to_array(msg)
+
+
+def test_rgba_comes_back_in_bgra_order():
+    """One rgba8 pixel (R, G, B, A) = (10, 20, 30, 40) -> (B, G, R, A) = (30, 20, 10, 40)
+    (the module promises BGR(A) order; mutant K19 returned RGBA and survived)."""
+    msg = Image(height=1, width=2, encoding='rgba8', step=8)
+    msg.data = bytes([10, 20, 30, 40, 1, 2, 3, 4])
+    np.testing.assert_array_equal(image_to_array(msg),
+                                  np.array([[[30, 20, 10, 40], [3, 2, 1, 4]]], np.uint8))
+
+
+@pytest.mark.parametrize('h, w', [(0, 3), (2, 0), (0, 0)])
+def test_an_empty_image_is_refused(h, w):
+    """A header with no rows or no columns is refused as empty (the module docstring;
+    mutant K20 decoded it to an empty array and survived)."""
+    msg = Image(height=h, width=w, encoding='mono8', step=w)
+    msg.data = bytes(10)
+    with pytest.raises(ValueError, match='empty image'):
+        image_to_array(msg)

@@ -153,3 +153,41 @@ def test_plain_declare_refuses_an_unknown_choice_and_is_read_only(ros):
     assert declare(node, 'level', 3, 'an int', 1, 5) == 3
     assert node.describe_parameter('level').read_only
     assert node.describe_parameter('level').integer_range[0].to_value == 5
+
+
+def test_range_is_inclusive_and_refuses_just_outside():
+    """lo and hi are inclusive (the docstring; rclpy's own ranges are too): the end points
+    are accepted, the nearest values outside refused by name (mutant K01 survived)."""
+    f, i, n = SPECS[0], SPECS[1], SPECS[3]
+    assert f.validate(0.0) == 0.0 and f.validate(2.0) == 2.0
+    assert i.validate(1) == 1 and i.validate(10) == 10
+    assert n.validate([-5, 5.0]) == [-5.0, 5.0]
+    for spec, bad in ((f, math.nextafter(0.0, -1.0)), (f, math.nextafter(2.0, 3.0)),
+                      (i, 0), (i, 11), (n, [0.0, math.nextafter(5.0, 6.0)])):
+        with pytest.raises(ValueError, match=f'parameter {spec.name}.*outside'):
+            spec.validate(bad)
+
+
+@pytest.mark.parametrize('bad', [[math.nan, 1.0], [1.0, math.nan], [math.inf, 0.0]])
+def test_a_list_of_numbers_with_a_non_finite_value_is_refused(bad):
+    """NaN compares False with both ends of a range, so only the finiteness check refuses it
+    (mutant K02 survived the hypothesis test's examples)."""
+    with pytest.raises(ValueError, match='parameter n has non-finite values'):
+        SPECS[3].validate(bad)
+
+
+@pytest.mark.parametrize('flag', [True, False])
+def test_an_integer_parameter_refuses_a_bool(flag):
+    """The type is the default's: a bool is a ROS PARAMETER_BOOL, not an integer, although
+    Python's bool is an int subclass (mutant K05 survived)."""
+    with pytest.raises(ValueError, match='parameter i must be an integer'):
+        SPECS[1].validate(flag)
+
+
+def test_help_says_which_parameters_change_at_run_time():
+    """Each help line says 'runtime' for a dynamic parameter and 'start only' otherwise
+    (mutant K06 swapped them and survived the check that both words occur somewhere)."""
+    dyn = Param('g', 1.0, 'applied', 0.0, 2.0, dynamic=True).help_line()
+    fixed = Param('r', 1.0, 'fixed', 0.0, 2.0).help_line()
+    assert 'runtime' in dyn and 'start only' not in dyn
+    assert 'start only' in fixed and 'runtime' not in fixed

@@ -35,3 +35,12 @@ def test_relative_and_resolve():
 def test_every_topic_resolves_to_itself_in_the_root_namespace():
     for v in _names().values():
         assert T.resolve(v, '/') == v
+
+
+def test_ros_wide_topics_stay_absolute_in_a_namespace():
+    """/tf, /tf_static, /rosout, /parameter_events, /clock and /diagnostics are where ROS
+    tools (tf2 listeners, rqt, the clock) look for them, whatever the node's namespace
+    (mutant K17 dropped /tf from GLOBAL and survived)."""
+    for name in ('/tf', '/tf_static', '/rosout', '/parameter_events', '/clock', '/diagnostics'):
+        assert T.relative(name) == name
+        assert T.resolve(name, '/robot1') == name
