@@ -71,6 +71,35 @@ def test_extension_that_finds_no_edge_says_so():
     assert found and abs(out[-1, 0] - 209.5) < 1.0
 
 
+def test_extension_ends_at_the_sub_pixel_edge_crossing():
+    """A darkness 0.8 up to x = 200 falling linearly to 0 at x = 210 (bilinear sampling of
+    it is exact): the edge level 0.35 is crossed at x = 210 - 10 * 0.35 / 0.8 = 205.625,
+    between two of the walk's 0.25 px steps (mutant C27 ended at the last step above the
+    level, 205.5, and survived)."""
+    x = np.arange(400, dtype=np.float32)
+    ramp = np.clip(0.8 * (210.0 - x) / 10.0, 0.0, 0.8).astype(np.float32)
+    score = np.tile(ramp, (100, 1))
+    px = np.stack([np.linspace(20, 200, 181), np.full(181, 50.0)], 1)
+    out, ext, found = extend_end(px, score, 0.35, 10.0, trim_px=5.0)
+    assert found
+    np.testing.assert_allclose(out[-1], [205.625, 50.0], atol=0.01)
+    assert ext == pytest.approx(205.625 - 195.0, abs=0.01)       # from the trimmed end
+    # the start end the same way (mirrored darkness, path reversed)
+    out, ext, found = extend_end(px[::-1] * [-1, 1] + [399, 0], score[:, ::-1].copy(), 0.35,
+                                 10.0, trim_px=5.0, at_start=True)
+    np.testing.assert_allclose(out[0], [399 - 205.625, 50.0], atol=0.01)
+
+
+@pytest.mark.parametrize('level', [np.nan, np.inf, -np.inf])
+def test_extension_refuses_a_non_finite_level(level):
+    """A NaN level compares False with every darkness: the walk would run to its bound and
+    report nothing found; refused by name instead (mutant C28 survived)."""
+    score = np.full((100, 400), 0.8, np.float32)
+    px = np.stack([np.linspace(20, 200, 181), np.full(181, 50.0)], 1)
+    with pytest.raises(ValueError, match='level must be finite'):
+        extend_end(px, score, level, 10.0, trim_px=5.0)
+
+
 # --- the sensor's refusals -------------------------------------------------------------------
 
 @pytest.fixture(scope='module')

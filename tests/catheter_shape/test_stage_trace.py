@@ -46,3 +46,14 @@ def test_dump_without_rows_writes_nothing(tmp_path):
     stage_trace.clear()
     assert stage_trace.dump(str(tmp_path)) is None
     assert not list(tmp_path.iterdir())
+
+
+def test_stamp_ns_is_the_header_stamp_in_nanoseconds():
+    """sec * 1e9 + nanosec, as rclpy reads a header stamp (mutant C41 used 1e6 per second:
+    frames one second apart collided; it survived)."""
+    from builtin_interfaces.msg import Time
+    from rclpy.time import Time as RclpyTime
+    for sec, nsec in ((0, 0), (3, 5), (1, 999_999_999), (1_700_000_000, 123_456_789)):
+        t = Time(sec=sec, nanosec=nsec)
+        assert stage_trace.stamp_ns(t) == sec * 1_000_000_000 + nsec
+        assert stage_trace.stamp_ns(t) == RclpyTime.from_msg(t).nanoseconds

@@ -138,3 +138,28 @@ def test_the_sensor_on_every_style(style, shapes):
     assert n_ok >= n_view - 1, (style, n_ok, n_view)
     e = np.array(errs)
     assert e[:, 0].mean() < 0.1e-3 and np.median(e[:, 1]) < 0.5e-3, (style, e)
+
+
+
+@pytest.mark.parametrize('side', ['left', 'top', 'right'])
+@pytest.mark.parametrize('gap, in_view', [(0.5, False), (1.2, True)])
+def test_in_view_means_the_whole_tube_lies_in_the_image(monkeypatch, side, gap, in_view):
+    """in_view: the tube, a radius r either side of the centreline, lies in the image. A
+    straight 30 mm catheter along +u at 0.15 mm/px (200 px long, r = 7.78 px) placed by hand
+    with its centreline `gap` radii from one border: half a radius (its edge outside) is not
+    in view, 1.2 radii is (mutant C39 checked only the centreline against the left and top
+    borders and survived)."""
+    from catheter_shape import styles
+    from catheter_shape.camera import BLAZER_DIAMETER
+    mm = 0.15
+    r = 0.5 * BLAZER_DIAMETER * 1e3 / mm
+    base = {'left': (gap * r, 240.0), 'top': (300.0, gap * r),
+            'right': (639.0 - 200.0 - gap * r, 240.0)}[side]
+    monkeypatch.setattr(styles, '_frame_geometry', lambda *a: (mm, 0.0, base))
+    rng = np.random.default_rng(5)
+    p = style_params('xray', rng)
+    p.update(partial=False, clamp='none', tissue_under=False)
+    c = np.stack([np.linspace(0.0, 0.03, 31), np.zeros(31)], 1)
+    f = render_style('xray', c, rng=rng, params=p)
+    assert f.mm_per_px == mm and f.base_px == base
+    assert f.in_view is in_view

@@ -127,7 +127,7 @@ MUTANTS = [
            '            if k > 0 and seg > dist_b + 3.0:',
            '            if False:',
            'a clamp in the mask is not cut off at base_px: the path runs on through the clamp',
-           tests=('tests/catheter_shape/test_centerline.py',)),
+           tests=('tests/catheter_shape/test_plausibility.py',)),  # test_centerline misses it
     Mutant('C25', P + 'centerline.py',
            '        thin = dt[ij[:, 1], ij[:, 0]] < THIN * 0.45 * width_px',
            '        thin = dt[ij[:, 1], ij[:, 0]] < THIN * 0.045 * width_px',
@@ -158,7 +158,7 @@ MUTANTS = [
            "    k = (p['noise'] ** 2 - read ** 2) / 200.0",
            "    k = (p['noise'] ** 2 - read ** 2) / 20.0",
            'the noise std at 200 grey is sqrt(10) times the style\'s `noise`',
-           tests=('tests/catheter_shape/test_styles.py',)),
+           tests=('tests/catheter_shape/test_flatfield.py',)),  # test_styles misses it
     Mutant('C31', P + 'scene.py',
            '        out = np.clip(np.rint(img * (4095.0 / 255.0)), 0, 4095).astype(np.uint16) * '
            'np.uint16(16)',
@@ -169,7 +169,7 @@ MUTANTS = [
            '        r = r_px * np.sqrt(1.0 - ((k + 0.5) / bands) ** 2)',
            '        r = r_px',
            'the catheter is a flat slab, not a solid rod (chord profile sqrt(1 - (r/R)^2))',
-           tests=('tests/catheter_shape/test_styles.py',)),
+           tests=('tests/catheter_shape/test_plausibility.py',)),  # test_styles misses it
     Mutant('C33', P + 'scene.py',
            'ELECTRODES = ((0.0, 0.004), (0.006, 0.007)',
            'ELECTRODES = ((0.0, 0.04), (0.006, 0.007)',
