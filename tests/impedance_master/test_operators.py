@@ -89,3 +89,15 @@ def test_human_tremor_is_physiological():
     spec = np.abs(np.fft.rfft(d))
     f = np.fft.rfftfreq(d.size, 1e-3)
     assert 8.0 <= f[np.argmax(spec)] <= 12.0
+
+
+@pytest.mark.parametrize('name', ['minjerk', 'human'])
+def test_the_hand_comes_to_rest_where_the_script_ends_without_a_jump(name):
+    """Sampled past `duration`, the last segment runs to its end and the hand stays there
+    (mutation sweep W52: it jumped back to that segment's start when the segment ended)."""
+    traj = make_operator(name, duration=6.0, seed=3, **({'tremor': 0.0} if name == 'human'
+                                                         else {}))
+    t = np.arange(5000, 20000) * 1e-3
+    x = np.array([traj.sample(ti)[0] for ti in t])
+    assert np.max(np.abs(np.diff(x))) <= V_MAX * 1e-3 * 1.01
+    assert x[-1] == x[-2000] and traj.sample(t[-1])[1] == 0.0

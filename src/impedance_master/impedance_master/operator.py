@@ -61,7 +61,8 @@ class _Segments:
         return _min_jerk(min(max(t - t0, 0.0), T), T, x0, D)
 
     def sample(self, t: float) -> Tuple[float, float, float]:
-        """(x m, x' m/s, x'' m/s^2) at time t in s (held at the end after `duration`)."""
+        """(x m, x' m/s, x'' m/s^2) at time t in s (the segment running at `duration`
+        runs to its end; the hand is held there after it)."""
         return self._base(finite('t', t))
 
     def arrays(self, rate: float = 1000.0):
