@@ -27,6 +27,7 @@ RBT = TS + 'test_robot.py'
 SST = TS + 'test_sensor_slave.py'
 CT = TI + 'test_core.py'
 OT = TI + 'test_operators.py'
+ET = TI + 'test_experiment.py'
 
 MUTANTS = [
     # -- what reaches the hand (issue 10 item 1)
@@ -782,4 +783,21 @@ MUTANTS = [
            '        if t - t0 > T:\n            return x0 + D, 0.0, 0.0',
            '        if t - t0 > T:\n            return x0, 0.0, 0.0',
            'after a segment the hand jumps back to its start', tests=(OT,)),
+    # -- the closed-loop experiment every Experiment I / II number comes from
+    Mutant('W53', IM + 'experiment.py',
+           "S['xd_master'], delay, vspec, seed)",
+           "S['xd_master'], 0.0, vspec, seed)",
+           "the reference not aligned with the command's delay", tests=(ET,)),
+    Mutant('W54', IM + 'experiment.py',
+           "dict(tracking_metrics(t, S['f_hand'], S['reference'],",
+           "dict(tracking_metrics(t, S['f_desired'], S['reference'],",
+           "the error taken on the rendered force, not at the operator's hand", tests=(ET,)),
+    Mutant('W55', IM + 'experiment.py',
+           '        to_master.send(t, (imp if (k % imp_every == 0) else None, s.f_meas))',
+           '        to_master.send(t, (imp, s.f_meas))',
+           'the model sent every period whatever impedance_rate says', tests=(ET,)),
+    Mutant('W56', IM + 'experiment.py',
+           '        if k in faulty:\n            s = s._replace(f_meas=faulty[k])',
+           '        if False:\n            s = s._replace(f_meas=faulty[k])',
+           'sensor_faults never applied', tests=(ET,)),
 ]
