@@ -799,5 +799,5 @@ MUTANTS = [
     Mutant('W56', IM + 'experiment.py',
            '        if k in faulty:\n            s = s._replace(f_meas=faulty[k])',
            '        if False:\n            s = s._replace(f_meas=faulty[k])',
-           'sensor_faults never applied', tests=(ET,)),
+           'sensor_faults never applied', tests=(TI + 'test_sensor_burst.py',)),
 ]
