@@ -154,3 +154,32 @@ def test_a_sigkilled_runs_recording_is_closed_by_its_writer(tmp_path):
     res = analyze.analyze(bag)
     assert 'warnings' not in res and res['delay_s'] == 0.2
     assert res['force_tracking']['ima']['all']['n'] > 0
+
+
+def _chunk_records_offset(path):
+    """Byte offset of the compressed records of the middle chunk of an indexed MCAP file."""
+    from mcap.reader import make_reader
+    with open(path, 'rb') as f:
+        summary = make_reader(f).get_summary()
+    ci = summary.chunk_indexes[len(summary.chunk_indexes) // 2]
+    # chunk record: opcode, length, start, end, uncompressed size, crc, compression, records
+    return ci.chunk_start_offset + 1 + 8 + 8 + 8 + 8 + 4 + 4 + len(ci.compression) + 8, ci
+
+
+def test_a_damaged_chunk_in_an_indexed_file_gets_one_clear_line(good, tmp_path, capsys):
+    """The summary is intact, so check_bag passes; the damage is met while reading: the
+    decompressor's error must become the one-line BagError, not a traceback."""
+    from catheter_bringup.recording import load
+    pos, ci = _chunk_records_offset(good)
+    assert ci.compression == 'zstd'
+    data = bytearray(good.read_bytes())
+    assert data[pos:pos + 4] == bytes.fromhex('28b52ffd')        # the zstd frame magic
+    data[pos:pos + 4] = b'\0\0\0\0'
+    bad = tmp_path / 'damaged.mcap'
+    bad.write_bytes(bytes(data))
+    bagfile.check_bag(bad)                                      # the index is intact
+    with pytest.raises(bagfile.BagError, match='unreadable'):
+        load(bad)
+    assert analyze.main([str(bad)]) == 2
+    out, err = capsys.readouterr()
+    assert 'Traceback' not in out + err and f'analyze: {bad}: unreadable' in err

@@ -191,9 +191,9 @@ MUTANTS = [
            'a recovered (killed) run is marked complete',
            tests=('tests/catheter_bringup/test_bad_files.py',)),
     Mutant('B37', P + 'bagfile.py',
-           '    except (McapError, EOFError) as exc:',
-           '    except (EOFError,) as exc:',
-           'a damaged chunk inside an indexed file: a traceback from the MCAP reader',
+           '    except (McapError, EOFError, ZstdError, OverflowError, ValueError) as exc:',
+           '    except (McapError, EOFError, OverflowError, ValueError) as exc:',
+           'a damaged zstd chunk inside an indexed file: a traceback from the decompressor',
            tests=('tests/catheter_bringup/test_bad_files.py',)),
     Mutant('B38', P + 'bagfile.py',
            '                    w.add_message(cid, rec.log_time, rec.data, rec.publish_time, '

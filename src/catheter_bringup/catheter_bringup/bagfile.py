@@ -78,9 +78,14 @@ def reading(path: str | os.PathLike) -> Iterator[None]:
     one-line BagError (a damaged chunk in the middle of an indexed file)."""
     check_bag(path)
     from mcap.exceptions import McapError
+    from zstandard import ZstdError
     try:
         yield
-    except (McapError, EOFError) as exc:
+    except BagError:
+        raise
+    # a damaged chunk fails in the decompressor (ZstdError) or as an absurd record length or
+    # string (OverflowError, ValueError, UnicodeDecodeError) as often as in the reader itself
+    except (McapError, EOFError, ZstdError, OverflowError, ValueError) as exc:
         raise BagError(f'{path}: unreadable ({type(exc).__name__}: {exc})'.splitlines()[0]) \
             from None
 
