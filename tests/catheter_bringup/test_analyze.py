@@ -167,3 +167,28 @@ def test_force_error_uses_the_twin_reference_of_the_master_motion(tmp_path):
     wrong = twin_reference(t, x, xd, delay, VesselParams(), seed)
     assert np.max(np.abs(wrong - ref)) > 0.01
     assert 'vs slave' in format_report(res)
+
+
+def test_an_odd_outages_list_is_a_usage_error(tmp_path, capsys):
+    """--outages 4,1,8 (a start without its length): argparse's usage error (exit 2) naming
+    the option, not an IndexError."""
+    bag = _write(tmp_path / 'o.mcap', duration=0.1)
+    with pytest.raises(SystemExit) as exc:
+        analyze_main([str(bag), '--outages', '4,1,8'])
+    assert exc.value.code == 2
+    assert 'start,length pairs' in capsys.readouterr().err
+
+
+def test_the_json_file_is_strict_json_with_null_for_undefined_metrics(tmp_path):
+    """No outages: the outage interval has no samples, its MAE is undefined; the file must
+    say null there (NaN is not JSON: jq, JavaScript and strict parsers reject it)."""
+    bag = _write(tmp_path / 'n.mcap', outages=(), duration=0.5)
+    out = tmp_path / 'n.json'
+    assert analyze_main([str(bag), '--quiet', '--skip', '0', '--json', str(out)]) == 0
+
+    def refuse(name):
+        raise ValueError(f'non-JSON constant {name} in the file')
+    data = json.loads(out.read_text(), parse_constant=refuse)
+    outage = data['force_tracking']['ima']['outage']
+    assert outage['n'] == 0 and outage['mae'] is None
+    assert data['force_tracking']['ima']['normal']['mae'] == pytest.approx(0.01, abs=1e-9)

@@ -183,3 +183,43 @@ def test_a_damaged_chunk_in_an_indexed_file_gets_one_clear_line(good, tmp_path, 
     assert analyze.main([str(bad)]) == 2
     out, err = capsys.readouterr()
     assert 'Traceback' not in out + err and f'analyze: {bad}: unreadable' in err
+
+
+def test_a_cdr_channel_without_a_ros2msg_schema_is_refused(tmp_path):
+    """Message encoding cdr but a jsonschema schema: no ROS 2 reader can decode it."""
+    from mcap.writer import Writer
+    p = tmp_path / 'cdr_json_schema.mcap'
+    with open(p, 'wb') as f:
+        w = Writer(f)
+        w.start(profile='ros2')
+        sid = w.register_schema('geometry_msgs/msg/WrenchStamped', 'jsonschema', b'{}')
+        cid = w.register_channel('/slave/force', 'cdr', sid)
+        w.add_message(cid, 0, serialize_message(_wrench(1.0)), 0)
+        w.finish()
+    with pytest.raises(bagfile.BagError, match='channel /slave/force: no ros2msg schema'):
+        bagfile.check_bag(p)
+
+
+def test_recovery_keeps_publish_times_and_sequence_numbers(tmp_path):
+    """recover_bag copies each message's publish time and sequence number, not only its log
+    time: compared message by message with the original file, read with mcap's reader."""
+    from mcap.reader import make_reader
+    path = tmp_path / 'pub.mcap'
+    rec = McapRecorder(path, chunk_size=4096)
+    rec.add_topic('/slave/force', 'geometry_msgs/msg/WrenchStamped')
+    for k in range(600):
+        rec.write('/slave/force', serialize_message(_wrench(k)), 10_000_000 + k * 1_000_000,
+                  publish_time_ns=k * 1_000_000 + 7)
+    rec.close('complete')
+
+    def triples(p):
+        with open(p, 'rb') as f:
+            return [(m.log_time, m.publish_time, m.sequence)
+                    for _, _, m in make_reader(f).iter_messages(log_time_order=True)]
+    original = triples(path)
+    assert original[5] == (15_000_000, 5_000_007, 5)
+    cut = tmp_path / 'pub_cut.mcap'
+    cut.write_bytes(path.read_bytes()[:int(path.stat().st_size * 0.7)])
+    res = bagfile.recover(cut)
+    got = triples(res['output'])
+    assert 100 < len(got) < 600 and got == original[:len(got)]
