@@ -211,11 +211,17 @@ def validate_scenario(data: Mapping) -> dict:
     link['jitter'] = _num(link, 'jitter', 0.0, 0.0, 10.0, 'link')
     link['loss'] = _num(link, 'loss', 0.0, 0.0, 1.0, 'link')
     outages = link.get('outages') or []
+    if not isinstance(outages, (list, tuple)):
+        raise ValueError(f'link.outages must be a list of [start, duration], got {outages!r}')
     clean = []
     for o in outages:
         if not isinstance(o, (list, tuple)) or len(o) != 2:
             raise ValueError(f'link.outages entries must be [start, duration], got {o!r}')
-        a, b = float(o[0]), float(o[1])
+        try:
+            a, b = float(o[0]), float(o[1])
+        except (TypeError, ValueError):
+            raise ValueError(f'link.outages entry must be two numbers [start, duration], '
+                             f'got {o!r}') from None
         if not (math.isfinite(a) and math.isfinite(b)) or a < 0 or b < 0:
             raise ValueError(f'link.outages entry must be finite and >= 0, got {o!r}')
         clean.append([a, b])
