@@ -152,3 +152,13 @@ def test_a_recorded_scenario_gives_delay_and_outages(tmp_path):
     res = analyze(path)
     assert res['delay_s'] == 0.25 and res['outages'] == [[1.0, 0.5]] and 'warnings' not in res
     assert pathlib.Path(path).exists()
+
+
+def test_long_override_lists_that_differ_late_get_different_names(exp):
+    """A name cut to its first 60 characters would make two different runs write the same
+    outputs: the cut name carries a hash of the whole list."""
+    base = [f'link.outages={[[i, 0.1] for i in range(30)]}']
+    a = run_name(exp, base + ['link.delay=0.3'])[0]
+    b = run_name(exp, base + ['link.delay=0.4'])[0]
+    assert a[:60] == b[:60] and a != b
+    assert run_name(exp, base + ['link.delay=0.3'])[0] == a        # and it is reproducible
