@@ -311,12 +311,12 @@ MUTANTS = [
            '                        first = message.log_time + int(start * 1e9)',
            '                        first = message.log_time + int(start * 1e6)',
            '--start in ms, not s: almost nothing of the recording is skipped',
-           tests=('tests/catheter_bringup/test_replay_reprocess.py', '-k', 'replay_republishes')),
+           tests=('tests/catheter_bringup/test_replay_offline.py',)),
     Mutant('B60', P + 'replay.py',
            "        if str(q.get('durability', '')).lower() in ('transient_local', '1'):",
            "        if False:",
            'a latched (transient local) topic is replayed volatile: late joiners miss it',
-           tests=('tests/catheter_bringup/test_replay_reprocess.py', '-k', 'replay_republishes')),
+           tests=('tests/catheter_bringup/test_replay_offline.py',)),
     # -- result: what a run reports lost
     Mutant('B61', P + 'result.py',
            '                if t in self.published and self.published[t] != '
@@ -328,5 +328,5 @@ MUTANTS = [
            '        return {t: self.published[t] - self.recorded.get(t, 0)',
            '        return {t: self.recorded.get(t, 0) - self.published[t]',
            'lost messages counted negative',
-           tests=('tests/catheter_bringup/test_runner.py', '-k', 'lockstep_run_records')),
+           tests=('tests/catheter_bringup/test_run_result.py',)),
 ]
