@@ -185,6 +185,23 @@ def test_a_damaged_chunk_in_an_indexed_file_gets_one_clear_line(good, tmp_path, 
     assert 'Traceback' not in out + err and f'analyze: {bad}: unreadable' in err
 
 
+@pytest.mark.parametrize('offset', list(range(90, 400, 7)))
+def test_a_flipped_bit_in_a_chunk_is_an_unreadable_file_not_other_values(good, tmp_path,
+                                                                          offset):
+    """One bit flipped inside a compressed chunk (the index intact): the chunk's CRC is
+    checked, so the analysis refuses the file in one line. Unchecked, most of these offsets
+    decoded to other forces without any error, and some to a channel id no channel has
+    (a KeyError traceback)."""
+    from catheter_bringup.recording import load
+    pos, _ = _chunk_records_offset(good)
+    data = bytearray(good.read_bytes())
+    data[pos + offset] ^= 0x10
+    bad = tmp_path / 'flipped.mcap'
+    bad.write_bytes(bytes(data))
+    with pytest.raises(bagfile.BagError, match='unreadable'):
+        load(bad)
+
+
 def test_a_cdr_channel_without_a_ros2msg_schema_is_refused(tmp_path):
     """Message encoding cdr but a jsonschema schema: no ROS 2 reader can decode it."""
     from mcap.writer import Writer

@@ -330,4 +330,9 @@ MUTANTS = [
            '        return {t: self.recorded.get(t, 0) - self.published[t]',
            'lost messages counted negative',
            tests=('tests/catheter_bringup/test_run_result.py',)),
+    Mutant('B63', P + 'recording.py',
+           '            reader = make_reader(f, validate_crcs=True)',
+           '            reader = make_reader(f)',
+           "a flipped bit in a chunk read as other values (the chunks' CRCs not checked)",
+           tests=('tests/catheter_bringup/test_bad_files.py', '-k', 'flipped')),
 ]

@@ -179,7 +179,9 @@ class Recording:
         factory = DecoderFactory()
         plan = {}       # channel id -> (decoder or None, stamp from raw bytes)
         with open(self.path, 'rb') as f:
-            reader = make_reader(f)
+            # the chunks' CRCs checked: a flipped bit in a compressed chunk otherwise often
+            # decodes to other values without any error, or to a channel id no channel has
+            reader = make_reader(f, validate_crcs=True)
             for schema, channel, message in reader.iter_messages(
                     topics=list(want) if want else None, log_time_order=True):
                 topic = channel.topic
