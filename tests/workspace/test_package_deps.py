@@ -5,7 +5,7 @@ The imports are read from the code (AST of every module of the package and of it
 files, imports inside functions included), plus the node modules the scenario runner imports
 by name (catheter_bringup.scenario.REGISTRY). Python modules map to rosdep keys by
 MODULE_KEYS; the project's own and ROS packages are their own keys. Keys with no entry in
-rosdistro (mcap, mcap_ros2, rosbags, threadpoolctl) follow rosdistro's naming for pip keys
+rosdistro (mcap, mcap_ros2, rosbags, threadpoolctl, zstandard) follow rosdistro's naming for pip keys
 (``python3-<pypi name>-pip``) and are defined in docs/rosdep.yaml."""
 import ast
 import pathlib
@@ -26,6 +26,7 @@ MODULE_KEYS = {
     'matplotlib': 'python3-matplotlib', 'yaml': 'python3-yaml', 'tqdm': 'python3-tqdm',
     'mcap': 'python3-mcap-pip', 'mcap_ros2': 'python3-mcap-ros2-support-pip',
     'rosbags': 'python3-rosbags-pip', 'threadpoolctl': 'python3-threadpoolctl-pip',
+    'zstandard': 'python3-zstandard-pip',
 }
 #: ROS packages that are imported under their own name (rosdep key = package name)
 ROS_MODULES = {'rclpy', 'ament_index_python', 'rosidl_parser', 'launch', 'launch_ros',
