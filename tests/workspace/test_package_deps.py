@@ -5,8 +5,8 @@ The imports are read from the code (AST of every module of the package and of it
 files, imports inside functions included), plus the node modules the scenario runner imports
 by name (catheter_bringup.scenario.REGISTRY). Python modules map to rosdep keys by
 MODULE_KEYS; the project's own and ROS packages are their own keys. Keys with no entry in
-rosdistro (mcap, mcap_ros2, rosbags, threadpoolctl, zstandard) follow rosdistro's naming for pip keys
-(``python3-<pypi name>-pip``) and are defined in docs/rosdep.yaml."""
+rosdistro (mcap, mcap_ros2, rosbags, threadpoolctl; zstandard not checked) follow rosdistro's
+naming for pip keys (``python3-<pypi name>-pip``) and are defined in docs/rosdep.yaml."""
 import ast
 import pathlib
 import sys
