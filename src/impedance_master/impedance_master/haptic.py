@@ -191,6 +191,7 @@ class HapticDevice:
         xh0, vh0 = self._hand_last
         self._hand_last = (xh, vh)
         for s in range(n):
+            frac = (s + 1) / n          # how far through the period this substep ends
             ei = i_ref - i
             volt = kp_i * ei + int_i
             if volt > v_max or volt < -v_max:
@@ -198,7 +199,6 @@ class HapticDevice:
             else:
                 int_i += ki_i * ei * h
             if rigid:
-                frac = (s + 1) / n
                 v = xd0 + (vh - xd0) * frac
             emf = kt * v / radius
             # exact step of L di/dt = V - R i + emf for a held voltage
@@ -212,7 +212,6 @@ class HapticDevice:
                 a = ah
                 f_hand = mass * a + f_mot + (coulomb * tanh(v / 1e-3) + viscous * v)
             else:
-                frac = (s + 1) / n
                 f_hand = (ks * (xh0 + (xh - xh0) * frac - x)
                           + kd_hand * (vh0 + (vh - vh0) * frac - v))
                 a = (f_hand - f_mot - (coulomb * tanh(v / 1e-3) + viscous * v)) / mass
