@@ -202,6 +202,67 @@ def test_a_flipped_bit_in_a_chunk_is_an_unreadable_file_not_other_values(good, t
         load(bad)
 
 
+def _flipped(src, dst, offset=150):
+    """A copy of ``src`` with one bit flipped inside its middle chunk's compressed records."""
+    pos, _ = _chunk_records_offset(src)
+    data = bytearray(pathlib.Path(src).read_bytes())
+    data[pos + offset] ^= 0x10
+    dst.write_bytes(bytes(data))
+    bagfile.check_bag(dst)                                      # the index is intact
+    return dst
+
+
+def test_read_messages_checks_the_chunks_crcs(good, tmp_path):
+    """The shared reader: every message of the intact file, in order (raw and decoded); the
+    flipped file raises the one-line BagError (unchecked, it read other forces)."""
+    raw = list(bagfile.read_messages(good))
+    assert [m.log_time for _, _, m in raw] == [k * 1_000_000 for k in range(2000)]
+    dec = list(bagfile.read_messages(good, ['/slave/force'], decode=True))
+    assert [d.wrench.force.x for *_, d in dec] == pytest.approx([k * 1e-3 for k in range(2000)])
+    assert list(bagfile.read_messages(good, ['/no/such/topic'])) == []
+    bad = _flipped(good, tmp_path / 'flipped.mcap')
+    with pytest.raises(bagfile.BagError, match=f'^{bad}: unreadable .*CRC'):
+        list(bagfile.read_messages(bad))
+    with pytest.raises(bagfile.BagError, match='unreadable'):
+        list(bagfile.read_messages(bad, decode=True))
+
+
+def test_replay_of_a_flipped_chunk_stops_there_with_one_line(good, tmp_path, ros):
+    """replay republished the damaged chunk's messages as other values; now it stops at that
+    chunk with the BagError."""
+    bad = _flipped(good, tmp_path / 'flipped.mcap')
+    node = ros.node('replay')
+    with pytest.raises(bagfile.BagError, match='unreadable'):
+        replay.replay(bad, rate=1e4, clock=False, node=node)
+    res = replay.replay(good, rate=1e4, clock=False, node=node)
+    assert res['published'] == {'/slave/force': 2000}          # the intact file: all of it
+    # the library's one line reaches the user through the tool's error path
+    code = bagfile.cli_errors('replay', lambda: replay.replay(bad, rate=1e4, clock=False,
+                                                             node=node))
+    assert code == 2
+
+
+def test_reprocess_of_a_flipped_chunk_is_refused_in_one_line(tmp_path, capsys):
+    """reprocess read the recorded inputs unchecked, so it re-ran nodes on other values and
+    reported them CHANGED (or same); now the file is refused before any node runs."""
+    ref = sorted((pathlib.Path(__file__).resolve().parents[2] / 'bags' / 'reference')
+                 .glob('*.mcap'))[0]
+    bad = _flipped(ref, tmp_path / 'flipped_ref.mcap')
+    assert reprocess.main([str(bad)]) == 2
+    out, err = capsys.readouterr()
+    lines = [line for line in (out + err).splitlines() if line.strip()]
+    assert lines == [line for line in lines if line.startswith(f'reprocess: {bad}: unreadable')]
+    assert len(lines) == 1 and 'Traceback' not in out + err
+
+
+def test_compare_streams_refuses_a_flipped_recording(good, tmp_path):
+    assert reprocess.compare_streams(good, good, '/slave/force')['max_diff'] == 0.0
+    bad = _flipped(good, tmp_path / 'flipped.mcap')
+    for a, b in ((good, bad), (bad, good)):
+        with pytest.raises(bagfile.BagError, match='unreadable'):
+            reprocess.compare_streams(a, b, '/slave/force')
+
+
 def test_a_cdr_channel_without_a_ros2msg_schema_is_refused(tmp_path):
     """Message encoding cdr but a jsonschema schema: no ROS 2 reader can decode it."""
     from mcap.writer import Writer

@@ -90,6 +90,28 @@ def reading(path: str | os.PathLike) -> Iterator[None]:
             from None
 
 
+def read_messages(path: str | os.PathLike, topics: Optional[Iterable[str]] = None,
+                  decode: bool = False) -> Iterator[tuple]:
+    """Every message of the recording at ``path`` in log-time order, checked first and read
+    with the chunks' CRCs checked: ``(schema, channel, message)``, or with ``decode``
+    ``(schema, channel, message, ros_msg)`` (mcap_ros2's decoder).
+
+    Unchecked, one flipped bit inside a compressed chunk often decodes to other values
+    without any error; here it, like any reader error, is a one-line BagError."""
+    from mcap.reader import make_reader
+    factories = []
+    if decode:
+        from mcap_ros2.decoder import DecoderFactory
+        factories = [DecoderFactory()]
+    want = list(topics) if topics is not None else None
+    with reading(path), open(path, 'rb') as f:
+        reader = make_reader(f, validate_crcs=True, decoder_factories=factories)
+        if decode:
+            yield from reader.iter_decoded_messages(topics=want, log_time_order=True)
+        else:
+            yield from reader.iter_messages(topics=want, log_time_order=True)
+
+
 def cli_errors(prog: str, main_body: Callable[..., int], *args) -> int:
     """Run a tool's body; a BagError becomes ``prog: message`` on stderr and exit code 2."""
     try:

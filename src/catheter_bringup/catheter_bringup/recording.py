@@ -16,7 +16,7 @@ from typing import Dict, Iterable, List, Optional
 import numpy as np
 import yaml
 
-from catheter_bringup.bagfile import reading
+from catheter_bringup.bagfile import read_messages, reading
 from catheter_bringup.recorder import read_run_metadata
 
 
@@ -165,7 +165,6 @@ class Recording:
     first use) values."""
 
     def __init__(self, path, topics: Optional[Iterable[str]] = None, decode: bool = True):
-        from mcap.reader import make_reader
         from mcap_ros2.decoder import DecoderFactory
         self.path = str(path)
         self.meta = read_run_metadata(path)
@@ -178,29 +177,26 @@ class Recording:
         want = set(topics) if topics else None
         factory = DecoderFactory()
         plan = {}       # channel id -> (decoder or None, stamp from raw bytes)
-        with open(self.path, 'rb') as f:
-            # the chunks' CRCs checked: a flipped bit in a compressed chunk otherwise often
-            # decodes to other values without any error, or to a channel id no channel has
-            reader = make_reader(f, validate_crcs=True)
-            for schema, channel, message in reader.iter_messages(
-                    topics=list(want) if want else None, log_time_order=True):
-                topic = channel.topic
-                how = plan.get(channel.id)
-                if how is None:
-                    text = schema.data.decode(errors='replace') if schema else ''
-                    dec = factory.decoder_for(channel.message_encoding, schema) \
-                        if decode and schema is not None and schema.name in VALUE_TYPES \
-                        else None
-                    if dec is not None and schema.name == 'sensor_msgs/msg/JointState':
-                        dec = _JointStateDecoder
-                    how = plan[channel.id] = (dec, _leading_header(text))
-                    self.types.setdefault(topic, schema.name if schema else '')
-                dec, stamped = how
-                self.log.setdefault(topic, []).append(message.log_time * 1e-9)
-                s = raw_stamp(message.data) if stamped else None
-                self.stamp.setdefault(topic, []).append(math.nan if s is None else s)
-                if decode:
-                    self.values.add(topic, dec, message.data if dec is not None else None)
+        # the chunks' CRCs checked: a flipped bit in a compressed chunk otherwise often
+        # decodes to other values without any error, or to a channel id no channel has
+        for schema, channel, message in read_messages(self.path, want):
+            topic = channel.topic
+            how = plan.get(channel.id)
+            if how is None:
+                text = schema.data.decode(errors='replace') if schema else ''
+                dec = factory.decoder_for(channel.message_encoding, schema) \
+                    if decode and schema is not None and schema.name in VALUE_TYPES \
+                    else None
+                if dec is not None and schema.name == 'sensor_msgs/msg/JointState':
+                    dec = _JointStateDecoder
+                how = plan[channel.id] = (dec, _leading_header(text))
+                self.types.setdefault(topic, schema.name if schema else '')
+            dec, stamped = how
+            self.log.setdefault(topic, []).append(message.log_time * 1e-9)
+            s = raw_stamp(message.data) if stamped else None
+            self.stamp.setdefault(topic, []).append(math.nan if s is None else s)
+            if decode:
+                self.values.add(topic, dec, message.data if dec is not None else None)
 
     @property
     def topics(self) -> List[str]:

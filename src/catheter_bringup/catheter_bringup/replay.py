@@ -17,7 +17,7 @@ import sys
 import time
 from typing import Callable, Iterable, Optional, Sequence, TYPE_CHECKING
 
-from catheter_bringup.bagfile import check_bag, cli_errors
+from catheter_bringup.bagfile import check_bag, cli_errors, read_messages
 from catheter_bringup.recorder import read_run_metadata
 from catheter_common import topics as T
 
@@ -56,9 +56,11 @@ def replay(path: str | os.PathLike, rate: float = 1.0, topics: Optional[Iterable
 
     ``rate``: speed factor (> 0); ``start``: seconds of the recording skipped;
     ``node``: an existing rclpy node to publish from (else one named 'replay' is created).
+    The chunks' CRCs are checked as they are read: a damaged chunk stops the replay with a
+    one-line BagError at that chunk (what came before it was published), never publishes
+    other values.
     """
     import rclpy
-    from mcap.reader import make_reader
     from rclpy.qos import QoSProfile
     from rosgraph_msgs.msg import Clock
 
@@ -79,43 +81,39 @@ def replay(path: str | os.PathLike, rate: float = 1.0, topics: Optional[Iterable
     t_wall0 = time.perf_counter()
     try:
         while True:
-            with open(path, 'rb') as f:
-                reader = make_reader(f)
-                first = None
-                start_wall = time.perf_counter()
-                last_clock = None
-                for schema, channel, message in reader.iter_messages(log_time_order=True):
+            first = None
+            start_wall = time.perf_counter()
+            last_clock = None
+            for schema, channel, message in read_messages(path, want):
+                if should_stop():
+                    return {'published': published, 'wall_time': time.perf_counter() - t_wall0}
+                topic = channel.topic
+                if first is None:
+                    first = message.log_time + int(start * 1e9)
+                if message.log_time < first:
+                    continue
+                due = (message.log_time - first) * 1e-9 / rate
+                while True:
+                    wait = due - (time.perf_counter() - start_wall)
+                    if wait <= 0:
+                        break
+                    time.sleep(min(wait, 0.05))
                     if should_stop():
-                        return {'published': published, 'wall_time': time.perf_counter() - t_wall0}
-                    topic = channel.topic
-                    if want is not None and topic not in want:
-                        continue
-                    if first is None:
-                        first = message.log_time + int(start * 1e9)
-                    if message.log_time < first:
-                        continue
-                    due = (message.log_time - first) * 1e-9 / rate
-                    while True:
-                        wait = due - (time.perf_counter() - start_wall)
-                        if wait <= 0:
-                            break
-                        time.sleep(min(wait, 0.05))
-                        if should_stop():
-                            return {'published': published,
-                                    'wall_time': time.perf_counter() - t_wall0}
-                    if topic not in pubs:
-                        cls = message_class(schema.name)
-                        pubs[topic] = node.create_publisher(cls, topic,
-                                                            _qos_from_metadata(channel.metadata))
-                        published[topic] = 0
-                    if clock_pub is not None and message.log_time != last_clock:
-                        c = Clock()
-                        c.clock.sec = message.log_time // 1_000_000_000
-                        c.clock.nanosec = message.log_time % 1_000_000_000
-                        clock_pub.publish(c)
-                        last_clock = message.log_time
-                    pubs[topic].publish(bytes(message.data))
-                    published[topic] += 1
+                        return {'published': published,
+                                'wall_time': time.perf_counter() - t_wall0}
+                if topic not in pubs:
+                    cls = message_class(schema.name)
+                    pubs[topic] = node.create_publisher(cls, topic,
+                                                        _qos_from_metadata(channel.metadata))
+                    published[topic] = 0
+                if clock_pub is not None and message.log_time != last_clock:
+                    c = Clock()
+                    c.clock.sec = message.log_time // 1_000_000_000
+                    c.clock.nanosec = message.log_time % 1_000_000_000
+                    clock_pub.publish(c)
+                    last_clock = message.log_time
+                pubs[topic].publish(bytes(message.data))
+                published[topic] += 1
             if not loop:
                 break
     finally:

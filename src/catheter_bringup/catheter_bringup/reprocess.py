@@ -29,7 +29,7 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from catheter_bringup.bagfile import BagError, check_bag, cli_errors
+from catheter_bringup.bagfile import BagError, check_bag, cli_errors, read_messages
 from catheter_bringup.recorder import read_run_metadata
 
 
@@ -74,12 +74,11 @@ def flatten_message(msg: Any) -> Tuple[np.ndarray, tuple]:
 
 def _stamped(path, topic) -> List[tuple]:
     """(header stamp ns or None, flattened message) of every message of ``topic``."""
-    from mcap_ros2.reader import read_ros2_messages
     out = []
-    for m in read_ros2_messages(str(path), [topic]):
-        h = getattr(m.ros_msg, 'header', None)
+    for _, _, _, msg in read_messages(path, [topic], decode=True):
+        h = getattr(msg, 'header', None)
         stamp = None if h is None else h.stamp.sec * 1_000_000_000 + h.stamp.nanosec
-        out.append((stamp, flatten_message(m.ros_msg)))
+        out.append((stamp, flatten_message(msg)))
     return out
 
 
@@ -121,8 +120,7 @@ def compare_streams(old_path: str | os.PathLike, new_path: str | os.PathLike,
 def reprocess(path: str | os.PathLike, nodes: Optional[List[str]] = None, tol: float = 1e-9,
               log: Callable[[str], None] = print) -> Dict[str, dict]:
     """Re-run node instances on a recording's inputs; returns {instance: {topic: comparison,
-    'ok': bool}}."""
-    from mcap.reader import make_reader
+    'ok': bool}}. Both recordings are read with the chunks' CRCs checked (BagError)."""
 
     from catheter_bringup.runner import ScenarioRunner
     from catheter_bringup.scenario import REGISTRY, instances, validate_scenario
@@ -153,9 +151,7 @@ def reprocess(path: str | os.PathLike, nodes: Optional[List[str]] = None, tol: f
                              'skipped': f'inputs not recorded: {", ".join(missing)}'}
     nodes = [n for n in nodes if n not in results]
     # every recorded message, once, in log-time order
-    with open(path, 'rb') as f:
-        msgs = [(m.log_time, c.topic, bytes(m.data))
-                for _, c, m in make_reader(f).iter_messages(log_time_order=True)]
+    msgs = [(m.log_time, c.topic, bytes(m.data)) for _, c, m in read_messages(path)]
     end = max(t for t, _, _ in msgs) if msgs else 0
     for name in nodes:
         inst = cands[name]

@@ -10,9 +10,27 @@ import rclpy
 from rclpy.context import Context
 
 
+# Fast DDS binds UDP ports 7400 + 250 * domain + 0..11 + 2 * participant. On Linux the
+# kernel hands out ephemeral ports from 32768-60999 (ip_local_port_range) to any socket
+# that asks for one, so a domain whose ports fall there can find them taken and lose
+# discovery at random. Domains 20-101 stay below 32768 (with up to 50 participants) and
+# 215-232 above 60999 (232 is the last domain whose ports fit below 65536).
+ISOLATED_DOMAINS = tuple(range(20, 102)) + tuple(range(215, 233))
+EPHEMERAL_PORTS = (32768, 60999)
+
+
+def domain_ports(domain: int, participants: int = 50) -> range:
+    """The UDP ports Fast DDS may bind in ``domain`` with up to ``participants`` participants
+    on one host (the RTPS well-known ports: PB 7400, DG 250, PG 2, offsets 0-11)."""
+    lo = 7400 + 250 * int(domain)
+    return range(lo, lo + 12 + 2 * int(participants))
+
+
 def isolate_ros_env(seed: int | None = None) -> int:
-    """Set a domain id unique to this process and keep discovery on localhost. Returns the id."""
-    dom = (os.getpid() if seed is None else seed) % 200 + 20
+    """Set a domain id unique to this process (one of ISOLATED_DOMAINS, whose ports stay out
+    of the kernel's ephemeral range) and keep discovery on localhost. Returns the id."""
+    key = os.getpid() if seed is None else int(seed)
+    dom = ISOLATED_DOMAINS[key % len(ISOLATED_DOMAINS)]
     os.environ['ROS_DOMAIN_ID'] = str(dom)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     return dom
