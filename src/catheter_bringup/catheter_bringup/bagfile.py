@@ -31,7 +31,7 @@ import json
 import os
 import pathlib
 import sys
-from typing import Callable, Dict, Iterator, Optional
+from typing import Callable, Dict, Iterable, Iterator, Optional
 
 from catheter_bringup.recorder import RUN_METADATA, RUN_START_METADATA
 

@@ -9,7 +9,8 @@ tried on the others.
     spec = vessel_spec('soft')                        # VesselSpec(name, params, extras, noise_std)
     spec.build(seed=3); spec.sensor(seed=4)           # the vessel and its force sensor
 
-Names (forces quoted at 56 mm and 41.3 mm/s, the thesis's deepest point and top speed):
+Names (steady forces quoted at 56 mm and 41.3 mm/s, the thesis's deepest point and top
+speed, without disturbances and noise: `VesselModel.steady_force`):
 
 * ``phantom`` (alias ``default``): the project's phantom, `VesselParams()` unchanged: LuGre
   friction growing super-linearly with length (capstan), Stribeck breakaway 1.4x, viscous
@@ -21,7 +22,7 @@ Names (forces quoted at 56 mm and 41.3 mm/s, the thesis's deepest point and top 
   bump (1.8x below 3 mm/s) and genuine stick-slip (compliant shaft 150 N/m: the inserted
   part lags the drive by up to ~1.7 mm and sticks/slips at slow speed), a Kelvin-Voigt
   tissue wall (spring 6 N/m and damper 1.5 N s/m) past 30 mm, breathing (20 mN, 0.25 Hz)
-  and cardiac (10 mN); noise 10 mN. About 0.52 N.
+  and cardiac (10 mN); noise 10 mN. About 0.49 N.
 * ``stenosis``: friction in STEPS (+0.04 N every 12 mm: side branches and valves passed)
   on a small linear base, a sudden stiff stenosis at 34 mm (3 mm long, a 0.12 N
   conservative bump that resists entry and pushes the tip on past its narrowest point,
@@ -31,7 +32,7 @@ Names (forces quoted at 56 mm and 41.3 mm/s, the thesis's deepest point and top 
   20 mm (4 N/m, 0.5 N s/m), strong breathing (30 mN) and cardiac (12 mN); noise 20 mN.
 * ``stiff_wall``: a static-dominated vessel: little friction (linear, 1 N/m), a stiff
   linear wall contact from 25 mm (12 N/m, Hunt-Crossley exponent 1): the same force
-  whichever way the catheter moves; noise 5 mN. About 0.43 N.
+  whichever way the catheter moves; noise 5 mN. About 0.44 N.
 
 Randomised worlds (`draw_vessel(family, rng)`): a new physical draw of a family, keeping
 its structure (which terms are present) and drawing every parameter of it within the
