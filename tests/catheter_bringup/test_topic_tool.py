@@ -151,3 +151,25 @@ def test_echo_shows_the_typed_messages_field_by_field():
     est = topic_tool.to_yaml(M.tip_force_msg((0.01, 0.02), [[1e-4, 0], [0, 4e-4]],
                                              'unobservable_axial', 'fam_fallback', 0.0))
     assert 'status: 4' in est and "method: 'fam_fallback'" in est
+
+
+def test_echo_shows_sequences_up_to_show_max_and_every_field_of_listed_messages():
+    """Sequences of up to SHOW_MAX values are printed (longer ones as their length); each
+    message of a sequence of messages is printed with all its nested fields."""
+    from geometry_msgs.msg import Pose, PoseArray
+    from sensor_msgs.msg import JointState
+    n = topic_tool.SHOW_MAX
+    lines = topic_tool.to_yaml(JointState(position=[float(k) for k in range(n)]))
+    assert f'position: {[float(k) for k in range(n)]}' in lines
+    lines = topic_tool.to_yaml(JointState(position=[0.0] * (n + 1)))
+    assert f"position: '<sequence of {n + 1} values>'" in lines
+    poses = [Pose(), Pose()]
+    poses[0].position.x, poses[1].position.z, poses[1].orientation.w = 0.5, -2.0, 0.25
+    lines = topic_tool.to_yaml(PoseArray(poses=poses))
+    at = lines.index('poses:')
+    items = lines[at + 1:]
+    starts = [k for k, ln in enumerate(items) if ln.startswith('- ')]
+    assert starts == [0, len(items) // 2] and items[0] == '- position:'
+    first, second = items[:starts[1]], items[starts[1]:]
+    assert '    x: 0.5' in first and '    z: -2.0' in second and '    w: 0.25' in second
+    assert sum(ln.strip().startswith(('x:', 'y:', 'z:', 'w:')) for ln in items) == 2 * 7
