@@ -143,3 +143,30 @@ def test_a_part_whose_clock_stepped_back_is_merged_in_log_time_order(tmp_path):
         times = [m.log_time for _s, _c, m in make_reader(f).iter_messages(
             log_time_order=False)]
     assert times == [10, 20, 30, 40, 50]
+
+
+def test_a_part_counts_refused_payloads_keeps_given_log_times_and_ignores_other_topics(
+        tmp_path):
+    """A publish with a given log time is recorded at that time; one the recorder refuses
+    (a negative log time) is counted in part_errors, not fatal; a topic not added (excluded
+    by the run) is neither recorded nor counted as an error."""
+    path = tmp_path / 'e.master.part.mcap'
+    rec = PartRecorder(path, 'master', chunk_size=512)
+    rec.add_topic('/m/force', WRENCH, None)
+    rec._clock = lambda: 5_000
+    data = serialize_message(_wrench(1.0))
+    rec.record('/m/force', data, log_time_ns=123)
+    rec.record('/m/force', data)
+    rec.record('/m/force', data, log_time_ns=-1)            # refused by the recorder
+    rec.record('/excluded', data)
+    assert rec.errors == 1 and rec.counts == {'/m/force': 2}
+    rec.close('complete')
+    assert read_run_metadata(path)['part_errors'] == '1'
+    _ch, msgs, _info = read_part(path)
+    assert [(t, topic) for t, _seq, topic, _d in msgs] == [(123, '/m/force'), (5_000, '/m/force')]
+
+
+def test_a_process_name_must_not_leave_the_bags_folder():
+    for bad in ('a/b', '../x', '/abs'):
+        with pytest.raises(ValueError, match='process'):
+            part_path('/b/run.mcap', bad)

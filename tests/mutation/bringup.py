@@ -556,7 +556,7 @@ MUTANTS = [
            "            published[t] = n",
            "a split run's counts: a topic published in two processes counts only the "
            "workers' messages",
-           tests=('tests/catheter_bringup/test_layout_split.py',)),
+           tests=('tests/catheter_bringup/test_lockstep_vision.py', '-k', 'split_run_records')),
     # -- run_scenario: the command line's exit codes, scenario and names
     Mutant('B100', P + 'run_scenario.py',
            "    return 1 if res.status == 'failed' else 0",
