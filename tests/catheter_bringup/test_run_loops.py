@@ -27,7 +27,10 @@ def test_a_stop_request_ends_a_lockstep_run_at_that_step(tmp_path, make_scenario
     res = r.run()
     assert res.status == 'interrupted'
     assert res.sim_time == pytest.approx(0.1, abs=1e-9)
-    assert read_run_metadata(bag)['status'] == 'interrupted'
+    meta = read_run_metadata(bag)
+    assert meta['status'] == 'interrupted'
+    # the steps it ran (each published one /test/force), not 0: also for a run that stopped
+    assert res.steps == res.published['/test/force'] == int(meta['steps']) == 100
 
 
 def test_clock_carries_seconds_and_nanoseconds():

@@ -423,6 +423,10 @@ class ScenarioRunner(Stepping, SplitRun, LockstepSplit, RunTeardown):
                 bar.close()
             wall = time.perf_counter() - t0
             sim = self._sim_reached if hasattr(self, '_sim_reached') else sim
+            if sc['mode'] == 'lockstep':
+                # the steps completed, also when a stop or a failure cut the run short (the
+                # loop's return value never came: it said 0 steps for an interrupted run)
+                steps = max(self._step_done, 0)
             result = self._finish(status, reason, sim, wall, steps)
         return result
 
