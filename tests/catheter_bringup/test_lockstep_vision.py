@@ -273,3 +273,23 @@ def test_a_vision_process_that_cannot_start_is_reported(tmp_path):
     with pytest.raises(VisionError, match='ended before it started'):
         peer.wait_ready(timeout=30.0)
     assert not peer.running
+
+
+def test_the_vision_processs_inputs_and_steps_are_counted_as_in_one_process(
+        tmp_path, make_scenario, test_registry, importable):
+    """A vision node subscribed to a topic nobody publishes: the split run's published counts
+    are still the one-process run's (the vision process's inputs are not its own
+    publishes); the vision process ran every step of the main process and step 0."""
+    node = {'module': 'lockstep_nodes', 'executable': 'sampler', 'kind': 'vision'}
+    sc = make_scenario(duration=0.1, outputs=['/test/relayed', '/test/a'], nodes={
+        'a_sampler': dict(node, consumes=['/test/force'], produces=['/test/a'],
+                          params={'output': '/test/a',
+                                  'inputs': ['/test/force', '/test/nobody']})})
+    one, _ = run(sc, tmp_path / 'one.mcap', test_registry, 1)
+    two, _ = run(sc, tmp_path / 'two.mcap', test_registry, 2)
+    assert one.status == two.status == 'complete', (one.reason, two.reason)
+    assert 'a_sampler' in two.processes['vision']['nodes']
+    assert '/test/nobody' not in one.published
+    assert two.published == one.published
+    assert one.steps == two.steps == 100
+    assert two.processes['vision']['steps'] == two.steps + 1       # steps 0 .. 100
