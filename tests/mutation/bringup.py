@@ -715,4 +715,33 @@ MUTANTS = [
            "a split run's workers keep /diagnostics off DDS: the operator's tools see no "
            'node status',
            tests=('tests/catheter_bringup/test_layout_split.py', '-k', 'link_topics')),
+    # -- lockstep_split / split_run: the runner's side of the other processes
+    Mutant('B127', P + 'lockstep_split.py',
+           "        self.skipped = sorted(set(self.skipped) | set(ready['skipped']))",
+           '        self.skipped = sorted(self.skipped)',
+           'a vision node the vision process could not start is not listed as skipped',
+           tests=('tests/catheter_bringup/test_lockstep_vision.py', '-k', 'split_run_records')),
+    Mutant('B128', P + 'lockstep_split.py',
+           "        self.child_published = dict(rep.get('published', {}))",
+           '        self.child_published = {}',
+           "the vision process's messages are missing from the run's published counts",
+           tests=('tests/catheter_bringup/test_lockstep_vision.py', '-k', 'split_run_records')),
+    Mutant('B129', P + 'lockstep_split.py',
+           '                if pub.topic_name in inputs:\n                    '
+           'count_extra_subscriber(pub)',
+           '                if False:\n                    count_extra_subscriber(pub)',
+           'a publisher that works only while subscribed stops when its only subscriber is '
+           'in the vision process',
+           tests=('tests/catheter_bringup/test_lockstep_vision.py', '-k', 'only_while')),
+    Mutant('B130', P + 'split_run.py',
+           "                if wanted(pub.topic_name, rec['exclude'], rec.get('only') or None):",
+           '                if True:',
+           "a worker's part records the topics the scenario excludes",
+           tests=('tests/catheter_bringup/test_layout_split.py', '-k', 'complete_and_readable')),
+    Mutant('B131', P + 'split_run.py',
+           '        self.child_published = self.children.published()',
+           '        self.child_published = {}',
+           "the workers' messages are missing from a split run's published counts (lost "
+           'looks negative)',
+           tests=('tests/catheter_bringup/test_layout_split.py', '-k', 'complete_and_readable')),
 ]
