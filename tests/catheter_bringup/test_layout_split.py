@@ -96,6 +96,13 @@ def test_split_recording_is_complete_and_readable(split_run):
         for t, n in rec.items():
             expected[t] = expected.get(t, 0) + n
     assert res.recorded == expected
+    # the run's published counts hold the workers' (this process runs no node)
+    published = {}
+    for name, rep in res.processes.items():
+        for t, n in (rep['published'].items() if name != 'link' else ()):
+            published[t] = published.get(t, 0) + n
+    assert {t: n for t, n in res.published.items() if n} == \
+        {t: n for t, n in published.items() if n}
     assert counts == {t: n for t, n in expected.items() if n}    # a reader sees no empty topic
     assert res.lost == {}
     # mcap_ros2 (another reader) decodes every message too; log times never go back

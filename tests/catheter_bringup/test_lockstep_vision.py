@@ -293,3 +293,18 @@ def test_the_vision_processs_inputs_and_steps_are_counted_as_in_one_process(
     assert two.published == one.published
     assert one.steps == two.steps == 100
     assert two.processes['vision']['steps'] == two.steps + 1       # steps 0 .. 100
+
+
+def test_a_vision_node_the_vision_process_cannot_start_is_listed_as_skipped(
+        tmp_path, make_scenario, test_registry, importable):
+    """A vision node whose module only the main process has (the tests' in-memory node
+    modules): the vision process leaves it out and the run lists it as skipped."""
+    sc = make_scenario(duration=0.05, outputs=['/test/relayed', '/test/image'], nodes={
+        'fake_camera': {'kind': 'vision'}})
+    cam = test_registry['fake_camera']
+    import dataclasses
+    registry = dict(test_registry, fake_camera=dataclasses.replace(cam, kind='vision'))
+    two, _ = run(sc, tmp_path / 'two.mcap', registry, 2)
+    assert two.status == 'complete', two.reason
+    assert 'vision' in two.processes
+    assert 'fake_camera' not in two.nodes and 'fake_camera' in two.skipped
