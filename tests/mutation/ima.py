@@ -31,7 +31,10 @@ ET = TI + 'test_experiment.py'
 VT = TS + 'test_vessels.py'
 VST = TS + 'test_vessel_selection.py'
 IDT = (TI + 'test_stateless_candidate.py', TI + 'test_envelope_state.py')
-NMT = (NT, 'tests/nodes/test_params_runtime.py', '-k', 'ima_master or limit')
+VDT = TS + 'test_vessel_draw_rules.py'
+IDF = TI + 'test_identification.py'
+IMO = TI + 'test_ima_master_output.py'
+CST = TS + 'test_camera_settings.py'
 CAT = TS + 'test_camera.py'
 
 MUTANTS = [
@@ -822,12 +825,12 @@ MUTANTS = [
            'out[name] = v * math.exp(math.log(a) + u * (math.log(b) - math.log(a)))',
            'out[name] = v * (a + u * (b - a))',
            "a 'scale' draw uniform in [a, b], not log-uniform as DRAW_RULES documents (factors "
-           'above 1 drawn more often than below)', tests=(GT,)),
+           'above 1 drawn more often than below)', tests=(VDT,)),
     Mutant('W61', S + 'vessels.py',
            "'capstan_length': base['capstan_length'] < 1.0 and base['friction_per_length'] > 0,",
            "'capstan_length': True,",
            'a family whose friction grows linearly (no capstan) gets a capstan drawn: its '
-           'structure changes', tests=(GT,)),
+           'structure changes', tests=(VDT,)),
     Mutant('W62', S + 'vessels.py',
            '                out[name] = 1.0 + (v - 1.0) * (a + u * (b - a))',
            '                out[name] = v * (a + u * (b - a))',
@@ -859,55 +862,55 @@ MUTANTS = [
     Mutant('W68', IM + 'identification.py',
            'def make_identifier(window: float = 1.0,',
            'def make_identifier(window: float = 2.0,',
-           'the default window not the documented 1 s', tests=IDT),
+           'the default window not the documented 1 s', tests=(IDF,)),
     Mutant('W69', IM + 'identification.py',
            'rate: float = 1000.0, **kwargs)',
            'rate: float = 500.0, **kwargs)',
-           'the default sample rate not the 1 kHz of the loop', tests=IDT),
+           'the default sample rate not the 1 kHz of the loop', tests=(IDF,)),
     # -- the master-side renderer node (impedance_master.ima_master_node; node tests)
     Mutant('W70', IM + 'ima_master_node.py',
            '            return lim if f > 0 else -lim',
            '            return lim',
            'a force beyond -limit rendered as +limit (the sign flips at the hand)',
-           tests=NMT),
+           tests=(IMO,)),
     Mutant('W71', IM + 'ima_master_node.py',
            '        if not math.isfinite(f):\n            self.diag.count',
            '        if False:\n            self.diag.count',
-           'a NaN from the renderer published to the hand', tests=NMT),
+           'a NaN from the renderer published to the hand', tests=(IMO,)),
     Mutant('W72', IM + 'ima_master_node.py',
            "        if self.mode == 'ima_thesis' and imp.kind != 0:",
            '        if False:',
            'mode ima_thesis renders the table part too (not the linear Eq. 35)',
-           tests=NMT),
+           tests=(IMO,)),
     Mutant('W73', IM + 'ima_master_node.py',
            "            if k in changes and self.mode != 'ima':",
            '            if False:',
            'a setting of mode ima accepted in dfr / ima_thesis and then ignored',
-           tests=NMT),
+           tests=(IMO,)),
     Mutant('W74', IM + 'ima_master_node.py',
            "            self.diag.count('models_unchanged')\n"
            '            self.renderer.set_impedance(self._last_imp)',
            "            self.diag.count('models_unchanged')",
            'a model re-sent unchanged is not offered again: the renderer thinks the link is '
-           'out', tests=NMT),
+           'out', tests=(IMO,)),
     Mutant('W75', IM + 'ima_master_node.py',
            'ImaRenderer(limit=self.limit, blend_time=0.0, max_rate=1e6, dt=dt)',
            "ImaRenderer(limit=self.limit, blend_time=p['blend_time'], max_rate=1e6, dt=dt)",
            'mode ima_thesis blends model switches (the thesis switches at once)',
-           tests=NMT),
+           tests=(IMO,)),
     # -- the slave's camera (sim_slave.camera)
     Mutant('W76', S + 'camera.py',
            '        kw.update(camera or {})',
            '        pass',
-           'the camera keyword arguments (size, scale, noise) ignored', tests=(CAT,)),
+           'the camera keyword arguments (size, scale, noise) ignored', tests=(CST,)),
     Mutant('W77', S + 'camera.py',
            "        kw['seed'] = check_seed('seed', seed) or 0",
            "        kw['seed'] = check_seed('seed', seed) and 0",
-           'the seed ignored: every camera draws the same background and noise', tests=(CAT,)),
+           'the seed ignored: every camera draws the same background and noise', tests=(CST,)),
     Mutant('W78', S + 'camera.py',
            '        self.vessel = VesselModel(vessel_params, seed=0)',
            '        self.vessel = VesselModel(None, seed=0)',
-           "the vessel's wall ignored: the tip loaded by the phantom's wall", tests=(CAT,)),
+           "the vessel's wall ignored: the tip loaded by the phantom's wall", tests=(CST,)),
     Mutant('W79', S + 'camera.py',
            'f * math.sin(self.force_angle)])',
            '-f * math.sin(self.force_angle)])',
