@@ -13,6 +13,8 @@ P = 'src/force_estimator/force_estimator/'
 DT = 'tests/force_estimator/test_dataset.py'
 TRT = 'tests/force_estimator/test_train_recipe.py'
 NDT = 'tests/force_estimator/test_node.py'
+DCT = 'tests/force_estimator/test_dataset_contract.py'
+NFT = 'tests/force_estimator/test_node_fam_params.py'
 
 MUTANTS = [
     # -- issue 14's survivor: the envelope force check of the single-sample path
@@ -211,23 +213,23 @@ MUTANTS = [
            '        split = np.concatenate([split, split])',
            '        split = np.concatenate([split, np.zeros_like(split)])',
            'mirror: the mirror of a test case lands in the training part (test leak)',
-           tests=(DT,)),
+           tests=(DCT,)),
     Mutant('E45', P + 'dataset.py',
            'angle=np.arctan2(Fk[:, 1], Fk[:, 0])',
            'angle=np.arctan2(Fk[:, 0], Fk[:, 1])',
-           'the angle column is not atan2(fy, fx)', tests=(DT,)),
+           'the angle column is not atan2(fy, fx)', tests=(DCT,)),
     Mutant('E46', P + 'dataset.py',
            '    keep = conv & ok',
            '    keep = ok',
-           'non-converged FAM shapes kept in the data set', tests=(DT,)),
+           'non-converged FAM shapes kept in the data set', tests=(DCT,)),
     Mutant('E47', P + 'dataset.py',
            '            pts[:, :2] += rng.normal(0.0, point_noise, (pts.shape[0], 2))',
            '            pts[:, :2] += rng.normal(0.0, point_noise * 1e-3, (pts.shape[0], 2))',
-           'point_noise read in mm, not m (the noise 1000x too small)', tests=(DT,)),
+           'point_noise read in mm, not m (the noise 1000x too small)', tests=(DCT,)),
     Mutant('E48', P + 'dataset.py',
            "    for key in ('X', 'Y', 'split'):\n        if key not in ds:",
            '    for key in ():\n        if key not in ds:',
-           'load_dataset accepts an .npz that is not a data set', tests=(DT,)),
+           'load_dataset accepts an .npz that is not a data set', tests=(DCT,)),
     # -- the training recipe's data (force_estimator.train; fast helpers, not the build)
     Mutant('E49', P + 'train.py',
            '    ang = rng.uniform(-np.pi, np.pi, n)',
@@ -267,7 +269,7 @@ MUTANTS = [
     Mutant('E57', P + 'force_estimator_node.py',
            '(uses_fam and FAM_KEYS & set(changes))',
            'False',
-           'length / ei / n_arcs / f_max accepted at run time and ignored', tests=(NDT,)),
+           'length / ei / n_arcs / f_max accepted at run time and ignored', tests=(NFT,)),
     Mutant('E58', P + 'force_estimator_node.py',
            "            if key in changes and values['method'] != method:",
            '            if False:',
