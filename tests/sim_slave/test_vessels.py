@@ -195,3 +195,15 @@ def test_the_module_docstring_quotes_each_vessels_steady_force():
     for name, f in quoted.items():
         assert make_vessel(name, seed=0).steady_force(0.056, 0.0413) == \
             pytest.approx(f, abs=0.005), name
+
+
+@pytest.mark.parametrize('bad', [['phantom'], {'name': 'soft'}, None, 3])
+def test_a_vessel_name_that_is_not_a_string_is_refused_with_a_value_error(bad):
+    """The documented ValueError naming the choices, also for an unhashable value (a list
+    from a YAML scenario, a mapping): not a TypeError from the name lookup."""
+    import random
+    from sim_slave.vessels import draw_vessel
+    for call in (lambda: vessel_spec(bad), lambda: make_vessel(bad),
+                 lambda: draw_vessel(bad, random.Random(0))):
+        with pytest.raises(ValueError, match='vessel must be one of'):
+            call()

@@ -127,8 +127,8 @@ def vessel_names() -> Tuple[str, ...]:
 def vessel_spec(name: str = 'phantom', **overrides) -> VesselSpec:
     """The named vessel with any VesselParams / VesselExtras field or ``noise_std`` (N)
     overridden. ValueError naming the unknown name or field."""
-    key = _ALIASES.get(name, name)
-    if not isinstance(name, str) or key not in _FAMILY:
+    key = _ALIASES.get(name, name) if isinstance(name, str) else None   # a list: no TypeError
+    if key not in _FAMILY:
         raise ValueError(f'vessel must be one of {vessel_names()}, got {name!r}')
     base, extra, noise = _FAMILY[key]
     p_kw, e_kw = dict(base), dict(extra)
