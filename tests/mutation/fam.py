@@ -12,6 +12,7 @@ P = 'src/fam_solver/fam_solver/'
 B = 'tests/bench/bench_fam_cliffs.py'
 BT = ('tests/fam_solver/test_cliff_bench.py',)
 NODE = ('tests/fam_solver/test_node.py',)
+NODEC = ('tests/fam_solver/test_node_contract.py',)
 
 MUTANTS = [
     # -- issue 14's survivor: the buckling check beyond 64 arcs runs on a 32-arc model
@@ -484,24 +485,24 @@ MUTANTS = [
            '        if math.hypot(f.x, f.y) > self.max_force or abs(t.z) > self.max_moment:',
            '        if abs(t.z) > self.max_moment:',
            'a tip force beyond max_force solved (no catheter load; the solver takes long)',
-           tests=NODE),
+           tests=NODEC),
     Mutant('M111', P + 'fam_solver_node.py',
            '        if math.hypot(f.x, f.y) > self.max_force or abs(t.z) > self.max_moment:',
            '        if math.hypot(f.x, f.y) > self.max_force:',
-           'a tip moment beyond max_moment solved', tests=NODE),
+           'a tip moment beyond max_moment solved', tests=NODEC),
     Mutant('M112', P + 'fam_solver_node.py',
            'loads = Loads(tip_force=(f.x, f.y), tip_moment=t.z, follower=self.follower)',
            'loads = Loads(tip_force=(f.x, f.y), tip_moment=t.z)',
-           'follower:=true ignored (the force stays in catheter_base)', tests=NODE),
+           'follower:=true ignored (the force stays in catheter_base)', tests=NODEC),
     Mutant('M113', P + 'fam_solver_node.py',
-           "            if 'follower' in changes:",
-           '            if False:',
+           "        if 'follower' in changes and self._pending is not None:",
+           '        if False:',
            'a run-time change of follower re-solves the last load with the old flag',
-           tests=NODE),
+           tests=NODEC),
     Mutant('M114', P + 'fam_solver_node.py',
            '        if stamp.sec == 0 and stamp.nanosec == 0:',
            '        if False:',
-           'a load without a stamp gives a shape stamped 0 (not the node clock)', tests=NODE),
+           'a load without a stamp gives a shape stamped 0 (not the node clock)', tests=NODEC),
     Mutant('M115', P + 'fam_solver_node.py',
            '            ps.pose.orientation.z = math.sin(0.5 * a)',
            '            ps.pose.orientation.z = math.sin(a)',
@@ -509,10 +510,10 @@ MUTANTS = [
     Mutant('M116', P + 'fam_solver_node.py',
            '        mk.scale.x = self.line_width',
            '        mk.scale.x = 0.0023',
-           'line_width ignored', tests=NODE),
+           'line_width ignored', tests=NODEC),
     Mutant('M117', P + 'fam_solver_node.py',
-           '            self._pending = (self._last_stamp, loads)\n',
+           '            self._pending = (self._last_stamp, self._last_loads)\n',
            '\n',
            'a parameter change not applied to the last load (no re-solve until a new load)',
-           tests=NODE),
+           tests=NODEC),
 ]

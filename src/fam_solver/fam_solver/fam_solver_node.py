@@ -98,12 +98,13 @@ class FamSolverNode(Node):
         self._set_values(values)
         self._last_shape = None               # no warm start across a model change
         if self._last_loads is not None:      # the shape of the last load, with the new values
-            loads = self._last_loads
-            if 'follower' in changes:
-                loads = Loads(tip_force=loads.tip_force, tip_moment=loads.tip_moment,
-                              follower=self.follower)
-            self._pending = (self._last_stamp, loads)
+            self._pending = (self._last_stamp, self._last_loads)
             self._last_loads = None
+        # the follower flag is part of the load: also a load still waiting for a listener
+        if 'follower' in changes and self._pending is not None:
+            stamp, loads = self._pending
+            self._pending = (stamp, Loads(tip_force=loads.tip_force, tip_moment=loads.tip_moment,
+                                          follower=self.follower))
 
     def _listeners(self) -> int:
         return self.path_pub.get_subscription_count() + self.marker_pub.get_subscription_count()
