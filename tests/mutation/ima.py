@@ -30,7 +30,6 @@ OT = TI + 'test_operators.py'
 ET = TI + 'test_experiment.py'
 VT = TS + 'test_vessels.py'
 VST = TS + 'test_vessel_selection.py'
-IDT = (TI + 'test_stateless_candidate.py', TI + 'test_envelope_state.py')
 VDT = TS + 'test_vessel_draw_rules.py'
 IDF = TI + 'test_identification.py'
 IMO = TI + 'test_ima_master_output.py'
@@ -858,7 +857,7 @@ MUTANTS = [
     Mutant('W67', IM + 'identification.py',
            '    return HistoryIdentifier(window=window, rate=rate, **kwargs)',
            '    return HistoryIdentifier(window=window, rate=rate)',
-           'HistoryParams overrides silently dropped', tests=IDT),
+           'HistoryParams overrides silently dropped', tests=(IDF,)),
     Mutant('W68', IM + 'identification.py',
            'def make_identifier(window: float = 1.0,',
            'def make_identifier(window: float = 2.0,',
