@@ -1,8 +1,16 @@
-"""Shared helpers for the fam_solver tests: closed-form elastica references."""
+"""Shared helpers for the fam_solver tests: closed-form elastica references, and the folder's
+helper modules (node_msgs) importable."""
+import pathlib
+import sys
+
 import numpy as np
 import pytest
 from scipy.optimize import brentq
 from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
+
+HERE = pathlib.Path(__file__).resolve().parent
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
 
 
 def cantilever_closed_form(alpha):

@@ -12,16 +12,9 @@ from catheter_common.topics import FAM_SHAPE, FAM_SHAPE_MARKER, TIP_LOAD, resolv
 from catheter_common.qos import QOS_DEFAULT
 from fam_solver import Catheter, Loads, solve_fam
 from fam_solver.fam_solver_node import FamSolverNode
+from node_msgs import wrench as _wrench
 
 pytestmark = pytest.mark.ros
-
-
-def _wrench(fx, fy, mz=0.0, sec=7):
-    m = WrenchStamped()
-    m.header.frame_id = 'catheter_base'
-    m.header.stamp.sec = sec
-    m.wrench.force.x, m.wrench.force.y, m.wrench.torque.z = fx, fy, mz
-    return m
 
 
 # The node runs in a per-process namespace (its topic names are relative): other test

@@ -5,7 +5,6 @@ without a stamp gets the node clock's; line_width reaches the marker."""
 import os
 
 import pytest
-from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Path
 from rclpy.parameter import Parameter
 
@@ -14,18 +13,11 @@ from catheter_common.qos import QOS_DEFAULT
 from catheter_common.topics import FAM_SHAPE, resolve
 from fam_solver import Catheter, Loads, solve_fam
 from fam_solver.fam_solver_node import FamSolverNode
+from node_msgs import wrench
 
 pytestmark = pytest.mark.ros
 
 NS = f'/fam_contract_{os.getpid()}'
-
-
-def wrench(fx, fy, mz=0.0, sec=7):
-    m = WrenchStamped()
-    m.header.frame_id = 'catheter_base'
-    m.header.stamp.sec = sec
-    m.wrench.force.x, m.wrench.force.y, m.wrench.torque.z = fx, fy, mz
-    return m
 
 
 def node_and_paths(ros, probe, **params):
