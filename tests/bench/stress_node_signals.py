@@ -34,12 +34,6 @@ from node_cases import NODE_PACKAGES  # noqa: E402
 EXECUTABLES = dict(NODE_PACKAGES, recorder_node='catheter_bringup')
 
 
-def isolated_domain(key: int) -> int:
-    """A domain id whose DDS ports stay out of the kernel's ephemeral range (ros_testing)."""
-    from catheter_common.ros_testing import ISOLATED_DOMAINS
-    return ISOLATED_DOMAINS[key % len(ISOLATED_DOMAINS)]
-
-
 def executable(name: str) -> str:
     pkg = EXECUTABLES[name]
     return str(ROOT / 'ros_ws' / 'install' / pkg / 'lib' / pkg / name)
@@ -74,6 +68,7 @@ def diagnose(pid: int, path: pathlib.Path) -> None:
 def one_iteration(i, a, names, rnd, out):
     sig = rnd.choice([signal.SIGINT, signal.SIGTERM])
     together = rnd.random() < a.together
+    from catheter_common.ros_testing import isolated_domain
     env = dict(os.environ, ROS_DOMAIN_ID=str(isolated_domain(os.getpid() + i)),
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     old = signal.signal(signal.SIGINT, signal.SIG_IGN) if a.ignore_sigint else None

@@ -65,3 +65,4 @@ def test_isolate_sets_an_isolated_domain_and_localhost_discovery(keep_env):
     assert len({isolate_ros_env(s) for s in range(5000, 5000 + len(ISOLATED_DOMAINS))}) \
         == len(ISOLATED_DOMAINS)
     assert isolate_ros_env() == ros_testing.ISOLATED_DOMAINS[os.getpid() % len(ISOLATED_DOMAINS)]
+    assert ros_testing.isolated_domain(5000 + 7) == isolate_ros_env(5007)

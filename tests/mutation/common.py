@@ -131,8 +131,8 @@ MUTANTS = [
            tests=(T + 'test_images.py',)),
     # -- ros_testing: the domain a test process isolates itself in
     Mutant('K22', P + 'ros_testing.py',
-           '    dom = ISOLATED_DOMAINS[key % len(ISOLATED_DOMAINS)]',
-           '    dom = key % 200 + 20',
+           '    return ISOLATED_DOMAINS[int(key) % len(ISOLATED_DOMAINS)]',
+           '    return int(key) % 200 + 20',
            "domains 102-214 drawn: their DDS ports fall in the kernel's ephemeral range",
            tests=(T + 'test_ros_testing.py',)),
     Mutant('K23', P + 'ros_testing.py',

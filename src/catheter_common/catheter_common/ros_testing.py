@@ -26,11 +26,16 @@ def domain_ports(domain: int, participants: int = 50) -> range:
     return range(lo, lo + 12 + 2 * int(participants))
 
 
+def isolated_domain(key: int) -> int:
+    """The domain id of ISOLATED_DOMAINS for ``key`` (a process id, a seed): neighbouring
+    keys get different domains, each with its ports out of the kernel's ephemeral range."""
+    return ISOLATED_DOMAINS[int(key) % len(ISOLATED_DOMAINS)]
+
+
 def isolate_ros_env(seed: int | None = None) -> int:
-    """Set a domain id unique to this process (one of ISOLATED_DOMAINS, whose ports stay out
-    of the kernel's ephemeral range) and keep discovery on localhost. Returns the id."""
-    key = os.getpid() if seed is None else int(seed)
-    dom = ISOLATED_DOMAINS[key % len(ISOLATED_DOMAINS)]
+    """Set a domain id unique to this process (`isolated_domain` of the process id or
+    ``seed``) and keep discovery on localhost. Returns the id."""
+    dom = isolated_domain(os.getpid() if seed is None else seed)
     os.environ['ROS_DOMAIN_ID'] = str(dom)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     return dom
