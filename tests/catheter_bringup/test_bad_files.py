@@ -227,7 +227,7 @@ def test_read_messages_checks_the_chunks_crcs(good, tmp_path):
         list(bagfile.read_messages(bad, decode=True))
 
 
-def test_replay_of_a_flipped_chunk_stops_there_with_one_line(good, tmp_path, ros):
+def test_replay_of_a_flipped_chunk_stops_there_with_one_line(good, tmp_path, ros, capsys):
     """replay republished the damaged chunk's messages as other values; now it stops at that
     chunk with the BagError."""
     bad = _flipped(good, tmp_path / 'flipped.mcap')
@@ -237,9 +237,13 @@ def test_replay_of_a_flipped_chunk_stops_there_with_one_line(good, tmp_path, ros
     res = replay.replay(good, rate=1e4, clock=False, node=node)
     assert res['published'] == {'/slave/force': 2000}          # the intact file: all of it
     # the library's one line reaches the user through the tool's error path
+    capsys.readouterr()
     code = bagfile.cli_errors('replay', lambda: replay.replay(bad, rate=1e4, clock=False,
                                                              node=node))
     assert code == 2
+    out, err = capsys.readouterr()
+    assert out == '' and len(err.splitlines()) == 1
+    assert err.startswith(f'replay: {bad}: unreadable') and 'Traceback' not in err
 
 
 def test_reprocess_of_a_flipped_chunk_is_refused_in_one_line(tmp_path, capsys):
