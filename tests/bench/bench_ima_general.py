@@ -57,16 +57,20 @@ default IMA, the thesis IMA, DFR and the anchored baseline. Two sections:
   same families and operators, 90 worlds), committed during the seventeenth round before
   its blind run of fresh11, to be run once after a later round's design is final. Not part
   of ``all``.
-* ``fresh13``: the next held-out worlds (`drawn_cases(FRESH13_SEEDS)`, seeds 1300-1304, the
-  same families and operators, 90 worlds), committed during the nineteenth round before
-  its blind run of fresh12, to be run once after a later round's design is final. Not part
+* ``fresh13``: the thirteenth held-out worlds (`drawn_cases(FRESH13_SEEDS)`, seeds
+  1300-1304, the same families and operators, 90 worlds), committed during the nineteenth
+  round before its blind run of fresh12, and run once in the twenty-second round. Not part
+  of ``all``.
+* ``fresh14``: the next held-out worlds (`drawn_cases(FRESH14_SEEDS)`, seeds 1400-1404, the
+  same families and operators, 90 worlds), committed during the twenty-second round after
+  its blind run of fresh13, to be run once after a later round's design is final. Not part
   of ``all``.
 
 Tables per section: every case (MAE normal / outage / max, N); per vessel and per operator;
 the count of cases where the default beats DFR (normal MAE < DFR's, outage MAE < DFR's /
 2, max < DFR's) and where its mean error ('all' intervals) is no worse than the anchored
 baseline's; the averages over cases with the ratios to DFR.
-Options: --section dev|fresh|fresh2|...|fresh13|all (fresh2 to fresh13: the held-out sets)
+Options: --section dev|fresh|fresh2|...|fresh14|all (fresh2 to fresh14: the held-out sets)
 (default all = dev and fresh), --quick (one seed), --jobs N (cases run in N processes;
 default 1), --oracle (ninth round: also run the ORACLE renderers of
 `impedance_master.oracle` on every case, the world's true vessel law at the master, and
@@ -93,7 +97,7 @@ from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS,  #
                                              FRESH3_SEEDS, FRESH4_SEEDS, FRESH5_SEEDS, FRESH6_SEEDS,
                                              FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS,
                                              FRESH10_SEEDS, FRESH11_SEEDS, FRESH12_SEEDS,
-                                             FRESH13_SEEDS,
+                                             FRESH13_SEEDS, FRESH14_SEEDS,
                                              FRESH_SEEDS,
                                              MODES,
                                              TUNING,
@@ -238,7 +242,9 @@ HELD_OUT = (
     ('fresh12', FRESH12_SEEDS, 'twelfth fresh held-out worlds',
      "; held out from the seventeenth to the nineteenth round's design work"),
     ('fresh13', FRESH13_SEEDS, 'thirteenth fresh held-out worlds',
-     "; held out from the nineteenth round's design work on"),
+     "; held out from the nineteenth to the twenty-second round's design work"),
+    ('fresh14', FRESH14_SEEDS, 'fourteenth fresh held-out worlds',
+     "; held out from the twenty-second round's design work on"),
 )
 
 def main(argv=None):
@@ -250,7 +256,8 @@ def main(argv=None):
     ap.add_argument('--draw-seeds', default=None,
                     help='comma-separated seeds: the randomised section on these seeds '
                          'instead of the fresh ones (development draws, never the held-out '
-                         '800-804, 900-904, 1000-1004, 1100-1104, 1200-1204 and 1300-1304)')
+                         '800-804, 900-904, 1000-1004, 1100-1104, 1200-1204, 1300-1304 '
+                         'and 1400-1404)')
     ap.add_argument('--oracle', action='store_true',
                     help='also run the oracle renderers (impedance_master.oracle) on the '
                          'randomised sections and print their table')
@@ -273,9 +280,9 @@ def main(argv=None):
             seeds = [int(s) for s in a.draw_seeds.split(',')]
             if set(seeds) & (set(FRESH8_SEEDS) | set(FRESH9_SEEDS) | set(FRESH10_SEEDS)
                              | set(FRESH11_SEEDS) | set(FRESH12_SEEDS)
-                             | set(FRESH13_SEEDS)):
+                             | set(FRESH13_SEEDS) | set(FRESH14_SEEDS)):
                 ap.error('--draw-seeds must not name the held-out seeds 800-804, 900-904, '
-                         '1000-1004, 1100-1104, 1200-1204, 1300-1304')
+                         '1000-1004, 1100-1104, 1200-1204, 1300-1304, 1400-1404')
             title = f'development draws (seeds {seeds})'
         sections.append((seeds, title, note))
     for name, all_seeds, title, note in HELD_OUT:

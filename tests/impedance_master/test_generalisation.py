@@ -11,7 +11,7 @@ from impedance_master.generalisation import (DEVELOPMENT_SEEDS, FRESH2_SEEDS, FR
                                              FRESH4_SEEDS, FRESH5_SEEDS, FRESH6_SEEDS,
                                              FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS,
                                              FRESH10_SEEDS, FRESH11_SEEDS, FRESH12_SEEDS,
-                                             FRESH13_SEEDS,
+                                             FRESH13_SEEDS, FRESH14_SEEDS,
                                              FRESH_SEEDS,
                                              drawn_cases)
 from impedance_master.operator import OPERATORS
@@ -207,6 +207,17 @@ def test_thirteenth_fresh_set_is_new_worlds_disjoint_from_every_seen_and_held_ou
     seen = {c[3] for s in earlier for c in drawn_cases(s)}
     assert not {c[3] for c in todo} & seen
 
+
+
+def test_fourteenth_fresh_set_is_new_worlds_disjoint_from_every_seen_and_held_out_seed():
+    earlier = (FRESH_SEEDS, FRESH2_SEEDS, FRESH3_SEEDS, FRESH4_SEEDS, FRESH5_SEEDS,
+               FRESH6_SEEDS, FRESH7_SEEDS, FRESH8_SEEDS, FRESH9_SEEDS, FRESH10_SEEDS,
+               FRESH11_SEEDS, FRESH12_SEEDS, FRESH13_SEEDS)
+    assert not set(FRESH14_SEEDS) & (set().union(*earlier) | set(DEVELOPMENT_SEEDS))
+    todo = drawn_cases(FRESH14_SEEDS)
+    assert len(todo) == 90
+    seen = {c[3] for s in earlier for c in drawn_cases(s)}
+    assert not {c[3] for c in todo} & seen
 
 # ---- issue 12's criterion and case results, by hand (mutation sweep W09-W12)
 def test_beats_dfr_needs_all_three_parts():

@@ -90,6 +90,12 @@ every other vessel x operator x seed, cold start.
 * Thirteenth fresh held-out worlds (`drawn_cases(FRESH13_SEEDS)`, seeds 1300-1304, the same
   families and operators, 90 worlds): defined and committed during the nineteenth round,
   before its blind run of fresh12, to be run once after a later round's design is final.
+  Run once in the twenty-second round on the nineteenth round's design (no change to the
+  rendered force was kept after it; the last blind figure before issue 12 was reported
+  blocked).
+* Fourteenth fresh held-out worlds (`drawn_cases(FRESH14_SEEDS)`, seeds 1400-1404, the same
+  families and operators, 90 worlds): defined and committed during the twenty-second round,
+  after its blind run of fresh13, to be run once after a later round's design is final.
 """
 from __future__ import annotations
 
@@ -129,8 +135,10 @@ FRESH10_SEEDS = (1000, 1001, 1002, 1003, 1004)
 FRESH11_SEEDS = (1100, 1101, 1102, 1103, 1104)
 #: seeds of the twelfth held-out worlds (defined in the seventeenth round, run after the 19th)
 FRESH12_SEEDS = (1200, 1201, 1202, 1203, 1204)
-#: seeds of the next held-out worlds (defined in the nineteenth round, not run yet)
+#: seeds of the thirteenth held-out worlds (defined in the nineteenth round, run in the 22nd)
 FRESH13_SEEDS = (1300, 1301, 1302, 1303, 1304)
+#: seeds of the next held-out worlds (defined in the twenty-second round, not run yet)
+FRESH14_SEEDS = (1400, 1401, 1402, 1403, 1404)
 
 
 @dataclass(frozen=True)
