@@ -111,3 +111,52 @@ def test_tissue_hides_the_tip():
     assert np.hypot(*cp[1, 3, :2]) < np.hypot(*cp[0, 3, :2]) - 0.002
     with pytest.raises(ValueError, match='tissue_depth'):
         D.render_control_points(cls, tissue_depth=-1.0)
+
+
+def test_styled_features_follow_the_shape_in_every_tuning_style():
+    """The shipped models' training path (features 'styles'): frame i is drawn in style
+    i % len(styles), measured by ShapeSensor; the Bezier curve lies on the true centreline
+    in every style, the same seed gives the same frames, a frame the sensor refuses is NaN."""
+    from catheter_shape import bezier_eval
+    from catheter_shape.styles import TUNING_STYLES
+    F = np.array([[0.0, 0.05], [-0.15, 0.1], [0.1, 0.2], [0.0, 0.0], [0.2, -0.1]])
+    cls, conv = D.fam_centerlines(F)
+    assert conv.all()
+    cp, ok, sty, hidden = D.styled_control_points(cls, seed=3)
+    assert cp.shape == (5, 4, 3) and ok.shape == sty.shape == hidden.shape == (5,)
+    assert sty.tolist() == [i % len(TUNING_STYLES) for i in range(5)]
+    assert ok.all() and (hidden >= 0).all()
+    assert hidden[sty == TUNING_STYLES.index('occluded')].max() > 0    # tip under tissue
+    for c, cl in zip(cp, cls, strict=True):
+        curve = bezier_eval(c[:, :2], np.linspace(0, 1, 400))
+        d = np.sqrt(((curve[:, None, :] - cl[None, :, :]) ** 2).sum(-1)).min(axis=1)
+        assert d.max() < 1.5e-3 and d.mean() < 4e-4                      # m
+    again = D.styled_control_points(cls, seed=3)
+    np.testing.assert_array_equal(again[0], cp)
+    np.testing.assert_array_equal(again[3], hidden)
+    only = D.styled_control_points(cls[:2], styles=('xray',), seed=3)
+    assert only[2].tolist() == [0, 0]
+
+
+
+def test_a_frame_the_sensor_refuses_is_nan_and_not_ok(monkeypatch):
+    import catheter_shape
+    orig = catheter_shape.ShapeSensor.process
+    calls = []
+
+    def every_second_refused(self, image):
+        obs = orig(self, image)
+        calls.append(1)
+        if len(calls) % 2 == 0:
+            obs.ok = False
+        return obs
+
+    monkeypatch.setattr(catheter_shape.ShapeSensor, 'process', every_second_refused)
+    cls, _ = D.fam_centerlines(np.array([[0.0, 0.05], [0.1, 0.1], [-0.1, 0.2]]))
+    cp, ok, _, _ = D.styled_control_points(cls, seed=1)
+    assert ok.tolist() == [True, False, True] and len(calls) == 3
+    assert np.isnan(cp[1]).all() and np.isfinite(cp[[0, 2]]).all()
+    with pytest.raises(ValueError, match='centerlines'):
+        D.styled_control_points(np.zeros((2, 10)))
+    with pytest.raises(ValueError, match='centerlines'):
+        D.styled_control_points(np.full((1, 10, 2), np.nan))

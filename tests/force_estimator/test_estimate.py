@@ -294,3 +294,56 @@ def test_status_formats_only_the_message_it_reports():
         == ('out_of_envelope', 'b')
     assert status_of(tight, (False, 'no_fit', msg('c'))) == ('ok', '')
     assert calls == ['b']
+
+
+def test_hybrid_predict_is_its_estimates_in_order(toy_models, fam):
+    """predict: one (4, 3) shape -> (2,), a batch (B, 4, 3) -> (B, 2) in order, each
+    row the force estimate() gives for that shape (the fallback's too), the flags its
+    `normal`; bad shapes and non-finite values are refused by name."""
+    X, _, models, _ = toy_models
+    from fam_solver import Catheter, Loads, solve_fam
+    from catheter_shape import fit_bezier
+    h = HybridEstimator(models['svr'], fam)
+    c = solve_fam(Catheter(length=L, ei=6e-5), Loads(tip_force=(0.0, -0.2)),
+                  n_arcs=24).centerline(200)
+    far = fit_bezier(np.c_[c, np.zeros(len(c))])          # out of the toy domain: fallback
+    batch = np.stack([X[2].reshape(4, 3), far, X[5].reshape(4, 3)])
+    fam.reset()
+    want = []
+    for cp in batch:
+        fam.reset()
+        want.append(h.estimate(cp))
+    assert [e.method for e in want] == ['svr', 'fam_fallback', 'svr']
+    fam.reset()
+    one = h.predict(batch[0])
+    assert one.shape == (2,)
+    np.testing.assert_allclose(one, want[0].force)
+    f, normal = h.predict(batch[0], return_flags=True)
+    np.testing.assert_allclose(f, want[0].force)
+    assert normal == want[0].normal
+    fam.reset()
+    F, flags = h.predict(batch, return_flags=True)
+    assert F.shape == (3, 2) and flags.dtype == bool and flags.shape == (3,)
+    np.testing.assert_allclose(F, [e.force for e in want], atol=1e-6)
+    assert flags.tolist() == [e.normal for e in want]
+    fam.reset()
+    np.testing.assert_allclose(h.predict(batch), F, atol=1e-6)
+    # without the fallback the far shape is refused: its flag is False, the others' True
+    h0 = HybridEstimator(models['svr'])
+    F0, flags0 = h0.predict(batch, return_flags=True)
+    assert flags0.tolist() == [h0.estimate(cp).normal for cp in batch] == [True, False, True]
+    np.testing.assert_allclose(F0[1], h0.estimate(far).force)
+    assert not h0.predict(far, return_flags=True)[1]
+    for shape in ((3, 12), (3, 5)):
+        with pytest.raises(ValueError, match='control_points must have shape'):
+            h.predict(np.zeros(shape))
+    bad = batch.copy()
+    bad[1, 2, 0] = np.nan
+    with pytest.raises(ValueError, match='finite'):
+        h.predict(bad)
+
+
+def test_hybrid_refuses_a_fallback_that_is_not_a_fam_inversion(toy_models):
+    _, _, models, _ = toy_models
+    with pytest.raises(ValueError, match='fam must be a FamInverseEstimator'):
+        HybridEstimator(models['svr'], fam=models['mlp'])

@@ -15,6 +15,7 @@ TRT = 'tests/force_estimator/test_train_recipe.py'
 NDT = 'tests/force_estimator/test_node.py'
 DCT = 'tests/force_estimator/test_dataset_contract.py'
 NFT = 'tests/force_estimator/test_node_fam_params.py'
+ET = 'tests/force_estimator/test_estimate.py'
 
 MUTANTS = [
     # -- issue 14's survivor: the envelope force check of the single-sample path
@@ -275,4 +276,36 @@ MUTANTS = [
            '            if False:',
            'a model file of the unused method accepted unchecked',
            tests=('tests/nodes/test_params_runtime.py', '-k', 'force_estimator')),
+    # -- the eleventh session's coverage gaps: HybridEstimator.predict and the training set's
+    #    styled camera path (the shipped models' features), both untested before
+    Mutant('E59', P + 'hybrid.py',
+           'es = [self.estimate(xi.reshape(4, 3)) for xi in x]',
+           'es = [self.estimate(xi.reshape(4, 3)) for xi in x[::-1]]',
+           "predict's batch rows out of order", tests=(ET,)),
+    Mutant('E60', P + 'hybrid.py',
+           'flags = np.array([e.normal for e in es], dtype=bool)',
+           'flags = np.ones(len(es), dtype=bool)',
+           "predict's flags say normal for a fallback or refused estimate", tests=(ET,)),
+    Mutant('E61', P + 'hybrid.py',
+           '            return (e.force, e.normal) if return_flags else e.force',
+           '            return (e.force, True) if return_flags else e.force',
+           "predict's single-shape flag says normal whatever the estimate", tests=(ET,)),
+    Mutant('E62', P + 'dataset.py',
+           '    sty = np.arange(len(c)) % len(styles)',
+           '    sty = np.zeros(len(c), dtype=int)',
+           'every training frame drawn in the first style only', tests=(DT,)),
+    Mutant('E63', P + 'dataset.py',
+           '        if obs.ok:\n            out[i] = obs.control_points\n            ok[i] = True\n'
+           '    return out, ok, sty, hidden',
+           '        out[i] = obs.control_points\n        ok[i] = True\n'
+           '    return out, ok, sty, hidden',
+           'a frame the sensor refused enters the styled training set', tests=(DT,)),
+    Mutant('E64', P + 'dataset.py',
+           '    if c.ndim != 3 or c.shape[2] not in (2, 3) or not np.isfinite(c).all():',
+           '    if c.ndim != 3 or c.shape[2] not in (2, 3):',
+           'non-finite centrelines reach the renderer unrefused', tests=(DT,)),
+    Mutant('E65', P + 'dataset.py',
+           '        hidden[i] = f.hidden_tip',
+           '        hidden[i] = 0.0',
+           "the styled frames' hidden tip lengths lost", tests=(DT,)),
 ]
