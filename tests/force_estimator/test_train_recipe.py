@@ -53,3 +53,59 @@ def test_training_set_keeps_converged_accepted_frames_and_holds_out_val_frac(mon
     assert np.isfinite(ds['X'][ds['keep']]).all()
     assert ds['n_refused'] == 2 and ds['n_not_converged'] == 3
     assert ds['val'].mean() == pytest.approx(train.VAL_FRAC, abs=0.02)
+
+
+def _fake_training_set(calls):
+    def make(n_random, features, seed, progress):
+        calls.append((n_random, features, seed))
+        n = train.N_ZERO + n_random
+        return dict(X=np.full((n, 12), float(seed)), Y=np.zeros((n, 2)), keep=np.ones(n, bool),
+                    val=np.zeros(n, bool), style=np.zeros(n, int), hidden=np.zeros(n),
+                    n_requested=n, n_refused=seed, n_not_converged=0)
+    return make
+
+
+def test_the_data_cache_is_used_only_for_the_same_recipe(monkeypatch, tmp_path):
+    calls, said = [], []
+    monkeypatch.setattr(train, 'training_set', _fake_training_set(calls))
+    # no cache named: generated every time, nothing written
+    train.cached_training_set('', 5, 'exact', 1)
+    train.cached_training_set('', 5, 'exact', 1)
+    assert calls == [(5, 'exact', 1)] * 2 and not list(tmp_path.iterdir())
+    cache = str(tmp_path / 'set.npz')
+    first = train.cached_training_set(cache, 5, 'exact', 1, say=said.append)
+    assert len(calls) == 3 and (tmp_path / 'set.npz').is_file()
+    again = train.cached_training_set(cache, 5, 'exact', 1, say=said.append)
+    assert len(calls) == 3 and said[-1] == f'training set from {cache}'
+    assert set(again) == set(first)
+    for k in first:
+        np.testing.assert_array_equal(again[k], first[k])
+    assert type(again['n_refused']) is int and again['n_refused'] == 1
+    # another recipe (each part of the key): regenerated and the file overwritten
+    for other in ((6, 'exact', 1), (5, 'noise', 1), (5, 'exact', 2)):
+        ds = train.cached_training_set(cache, *other, say=said.append)
+        assert calls[-1] == other and said[-1] == f'{cache} holds another recipe: regenerating'
+        assert ds['n_refused'] == other[2]
+    n = len(calls)
+    train.cached_training_set(cache, 5, 'exact', 2)          # the last one written
+    assert len(calls) == n
+    # a .npz that is not a cache (no key): regenerated, not a crash
+    np.savez(cache, X=np.zeros(3))
+    train.cached_training_set(cache, 5, 'exact', 2)
+    assert len(calls) == n + 1
+
+
+def test_the_command_passes_its_options_to_the_build(monkeypatch):
+    got = []
+    monkeypatch.setattr(train, 'build_single_threaded',
+                        lambda *a, **k: got.append((a, k)) or {})
+    assert train.main(['--out', '/x', '--n-random', '40', '--features', 'noise', '--seed', '3',
+                       '--quiet', '--data-cache', '/c.npz']) == 0
+    assert got == [(('/x', 40, 'noise', 3),
+                     dict(progress=False, verbose=False, data_cache='/c.npz'))]
+    got.clear()
+    assert train.main([]) == 0
+    assert got == [((train.DEFAULT_OUT, 2400, 'auto', 0),
+                     dict(progress=True, verbose=True, data_cache=''))]
+    with pytest.raises(SystemExit):
+        train.main(['--features', 'pixels'])

@@ -145,6 +145,29 @@ def training_set(n_random: int, features: str, seed: int, progress: bool) -> dic
                 n_not_converged=int((~conv).sum()))
 
 
+def cached_training_set(data_cache: str, n_random: int, features: str, seed: int,
+                        progress: bool = False, say=lambda *a, **k: None) -> dict:
+    """`training_set`, read from the .npz file data_cache when that file was written for the
+    same recipe (n_random, seed, features, N_ZERO), else generated (and written to data_cache
+    when one is named). A file of another recipe is regenerated and overwritten, never used."""
+    key = np.array([n_random, seed, ('styles', 'render', 'noise', 'exact').index(features),
+                    N_ZERO])
+    if data_cache and os.path.isfile(data_cache):
+        with np.load(data_cache, allow_pickle=False) as d:
+            same = 'key' in d.files and np.array_equal(d['key'], key)
+            ds = {k: np.array(d[k]) for k in d.files if k != 'key'} if same else None
+        if ds is not None:
+            for k in ('n_requested', 'n_refused', 'n_not_converged'):
+                ds[k] = int(ds[k])
+            say(f'training set from {data_cache}')
+            return ds
+        say(f'{data_cache} holds another recipe: regenerating')
+    ds = training_set(n_random, features, seed, progress)
+    if data_cache:
+        np.savez(data_cache, key=key, **{k: np.asarray(v) for k, v in ds.items()})
+    return ds
+
+
 def _mirror(X, Y):
     flip = np.tile([1.0, -1.0, 1.0], 4)
     return np.concatenate([X, X * flip]), np.concatenate([Y, Y * [1.0, -1.0]])
@@ -206,20 +229,7 @@ def build(out: str = DEFAULT_OUT, n_random: int = 2400, features: str = 'auto',
 
     # 2. the shipped training set
     t_data0 = time.perf_counter()
-    key = np.array([n_random, seed, ('styles', 'render', 'noise', 'exact').index(features),
-                    N_ZERO])
-    ds = None
-    if data_cache and os.path.isfile(data_cache):
-        with np.load(data_cache, allow_pickle=False) as d:
-            if np.array_equal(d['key'], key):
-                ds = {k: np.array(d[k]) for k in d.files if k != 'key'}
-                ds['n_refused'] = int(ds['n_refused'])
-        say(f'training set from {data_cache}' if ds is not None else
-            f'{data_cache} holds another recipe: regenerating')
-    if ds is None:
-        ds = training_set(n_random, features, seed, progress)
-        if data_cache:
-            np.savez(data_cache, key=key, **{k: np.asarray(v) for k, v in ds.items()})
+    ds = cached_training_set(data_cache, n_random, features, seed, progress, say)
     k, v = ds['keep'], ds['val']
     X, Y = _mirror(ds['X'][k & ~v], ds['Y'][k & ~v])
     Xv, Yv = ds['X'][k & v], ds['Y'][k & v]
