@@ -81,17 +81,18 @@ def test_the_data_cache_is_used_only_for_the_same_recipe(monkeypatch, tmp_path):
     for k in first:
         np.testing.assert_array_equal(again[k], first[k])
     assert type(again['n_refused']) is int and again['n_refused'] == 1
-    # another recipe (each part of the key): regenerated and the file overwritten
-    for other in ((6, 'exact', 1), (5, 'noise', 1), (5, 'exact', 2)):
+    # another recipe (each step differs from the file's in one part of the key: the number,
+    # the seed, the features): regenerated and the file overwritten
+    for other in ((6, 'exact', 1), (6, 'exact', 2), (6, 'noise', 2)):
         ds = train.cached_training_set(cache, *other, say=said.append)
         assert calls[-1] == other and said[-1] == f'{cache} holds another recipe: regenerating'
         assert ds['n_refused'] == other[2]
     n = len(calls)
-    train.cached_training_set(cache, 5, 'exact', 2)          # the last one written
+    train.cached_training_set(cache, 6, 'noise', 2)          # the last one written
     assert len(calls) == n
     # a .npz that is not a cache (no key): regenerated, not a crash
     np.savez(cache, X=np.zeros(3))
-    train.cached_training_set(cache, 5, 'exact', 2)
+    train.cached_training_set(cache, 6, 'noise', 2)
     assert len(calls) == n + 1
 
 
