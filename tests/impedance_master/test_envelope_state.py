@@ -167,3 +167,49 @@ def test_envelope_accepts_the_stateless_friction_law():
     # the friction vanishes at rest: the static force alone (3 N/m x 30 mm)
     assert m.force(0.03, 0.0, 0.0) == pytest.approx(0.09, abs=0.01)
     assert m.force(0.03, 0.01, 0.0) == pytest.approx(0.19, abs=0.015)
+
+
+def test_a_failed_write_leaves_the_old_file_and_no_temporary_file(tmp_path, monkeypatch):
+    import impedance_master.state_file as sfm
+    p = tmp_path / 'a.json'
+    write_state(str(p), {'x': 1.0})
+
+    def full_disk(src, dst):
+        raise OSError(28, 'No space left on device')
+
+    monkeypatch.setattr(sfm.os, 'replace', full_disk)
+    with pytest.raises(OSError, match='No space'):
+        write_state(str(p), {'x': 2.0})
+    assert read_state(str(p)) == {'x': 1.0}
+    assert sorted(os.listdir(tmp_path)) == ['a.json']
+
+
+def test_a_state_the_next_start_would_reject_is_written_beside(tmp_path):
+    """save() checks the state loads again; one that would not (here: tampered forces) goes
+    to the next free name beside, the previous (good) file is kept and the message says so."""
+    good = learned()
+    path = tmp_path / 'ident.json'
+    sf = StateFile(str(path))
+    assert sf.save(good) == str(path)
+    before = path.read_text()
+    bad = learned()
+    state = bad.get_state()
+    state['b'] = [v * 1e6 for v in state['b']]
+    bad.get_state = lambda: state
+    written = sf.save(bad)
+    assert written == str(tmp_path / 'ident.1.json') and path.read_text() == before
+    assert 'would be rejected at the next start' in sf.message and written in sf.message
+    with pytest.raises(ValueError):
+        make_identifier().load_state(written)
+    # with no previous file the rejected state is written in place (nothing to keep)
+    other = tmp_path / 'fresh.json'
+    assert StateFile(str(other)).save(bad) == str(other)
+
+
+def test_beside_names_the_first_free_number(tmp_path):
+    p = tmp_path / 'ident.json'
+    assert beside(str(p)) == str(tmp_path / 'ident.1.json')
+    (tmp_path / 'ident.1.json').write_text('{}')
+    (tmp_path / 'ident.3.json').write_text('{}')
+    assert beside(str(p)) == str(tmp_path / 'ident.2.json')
+    assert beside(str(tmp_path / 'noext')) == str(tmp_path / 'noext.1.json')

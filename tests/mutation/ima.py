@@ -29,6 +29,7 @@ CT = TI + 'test_core.py'
 OT = TI + 'test_operators.py'
 ET = TI + 'test_experiment.py'
 VT = TS + 'test_vessels.py'
+EST = TI + 'test_envelope_state.py'
 VST = TS + 'test_vessel_selection.py'
 VDT = TS + 'test_vessel_draw_rules.py'
 IDF = TI + 'test_identification.py'
@@ -914,4 +915,21 @@ MUTANTS = [
            'f * math.sin(self.force_angle)])',
            '-f * math.sin(self.force_angle)])',
            'the tip force mirrored (the catheter bends the other way)', tests=(CAT,)),
+    # -- the eleventh session: the state file's failure paths (uncovered before)
+    Mutant('W80', IM + 'state_file.py',
+           '            os.unlink(tmp)',
+           '            pass',
+           'a failed write leaves its temporary file behind', tests=(EST,)),
+    Mutant('W81', IM + 'state_file.py',
+           '            fresh.set_state(json.loads(json.dumps(state)))',
+           '            pass',
+           'a state the next start would reject overwrites the good file', tests=(EST,)),
+    Mutant('W82', IM + 'state_file.py',
+           '            if os.path.exists(target):\n                target = beside(target)',
+           '            if False:\n                target = beside(target)',
+           'a state the next start would reject overwrites the good file', tests=(EST,)),
+    Mutant('W83', IM + 'state_file.py',
+           '    for n in range(1, 100_000):',
+           '    for n in range(2, 100_000):',
+           'the name beside skips .1', tests=(EST,)),
 ]
