@@ -30,6 +30,7 @@ OT = TI + 'test_operators.py'
 ET = TI + 'test_experiment.py'
 VT = TS + 'test_vessels.py'
 EST = TI + 'test_envelope_state.py'
+IVT = TI + 'test_impedance_validation.py'
 VST = TS + 'test_vessel_selection.py'
 VDT = TS + 'test_vessel_draw_rules.py'
 IDF = TI + 'test_identification.py'
@@ -932,4 +933,29 @@ MUTANTS = [
            '    for n in range(1, 100_000):',
            '    for n in range(2, 100_000):',
            'the name beside skips .1', tests=(EST,)),
+    # -- the eleventh session: the model's refusals by name (uncovered before)
+    Mutant('W84', IM + 'impedance.py',
+           '            if any(t is None for t in tables):',
+           '            if False:',
+           'tables given in part fail deep inside (TypeError), not by name', tests=(IVT,)),
+    Mutant('W85', IM + 'impedance.py',
+           "            if n < 2 or n > MAX_NODES:\n                raise ValueError(f'S must",
+           "            if n < 2:\n                raise ValueError(f'S must",
+           'a table of any size accepted (the wire bound lost)', tests=(IVT,)),
+    Mutant('W86', IM + 'impedance.py',
+           '            if len(anchor) != len(Anchor._fields):',
+           '            if False:',
+           'an anchor of the wrong length fails deep inside, not by name', tests=(IVT,)),
+    Mutant('W87', IM + 'impedance.py',
+           '            if len(present) != len(ANCHOR_FIELDS):',
+           '            if False:',
+           'an anchor in part on the wire: a KeyError, not the missing field', tests=(IVT,)),
+    Mutant('W88', IM + 'impedance.py',
+           '        elif kind != KIND_LINEAR:',
+           '        elif False:',
+           'an unknown model kind read as linear', tests=(IVT,)),
+    Mutant('W89', IM + 'impedance.py',
+           '        if not all(bool(np.all(np.isfinite(t))) for t in tabs):',
+           '        if False:',
+           "from_arrays' tables not checked finite (NaN reaches the renderer)", tests=(IVT,)),
 ]
