@@ -31,6 +31,7 @@ ET = TI + 'test_experiment.py'
 VT = TS + 'test_vessels.py'
 EST = TI + 'test_envelope_state.py'
 IVT = TI + 'test_impedance_validation.py'
+IDT = TI + 'test_identification.py'
 VST = TS + 'test_vessel_selection.py'
 VDT = TS + 'test_vessel_draw_rules.py'
 IDF = TI + 'test_identification.py'
@@ -958,4 +959,25 @@ MUTANTS = [
            '        if not all(bool(np.all(np.isfinite(t))) for t in tabs):',
            '        if False:',
            "from_arrays' tables not checked finite (NaN reaches the renderer)", tests=(IVT,)),
+    # -- the eleventh session: the identifier's settings refused by name (uncovered before)
+    Mutant('W90', IM + 'history_params.py',
+           '        if self.x_max <= self.x_min:',
+           '        if self.x_max < self.x_min:',
+           'an empty workspace (x_max = x_min) accepted: dx 0', tests=(IDT,)),
+    Mutant('W91', IM + 'history_params.py',
+           "            object.__setattr__(self, 'sigmas', tuple(sig))",
+           '            pass',
+           'sigmas from a YAML list refused', tests=(IDT,)),
+    Mutant('W92', IM + 'history_params.py',
+           '        if self.sigma not in self.sigmas:',
+           '        if False:',
+           'a start sigma outside the candidates accepted', tests=(IDT,)),
+    Mutant('W93', IM + 'history_params.py',
+           '        if not isinstance(self.static_first_difference, bool):',
+           '        if False:',
+           'static_first_difference 1 / "yes" accepted silently', tests=(IDT,)),
+    Mutant('W94', IM + 'history_params.py',
+           '        if not -self.max_force <= self.static_min < self.max_force:',
+           '        if not -self.max_force <= self.static_min <= self.max_force:',
+           'static_min = max_force accepted (no room for the static force)', tests=(IDT,)),
 ]
