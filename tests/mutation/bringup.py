@@ -11,6 +11,7 @@ TESTS = ['tests/catheter_bringup/test_recorder.py', 'tests/catheter_bringup/test
          'tests/catheter_bringup/test_metrics_skip.py']
 
 P = 'src/catheter_bringup/catheter_bringup/'
+RST = 'tests/catheter_bringup/test_recording_sink.py'
 
 MUTANTS = [
     # -- issue 14's six recorder metadata survivors
@@ -745,4 +746,34 @@ MUTANTS = [
            "the workers' messages are missing from a split run's published counts (lost "
            'looks negative)',
            tests=('tests/catheter_bringup/test_layout_split.py', '-k', 'complete_and_readable')),
+    # -- the eleventh session: RecordingSink's failure paths (uncovered before)
+    Mutant('B132', P + 'ros_recording.py',
+           '                    rec.write(topic, data, t)\n            except Exception as exc:',
+           '                    rec.write(topic, data, t)\n            except KeyError as exc:',
+           "one topic's failing write raises out of the callback (not counted, not logged)",
+           tests=(RST,)),
+    Mutant('B133', P + 'ros_recording.py',
+           '        buf.sort(key=lambda m: m[0])',
+           '        pass',
+           "a buffered step written in arrival order (not by topic: runs differ)", tests=(RST,)),
+    Mutant('B134', P + 'ros_recording.py',
+           '                self.recorder.write(topic, data, t)\n'
+           '            except Exception as exc:',
+           '                self.recorder.write(topic, data, t)\n'
+           '            except KeyError as exc:',
+           "one failed write stops the flush: the rest of the step is lost", tests=(RST,)),
+    Mutant('B135', P + 'ros_recording.py',
+           '                self.exclude.add(topic)',
+           '                pass',
+           'a topic of an unknown type retried (and warned about) at every discovery',
+           tests=(RST,)),
+    Mutant('B136', P + 'ros_recording.py',
+           ' and len(infos) == 1:',
+           ' and len(infos) >= 1:',
+           "a topic we also publish is not recorded even when others publish it", tests=(RST,)),
+    Mutant('B137', P + 'ros_recording.py',
+           '                t = self.now_ns() if self.now_ns is not None else '
+           'clock.now().nanoseconds',
+           '                t = clock.now().nanoseconds',
+           "the lockstep time ignored: messages logged at the node clock's time", tests=(RST,)),
 ]
