@@ -12,6 +12,7 @@ TESTS = ['tests/catheter_bringup/test_recorder.py', 'tests/catheter_bringup/test
 
 P = 'src/catheter_bringup/catheter_bringup/'
 RST = 'tests/catheter_bringup/test_recording_sink.py'
+MCT = 'tests/catheter_bringup/test_main_command.py'
 
 MUTANTS = [
     # -- issue 14's six recorder metadata survivors
@@ -776,4 +777,21 @@ MUTANTS = [
            'clock.now().nanoseconds',
            '                t = clock.now().nanoseconds',
            "the lockstep time ignored: messages logged at the node clock's time", tests=(RST,)),
+    # -- the eleventh session: the main command's refusals and FAM plot rules (uncovered)
+    Mutant('B138', P + 'main.py',
+           "        print(f'scripts/run: {exc}', file=sys.stderr)\n        return 2",
+           "        print(f'scripts/run: {exc}', file=sys.stderr)\n        return 1",
+           'a bad scenario exits 1 (a failed run) instead of 2 (a usage error)', tests=(MCT,)),
+    Mutant('B139', P + 'main.py',
+           '    if a.no_fam:\n        return []',
+           '    if False:\n        return []',
+           '--no-fam ignored: the plot is drawn (seconds of solves) when stale', tests=(MCT,)),
+    Mutant('B140', P + 'main.py',
+           '    if not a.fam and is_current(out):',
+           '    if is_current(out):',
+           '--fam does not redraw a current plot', tests=(MCT,)),
+    Mutant('B141', P + 'main.py',
+           '    if not p:\n',
+           '    if False:\n',
+           'no fam_solver: [None] listed as a written file, nothing said', tests=(MCT,)),
 ]
