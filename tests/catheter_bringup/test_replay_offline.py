@@ -65,3 +65,57 @@ def test_each_topic_is_republished_with_its_recorded_qos(tmp_path):
     assert latched.reliability == QoSReliabilityPolicy.RELIABLE and latched.depth == 1
     assert force.durability == QoSDurabilityPolicy.VOLATILE
     assert force.reliability == QoSReliabilityPolicy.BEST_EFFORT and force.depth == 5
+
+
+def test_bad_rate_and_start_are_refused_by_name(tmp_path):
+    import pytest
+    bag = _bag(tmp_path / 'v.mcap')
+    for kw, name in ((dict(rate=0.0), 'rate'), (dict(rate=float('nan')), 'rate'),
+                     (dict(start=-0.1), 'start'), (dict(start=float('nan')), 'start')):
+        with pytest.raises(ValueError, match=name):
+            replay(bag, clock=False, node=_Node(), **kw)
+
+
+def test_should_stop_ends_the_replay_between_messages_and_while_waiting(tmp_path):
+    import time
+    bag = _bag(tmp_path / 's.mcap')
+    node = _Node()
+    res = replay(bag, rate=1e4, clock=False, node=node, should_stop=lambda: len(node.sent) >= 30)
+    assert sum(res['published'].values()) == 30 == len(node.sent)
+    # at 0.001x the second message is due 1 s of wall time later: a stop while waiting for it
+    node, t0 = _Node(), time.perf_counter()
+    calls = []
+
+    def stop_in_the_wait():         # calls 1-3: before each of the first three messages
+        calls.append(1)
+        return len(calls) >= 4
+
+    res = replay(bag, rate=0.001, clock=False, node=node, should_stop=stop_in_the_wait)
+    assert time.perf_counter() - t0 < 0.5 and len(node.sent) == 2 and len(calls) == 4
+    assert sum(res['published'].values()) == len(node.sent)
+
+
+def test_loop_starts_again_and_the_clock_follows_the_log_time(tmp_path):
+    bag = _bag(tmp_path / 'l.mcap')
+    node = _Node()
+    res = replay(bag, rate=1e4, clock=True, node=node, loop=True,
+                 should_stop=lambda: len([t for t, _ in node.sent if t != '/clock']) >= 250)
+    assert res['published'] == {'/scenario': 3, '/slave/force': 247}
+    ticks = [m for t, m in node.sent if t == '/clock']
+    # one tick per distinct log time: 100 per pass (the latched message shares 1.000 s), 47
+    # in the third (up to 1.046 s)
+    assert len(ticks) == 247 and ticks[0].clock.sec == 1 and ticks[0].clock.nanosec == 0
+    assert ticks[99].clock.nanosec == 99_000_000 and ticks[100].clock.nanosec == 0
+
+
+def test_unreadable_qos_metadata_falls_back_to_the_default_profile():
+    from catheter_bringup.replay import _qos_from_metadata
+    for meta in ({}, {'offered_qos_profiles': '- [unclosed'}, {'offered_qos_profiles': ''}):
+        q = _qos_from_metadata(meta)
+        assert q.depth == 10 and q.reliability == QoSReliabilityPolicy.RELIABLE
+        assert q.durability == QoSDurabilityPolicy.VOLATILE
+    # depth 0 (rosbag2's "system default") is the default 10; a negative depth is at least 1
+    q = _qos_from_metadata({'offered_qos_profiles': '- {depth: 0, reliability: 2}'})
+    assert q.depth == 10 and q.reliability == QoSReliabilityPolicy.BEST_EFFORT
+    q = _qos_from_metadata({'offered_qos_profiles': '- {depth: -3, durability: 1}'})
+    assert q.depth == 1 and q.durability == QoSDurabilityPolicy.TRANSIENT_LOCAL
