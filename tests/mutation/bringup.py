@@ -13,6 +13,7 @@ TESTS = ['tests/catheter_bringup/test_recorder.py', 'tests/catheter_bringup/test
 P = 'src/catheter_bringup/catheter_bringup/'
 RST = 'tests/catheter_bringup/test_recording_sink.py'
 MCT = 'tests/catheter_bringup/test_main_command.py'
+ROT = 'tests/catheter_bringup/test_replay_offline.py'
 
 MUTANTS = [
     # -- issue 14's six recorder metadata survivors
@@ -794,4 +795,24 @@ MUTANTS = [
            '    if not p:\n',
            '    if False:\n',
            'no fam_solver: [None] listed as a written file, nothing said', tests=(MCT,)),
+    # -- the eleventh session: replay's refusals, stops, loop and clock (uncovered before)
+    Mutant('B142', P + 'replay.py',
+           '    if not start >= 0:',
+           '    if start < 0:',
+           'replay --start nan accepted (every message skipped silently)', tests=(ROT,)),
+    Mutant('B143', P + 'replay.py',
+           "                    if should_stop():\n                        return {'published': "
+           "published,\n                                'wall_time'",
+           "                    if False:\n                        return {'published': "
+           "published,\n                                'wall_time'",
+           'Ctrl-C during a slow replay waits for the next message (seconds at a low rate)',
+           tests=(ROT,)),
+    Mutant('B144', P + 'replay.py',
+           '                if clock_pub is not None and message.log_time != last_clock:',
+           '                if clock_pub is not None:',
+           '/clock published once per message, not once per log time', tests=(ROT,)),
+    Mutant('B145', P + 'replay.py',
+           '        prof.depth = max(depth, 1)',
+           '        prof.depth = depth',
+           'a recorded negative depth reaches create_publisher', tests=(ROT,)),
 ]
