@@ -219,3 +219,33 @@ def test_a_cancelled_gil_free_exit_does_not_fire():
                        capture_output=True, text=True, timeout=25)
     assert p.returncode == 7 and 'alive' in p.stdout, p.stdout + p.stderr
     assert 'Timeout' not in p.stderr
+
+
+def test_a_node_that_fails_to_start_exits_1_and_says_why(capfd):
+    def broken():
+        raise ValueError('parameter rate must be > 0, got -1')
+    assert run_node(broken, args=['probe']) == 1
+    err = capfd.readouterr().err
+    assert "node failed to start: ValueError('parameter rate must be > 0, got -1')" in err
+    assert 'Traceback' not in err
+
+
+class _BadClose(_Probe):
+    def close(self):
+        super().close()
+        raise OSError('disk full while saving the state')
+
+
+def test_a_close_that_fails_is_reported_and_the_exit_code_is_1(capfd):
+    _Probe.events.clear()
+    assert run_node(lambda: _BadClose(signal.SIGINT, after=5), args=['probe']) == 1
+    assert _Probe.events and _Probe.events[0][0] == 'closed'
+    err = capfd.readouterr().err
+    assert "error while closing node: OSError('disk full while saving the state')" in err
+    assert 'shut down cleanly' in err and 'Traceback' not in err
+
+
+def test_only_the_two_executors_are_offered():
+    from catheter_common.ros_node import make_executor
+    with pytest.raises(ValueError, match='executor kind must be "events" or "single"'):
+        make_executor('multi')
