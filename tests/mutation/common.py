@@ -150,4 +150,20 @@ MUTANTS = [
            "    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'SUBNET')",
            'discovery left to reach the subnet: tests talk to other hosts',
            tests=(T + 'test_ros_testing.py',)),
+    # -- the eleventh session: run_node's failure paths (uncovered before)
+    Mutant('K26', P + 'ros_node.py',
+           "            print(f'node failed to start: {exc!r}', file=sys.stderr)",
+           '            pass',
+           'a node that fails in its constructor exits 1 without a word',
+           tests=(T + 'test_run_node.py',)),
+    Mutant('K27', P + 'ros_node.py',
+           '                    code = code or 1',
+           '                    pass',
+           'a close() that failed (the state not saved) exits 0', tests=(T + 'test_run_node.py',)),
+    Mutant('K28', P + 'ros_node.py',
+           "    raise ValueError(f'executor kind must be",
+           "    return make_executor('single', context)\n"
+           "    raise ValueError(f'executor kind must be",
+           'an unknown executor kind (a typo of multi) silently single-threaded',
+           tests=(T + 'test_run_node.py',)),
 ]
