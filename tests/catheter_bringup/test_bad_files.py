@@ -305,3 +305,47 @@ def test_recovery_keeps_publish_times_and_sequence_numbers(tmp_path):
     res = bagfile.recover(cut)
     got = triples(res['output'])
     assert 100 < len(got) < 600 and got == original[:len(got)]
+
+
+@pytest.mark.parametrize('data', [b'\x89MCAP0\r\n',
+                                  b'\x89MCAP0\r\n\x03' + (100).to_bytes(8, 'little') + b'x' * 20],
+                         ids=['magic-only', 'record-before-header'])
+def test_a_file_without_a_header_record_is_not_recoverable_and_leaves_nothing(data, tmp_path):
+    p = tmp_path / 'h.mcap'
+    p.write_bytes(data)
+    with pytest.raises(bagfile.BagError, match='no MCAP header record: not recoverable'):
+        bagfile.recover(p)
+    assert sorted(x.name for x in tmp_path.iterdir()) == ['h.mcap']
+
+
+def test_recover_refuses_to_write_over_its_input_and_the_command_reports(good, tmp_path,
+                                                                        capsys):
+    data = good.read_bytes()
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(data[:len(data) // 2])
+    with pytest.raises(bagfile.BagError, match='must not be the input'):
+        bagfile.recover(cut, cut)
+    assert cut.read_bytes() == data[:len(data) // 2]
+    out = tmp_path / 'fixed.mcap'
+    assert bagfile.main([str(cut), '-o', str(out)]) == 0
+    text = capsys.readouterr().out.splitlines()
+    res = bagfile.recover(cut, tmp_path / 'again.mcap')
+    assert text[0] == (f"recovered {res['messages']} messages on 1 topics (1 schemas) -> {out}")
+    assert text[1] == f"  lost: the last {res['unreadable_tail_bytes']} bytes (an incomplete chunk)"
+    assert res['unreadable_tail_bytes'] > 0 and text[-1].split() == ['/slave/force',
+                                                                      str(res['messages'])]
+    bagfile.check_bag(out)
+    assert bagfile.main([str(good)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'nothing to recover' in err[0]
+
+
+def test_format_recovery_says_what_was_lost_and_what_is_missing():
+    res = dict(output='o.mcap', messages=3, topics={'/b': 1, '/a': 2}, schemas=1,
+               channels=2, metadata=[], unreadable_tail_bytes=0, stopped_at='')
+    lines = bagfile.format_recovery(res).splitlines()
+    assert lines[1] == '  lost: nothing (the stream ended cleanly)'
+    assert lines[2].startswith('  no run metadata (catheter_run_start) in the file')
+    assert [ln.split() for ln in lines[3:]] == [['/a', '2'], ['/b', '1']]
+    res['metadata'] = [bagfile.RUN_START_METADATA]
+    assert not any('no run metadata' in ln for ln in bagfile.format_recovery(res).splitlines())
