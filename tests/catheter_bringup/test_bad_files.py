@@ -307,9 +307,19 @@ def test_recovery_keeps_publish_times_and_sequence_numbers(tmp_path):
     assert 100 < len(got) < 600 and got == original[:len(got)]
 
 
-@pytest.mark.parametrize('data', [b'\x89MCAP0\r\n',
+def _schema_record():
+    """A well-formed MCAP Schema record (opcode 3): id 1, name 'x', encoding ros2msg."""
+    import struct
+
+    def string(b):
+        return struct.pack('<I', len(b)) + b
+    content = struct.pack('<H', 1) + string(b'x') + string(b'ros2msg') + string(b'')
+    return b'\x03' + struct.pack('<Q', len(content)) + content
+
+
+@pytest.mark.parametrize('data', [b'\x89MCAP0\r\n', b'\x89MCAP0\r\n' + _schema_record(),
                                   b'\x89MCAP0\r\n\x03' + (100).to_bytes(8, 'little') + b'x' * 20],
-                         ids=['magic-only', 'record-before-header'])
+                         ids=['magic-only', 'schema-before-header', 'cut-record'])
 def test_a_file_without_a_header_record_is_not_recoverable_and_leaves_nothing(data, tmp_path):
     p = tmp_path / 'h.mcap'
     p.write_bytes(data)
