@@ -14,6 +14,7 @@ P = 'src/catheter_bringup/catheter_bringup/'
 RST = 'tests/catheter_bringup/test_recording_sink.py'
 MCT = 'tests/catheter_bringup/test_main_command.py'
 ROT = 'tests/catheter_bringup/test_replay_offline.py'
+BFT = 'tests/catheter_bringup/test_bad_files.py'
 
 MUTANTS = [
     # -- issue 14's six recorder metadata survivors
@@ -815,4 +816,24 @@ MUTANTS = [
            '        prof.depth = max(depth, 1)',
            '        prof.depth = depth',
            'a recorded negative depth reaches create_publisher', tests=(ROT,)),
+    # -- the eleventh session: recover_bag's refusals, clean-up and report (uncovered before)
+    Mutant('B146', P + 'bagfile.py',
+           '    if out.resolve() == p.resolve():',
+           '    if False:',
+           'recover_bag -o <the input> truncates the recording it was asked to save',
+           tests=(BFT,)),
+    Mutant('B147', P + 'bagfile.py',
+           '        except BagError:\n            g.close()\n            out.unlink()\n'
+           '            raise',
+           '        except BagError:\n            raise',
+           'a refused recovery leaves an empty _recovered file behind', tests=(BFT,)),
+    Mutant('B148', P + 'bagfile.py',
+           '        if not started:\n            g.close()\n            out.unlink()',
+           '        if not started:\n            g.close()',
+           'a file without a header leaves an empty _recovered file behind', tests=(BFT,)),
+    Mutant('B149', P + 'bagfile.py',
+           "    for topic, c in sorted(res['topics'].items()):",
+           "    for topic, c in res['topics'].items():",
+           "the recovery report's topics in file order (not sorted: reports differ)",
+           tests=(BFT,)),
 ]
