@@ -66,3 +66,27 @@ def test_times_are_log_times_not_publish_times(bag):
     assert rec.t('/slave/joint_states')[3] == pytest.approx(2.003, abs=1e-12)
     # the header stamp is read from the bytes: 1 s + k ns
     assert rec.stamps('/slave/joint_states')[3] == pytest.approx(1.0 + 3e-9, abs=1e-12)
+
+
+def test_a_tip_force_estimate_reads_as_its_force_and_stamps_come_from_the_bytes(tmp_path):
+    from catheter_interfaces.msg import TipForceEstimate
+    from catheter_bringup.recording import _leading_header, raw_stamp
+    path = tmp_path / 'tfe.mcap'
+    rec = McapRecorder(path)
+    rec.add_topic('/force_estimator/estimate', 'catheter_interfaces/msg/TipForceEstimate')
+    for k in range(3):
+        m = TipForceEstimate()
+        m.header.stamp.sec, m.header.stamp.nanosec = 7, 250_000_000 * k
+        m.force.x, m.force.y, m.force.z = 0.1 * k, -0.02 * k, 0.0
+        m.method = 'svr'
+        rec.write('/force_estimator/estimate', serialize_message(m), 1_000_000 * (k + 1))
+    rec.close('complete')
+    r = Recording(path)
+    vals = r.values['/force_estimator/estimate']
+    assert [tuple(v) for v in vals] == [(0.1 * k, -0.02 * k, 0.0) for k in range(3)]
+    assert r.stamp['/force_estimator/estimate'] == [7.0, 7.25, 7.5]
+    assert raw_stamp(b'\x00\x01\x00\x00\x07\x00\x00') is None        # too short for a stamp
+    # the header check skips comments, blank lines and constants before the first field
+    assert _leading_header('# doc\n\nuint8 OK=0  # a constant\nstd_msgs/Header header\n')
+    assert not _leading_header('uint8 A=1\nfloat64 x\nstd_msgs/Header header\n')
+    assert not _leading_header('# only comments\n')

@@ -20,18 +20,13 @@ from catheter_bringup.bagfile import read_messages, reading
 from catheter_bringup.recorder import read_run_metadata
 
 
-def _stamp(msg) -> Optional[float]:
-    h = getattr(msg, 'header', None)
-    if h is None:
-        return None
-    return h.stamp.sec + h.stamp.nanosec * 1e-9
-
-
 def _values(msg):
     """A few numbers per message for the analysis (None when the type has none of interest):
     a force (fx, fy, fz) for WrenchStamped and TipForceEstimate; named (value, velocity,
-    effort-or-acceleration) triples for JointState, MasterCommand ('insertion', 'rotation') and
-    ImpedanceModel (the names of Impedance.to_fields(): 'm', 'c', ..., 'S0', ...)."""
+    acceleration) triples for MasterCommand ('insertion', 'rotation') and ImpedanceModel (the
+    names of Impedance.to_fields(): 'm', 'c', ..., 'S0', ...). JointState is not decoded
+    here: `joint_state_values` reads it straight from its bytes (the same name -> (position,
+    velocity, effort) triples; checked against mcap_ros2's decoder in the tests)."""
     if hasattr(msg, 'wrench'):
         f = msg.wrench.force
         return (f.x, f.y, f.z)
@@ -51,13 +46,6 @@ def _values(msg):
                              ('C', 'c_table')):
             for i, v in enumerate(getattr(msg, attr)):
                 vals[f'{prefix}{i}'] = (float(v), math.nan, math.nan)
-        return vals
-    if hasattr(msg, 'position') and hasattr(msg, 'name') and hasattr(msg, 'effort'):
-        vals = {}
-        for i, n in enumerate(msg.name):
-            vals[n] = (msg.position[i] if i < len(msg.position) else math.nan,
-                       msg.velocity[i] if i < len(msg.velocity) else math.nan,
-                       msg.effort[i] if i < len(msg.effort) else math.nan)
         return vals
     return None
 
@@ -89,7 +77,7 @@ def raw_stamp(data: bytes) -> Optional[float]:
 
 
 def joint_state_values(data: bytes) -> Dict[str, tuple]:
-    """`_values` of a CDR sensor_msgs/JointState straight from its bytes (the analysis reads
+    """The values of a CDR sensor_msgs/JointState straight from its bytes (the analysis reads
     tens of thousands; a generic decoder spends ~100 us on one with 80 names, this ~20 us):
     name -> (position, velocity, effort), NaN where an array is shorter than the names."""
     le = data[1] == 1
@@ -122,7 +110,8 @@ def joint_state_values(data: bytes) -> Dict[str, tuple]:
 
 
 class _JointStateDecoder:
-    """Stands in for a generic decoder: `_LazyValues` calls ``_values(dec(data))``."""
+    """The decoder mark of a JointState topic: `_LazyValues` reads it with
+    `joint_state_values` (from the bytes), every other decoded type with ``_values(dec(data))``."""
 
 
 class _LazyValues:
