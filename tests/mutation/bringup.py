@@ -15,6 +15,7 @@ RST = 'tests/catheter_bringup/test_recording_sink.py'
 MCT = 'tests/catheter_bringup/test_main_command.py'
 ROT = 'tests/catheter_bringup/test_replay_offline.py'
 BFT = 'tests/catheter_bringup/test_bad_files.py'
+RVT = 'tests/catheter_bringup/test_recording_values.py'
 
 MUTANTS = [
     # -- issue 14's six recorder metadata survivors
@@ -836,4 +837,19 @@ MUTANTS = [
            "    for topic, c in res['topics'].items():",
            "the recovery report's topics in file order (not sorted: reports differ)",
            tests=(BFT,)),
+    # -- the eleventh session: what the analysis reads of a TipForceEstimate (uncovered)
+    Mutant('B150', P + 'recording.py',
+           "    if hasattr(msg, 'covariance') and hasattr(msg, 'force'):",
+           "    if False:",
+           'the image force estimates read as no values (the estimation error unmeasured)',
+           tests=(RVT,)),
+    Mutant('B151', P + 'recording.py',
+           "        if len(tokens) < 2 or '=' in line.split('#', 1)[0]:",
+           "        if len(tokens) < 2:",
+           'a constant before the header taken as the first field: no stamps read',
+           tests=(RVT,)),
+    Mutant('B152', P + 'recording.py',
+           '    if len(data) < 12:',
+           '    if len(data) < 4:',
+           'a payload too short for a stamp read past its end (struct.error)', tests=(RVT,)),
 ]
