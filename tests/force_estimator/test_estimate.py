@@ -347,3 +347,81 @@ def test_hybrid_refuses_a_fallback_that_is_not_a_fam_inversion(toy_models):
     _, _, models, _ = toy_models
     with pytest.raises(ValueError, match='fam must be a FamInverseEstimator'):
         HybridEstimator(models['svr'], fam=models['mlp'])
+
+
+SVR_DAMAGE = {
+    'x_scale missing': (lambda a, h: a.pop('x_scale'), "model array 'x_scale' must have shape"),
+    'y_mean shape': (lambda a, h: a.update(y_mean=np.zeros(3)), "model array 'y_mean'"),
+    'zero scale': (lambda a, h: a.update(x_scale=np.zeros(12)), 'model scales must be positive'),
+    'gamma missing': (lambda a, h: a.pop('gamma'), "svr model lacks array 'gamma'"),
+    'sv shape': (lambda a, h: a.update(sv=a['sv'][:, :11]), r'svr array "sv" must have shape'),
+    'coef rows': (lambda a, h: a.update(coef=a['coef'][1:]), 'do not match "sv"'),
+    'gamma sign': (lambda a, h: a.update(gamma=-a['gamma']), 'svr array "gamma" must be positive'),
+    'selftest shape': (lambda a, h: h['selftest'].update(features=[[0.0] * 11]),
+                       'selftest must hold features'),
+}
+MLP_DAMAGE = {
+    'no layers': (lambda a, h: [a.pop(k) for k in list(a) if k[0] in 'Wb' and k[1:].isdigit()],
+                  'mlp model has no layers'),
+    'chain': (lambda a, h: a.update(W1=a['W1'][1:]), 'mlp layer shapes do not chain'),
+}
+
+
+@pytest.mark.parametrize('kind, damage', [('svr', d) for d in SVR_DAMAGE] +
+                         [('mlp', d) for d in MLP_DAMAGE])
+def test_a_damaged_model_is_refused_naming_the_part(models, kind, damage):
+    import copy
+    edit, match = (SVR_DAMAGE if kind == 'svr' else MLP_DAMAGE)[damage]
+    m = models[kind]
+    a, h = dict(m.arrays), copy.deepcopy(m.header)
+    edit(a, h)
+    with pytest.raises(ValueError, match=match):
+        ForceModel(kind, a, h)
+
+
+def test_an_mlp_whose_output_is_not_two_forces_is_refused(models):
+    import copy
+    m = models['mlp']
+    a, h = dict(m.arrays), copy.deepcopy(m.header)
+    last = max(int(k[1:]) for k in a if k[0] == 'W' and k[1:].isdigit())
+    a[f'W{last}'] = np.zeros((a[f'W{last}'].shape[0], 3))
+    a[f'b{last}'] = np.zeros(3)
+    with pytest.raises(ValueError, match='mlp output layer must have 2 units'):
+        ForceModel('mlp', a, h)
+
+
+def test_model_files_are_refused_by_path_format_and_version(models, tmp_path):
+    from force_estimator.models import FORMAT_VERSION, load_model
+    with pytest.raises(ValueError, match='must name a .npz model file'):
+        load_model(tmp_path / 'm.txt')
+    with pytest.raises(ValueError, match='does not exist'):
+        load_model(tmp_path / 'none.npz')
+    np.savez(tmp_path / 'bare.npz', x=np.zeros(2))
+    with pytest.raises(ValueError, match=r'not a force_estimator model \(no header\)'):
+        load_model(tmp_path / 'bare.npz')
+
+    def newer(a, h):
+        h['version'] = FORMAT_VERSION + 1
+
+    def other_format(a, h):
+        h['format'] = 'sklearn-pickle'
+
+    with pytest.raises(ValueError, match=f'version {FORMAT_VERSION + 1} is newer'):
+        load_model(_tampered(models['svr'], tmp_path, newer, 'newer'))
+    with pytest.raises(ValueError, match='is not a force_estimator model file'):
+        load_model(_tampered(models['svr'], tmp_path, other_format, 'other'))
+    with pytest.raises(ValueError, match='name_or_path must be one of'):
+        load_estimator('blazer-knn')
+
+
+def test_predict_features_refuses_bad_shapes_and_values(models):
+    m = models['svr']
+    for bad in (np.zeros(11), np.zeros((2, 3, 12))):
+        with pytest.raises(ValueError, match=r'features must have shape \(12,\) or \(B, 12\)'):
+            m.predict_features(bad)
+    x = np.zeros(12)
+    x[3] = np.inf
+    with pytest.raises(ValueError, match='non-finite'):
+        m.predict_features(x)
+    assert repr(m).startswith("ForceModel(") and 'support vectors' in repr(m)
+    assert 'layers ' in repr(models['big']) and '16x16x2' in repr(models['big'])
