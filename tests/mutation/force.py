@@ -16,6 +16,7 @@ NDT = 'tests/force_estimator/test_node.py'
 DCT = 'tests/force_estimator/test_dataset_contract.py'
 NFT = 'tests/force_estimator/test_node_fam_params.py'
 ET = 'tests/force_estimator/test_estimate.py'
+NFIT = 'tests/force_estimator/test_fam_inverse_no_fit.py'
 
 MUTANTS = [
     # -- issue 14's survivor: the envelope force check of the single-sample path
@@ -345,4 +346,17 @@ MUTANTS = [
            "            if self._coef.shape != (n, N_TARGETS) or self._gamma.shape != (n,):",
            "            if self._gamma.shape != (n,):",
            'svr coefficients of another size than the support vectors accepted', tests=(ET,)),
+    # -- the eleventh session: the FAM inversion when its solves fail (uncovered before)
+    Mutant('E75', P + 'fam_inverse.py',
+           '        if not base.converged and self._prev_shape is not None:',
+           '        if False:',
+           'a failed warm-started solve not retried cold (an estimate lost)', tests=(NFIT,)),
+    Mutant('E76', P + 'fam_inverse.py',
+           '            except ValueError:                   # singular FAM Jacobian',
+           '            except KeyError:                   # singular FAM Jacobian',
+           'a singular sensitivity (critical load) crashes the estimate', tests=(NFIT,)),
+    Mutant('E77', P + 'fam_inverse.py',
+           '            if not b.converged.all():',
+           '            if False:',
+           'the batch solver path reads shapes of solves that failed', tests=(NFIT,)),
 ]
