@@ -223,3 +223,40 @@ def test_the_fam_fallback_answers_what_the_learned_model_does_not_cover(
     node._on_points(_msg(fit_bezier(np.c_[cl, np.zeros(len(cl))], degree=3), 32))
     assert node.last.method == 'svr' and not node.last.normal
     assert wrench[-1].header.stamp.sec == 31
+
+
+def test_an_estimator_that_breaks_its_promises_is_counted_and_the_node_keeps_running(
+        ros, toy_models, toy_model_files):
+    """The node's last lines: an estimator that raises is a refused message (a typed estimate
+    that says so, force 0, no wrench); an estimate that is not a valid message (a NaN force:
+    the core promises never to give one) is counted as invalid and published nowhere; the
+    next good message is estimated as usual."""
+    import copy
+    X = toy_models[0]
+    node, wrench, typed = _direct(ros, svr_model=str(toy_model_files['svr']), fallback=False)
+    real = node.estimator
+    good = real.estimate(X[7].reshape(4, 3))
+
+    class Broken:
+        def __init__(self):
+            self.calls = 0
+
+        def estimate(self, cp):
+            self.calls += 1
+            if self.calls == 1:
+                raise ValueError('control_points must have shape (4, 3)')
+            bad = copy.copy(good)
+            bad.force = np.array([np.nan, 0.1])
+            return bad
+
+    node.estimator = Broken()
+    node._on_points(_msg(X[7].reshape(4, 3), 1))
+    node._on_points(_msg(X[7].reshape(4, 3), 2))
+    assert [t.header.stamp.sec for t in typed] == [1] and wrench == []
+    assert (typed[0].force.x, typed[0].force.y) == (0.0, 0.0) and typed[0].status != 0
+    d = node.diag
+    assert d.get('bad_messages') == 1 and d.get('invalid_estimates') == 1
+    node.estimator = real
+    node._on_points(_msg(X[7].reshape(4, 3), 3))
+    assert [t.header.stamp.sec for t in typed] == [1, 3]
+    assert [w.header.stamp.sec for w in wrench] == [3]
