@@ -359,4 +359,15 @@ MUTANTS = [
            '            if not b.converged.all():',
            '            if False:',
            'the batch solver path reads shapes of solves that failed', tests=(NFIT,)),
+    # -- the eleventh session: the node's last lines (uncovered before)
+    Mutant('E78', P + 'force_estimator_node.py',
+           '        except ValueError as exc:                   # only for a wrong shape',
+           '        except KeyError as exc:                   # only for a wrong shape',
+           "an estimator's ValueError kills the callback (the node stops estimating)",
+           tests=(NDT,)),
+    Mutant('E79', P + 'force_estimator_node.py',
+           "            self.diag.count('invalid_estimates')",
+           '            pass',
+           'an estimate that could not be published is not counted in diagnostics',
+           tests=(NDT,)),
 ]
