@@ -390,3 +390,65 @@ def test_identifier_node_reports_the_sensor_bursts_it_dropped(ros):
     node._to_diag()
     assert node.diag.value('bursts') == '1' and int(node.diag.value('burst_samples')) >= 3
     assert node.diag.value('clipped') == '0'
+
+
+def _joint_state(x, xd, f):
+    m = JointState()
+    m.name, m.position, m.velocity, m.effort = ['insertion'], [x], [xd], [f]
+    return m
+
+
+def test_identifier_node_counts_a_failed_update_and_keeps_identifying(ros):
+    """The identifier raising on a finite sample (a defect) is an ERROR event and a count,
+    not a dead callback: the next sample is identified."""
+    node = ros.add(ImpedanceIdentifierNode(context=ros.context))
+    real = node.ident.update
+
+    def fails_once(*a):
+        node.ident.update = real
+        raise ValueError('singular normal matrix')
+
+    node.ident.update = fails_once
+    node._on_state(_joint_state(0.03, 0.01, 0.2))
+    assert node.diag.get('update_errors') == 1 and node.diag.get('samples') == 0
+    lvl, msg = node.diag.active()['update_error']
+    assert lvl == 2 and 'singular normal matrix' in msg          # ERROR
+    node._on_state(_joint_state(0.03, 0.01, 0.2))
+    assert node.diag.get('samples') == 1
+
+
+def test_identifier_node_says_when_it_cannot_write_its_state_and_still_closes(ros, tmp_path):
+    d = tmp_path / 'gone'
+    d.mkdir()
+    node = ImpedanceIdentifierNode(context=ros.context, parameter_overrides=params(
+        state_file=str(d / 'ident.json')))
+    node.ident.update(0.03, 0.01, 0.0, 0.2)
+    d.rmdir()                                          # the folder vanished during the run
+    errors = []
+    logger = node.get_logger()
+    node.get_logger = lambda: type('L', (), {'error': lambda s, m: errors.append(m),
+                                            'info': lambda s, m: None})()
+    node.close()                                       # no exception
+    assert len(errors) == 1 and 'could not write the learned state' in errors[0]
+    node.get_logger = lambda: logger
+    node.destroy_node()
+
+
+def test_identifier_node_held_on_ill_conditioned_data_turns_to_error_after_stuck_after(ros):
+    import time
+    from types import SimpleNamespace
+    node = ros.add(ImpedanceIdentifierNode(context=ros.context, parameter_overrides=params(
+        stuck_after=0.1)))
+    node.ident = SimpleNamespace(status='ill_conditioned', n_held=3)
+    node._to_diag()
+    assert node.diag.active()['held'][0] == 1                        # WARN
+    time.sleep(0.15)
+    node._to_diag()
+    lvl, msg = node.diag.active()['held']
+    assert lvl == 2 and 'ill-conditioned data for' in msg            # ERROR: stuck
+    node.ident = SimpleNamespace(status='ok', n_held=3)
+    node._to_diag()
+    assert 'held' not in node.diag.active() and node._ill_since is None
+    node.ident = SimpleNamespace(status='ill_conditioned', n_held=3)
+    node._to_diag()
+    assert node.diag.active()['held'][0] == 1                        # the clock starts again
