@@ -980,4 +980,26 @@ MUTANTS = [
            '        if not -self.max_force <= self.static_min < self.max_force:',
            '        if not -self.max_force <= self.static_min <= self.max_force:',
            'static_min = max_force accepted (no room for the static force)', tests=(IDT,)),
+    # -- the eleventh session: the identifier node's failure paths (uncovered before)
+    Mutant('W95', IM + 'impedance_identifier_node.py',
+           '        except ValueError as exc:           # the identifier failed on a finite sample',
+           '        except KeyError as exc:           # the identifier failed on a finite sample',
+           "the identifier's ValueError kills the callback (identification stops)",
+           tests=(NT,)),
+    Mutant('W96', IM + 'impedance_identifier_node.py',
+           '        except (OSError, ValueError) as exc:\n'
+           "            self.get_logger().error(f'could not write the learned state",
+           '        except ValueError as exc:\n'
+           "            self.get_logger().error(f'could not write the learned state",
+           'a state file that cannot be written raises out of close() (the node exits 1)',
+           tests=(NT,)),
+    Mutant('W97', IM + 'impedance_identifier_node.py',
+           "            stuck = (now - self._ill_since) * 1e-9 >= self.params['stuck_after']",
+           '            stuck = False',
+           'an identifier held for ever on ill-conditioned data stays a WARN', tests=(NT,)),
+    Mutant('W98', IM + 'impedance_identifier_node.py',
+           '            self._ill_since = None',
+           '            pass',
+           'the ill-conditioned clock not reset by good data: the next hold is an ERROR at once',
+           tests=(NT,)),
 ]
