@@ -1002,4 +1002,23 @@ MUTANTS = [
            '            pass',
            'the ill-conditioned clock not reset by good data: the next hold is an ERROR at once',
            tests=(NT,)),
+    # -- the eleventh session: the simulated haptic device node on a clock jump (uncovered)
+    Mutant('W99', IM + 'sim_haptic_node.py',
+           '            self.device.reset()\n            self._new_links()',
+           '            self._new_links()',
+           'a restarted simulation keeps the device state of the old run', tests=(NT,)),
+    Mutant('W100', IM + 'sim_haptic_node.py',
+           '            self.device.reset()\n            self._new_links()',
+           '            self.device.reset()',
+           'a restarted simulation keeps the old links (their queues and send times)',
+           tests=(NT,)),
+    Mutant('W101', IM + 'sim_haptic_node.py',
+           '        except ValueError:   # a send time before the previous one (clock reset)',
+           '        except KeyError:   # a send time before the previous one (clock reset)',
+           "a mistimed slave message raises out of the node's callback", tests=(NT,)),
+    Mutant('W102', IM + 'sim_haptic_node.py',
+           "        if t is None:\n            self.diag.count(key + '_before_start')\n"
+           '            return',
+           '        if t is None:\n            t = 0.0',
+           'slave messages before the first tick sent at run time 0', tests=(NT,)),
 ]
