@@ -148,3 +148,38 @@ def test_bad_parameters_are_refused(ros):
     with pytest.raises(Exception, match='outages'):
         SimSlaveNode(context=ros.context,
                      parameter_overrides=[Parameter('link.outages', value=[1.0, 2.0, 3.0])])
+
+
+def test_a_clock_jump_restarts_the_simulation_and_mistimed_commands_are_counted(ros):
+    """Sim time that jumps back restarts the simulation and the link (counted); a command
+    before the first tick, stamped after a jump back, or behind the link's last send is
+    counted or dropped, never raised."""
+    node = SimSlaveNode(context=ros.context)
+    now = [2.0]
+    node._clock_ns = lambda: int(round(now[0] * 1e9))
+    cmd = MasterCommand()
+    cmd.position = 0.01
+    node._on_command(cmd)
+    assert node.diag.get('commands_before_start') == 1
+    for t in (2.0, 2.001):
+        now[0] = t
+        node._tick()
+    now[0] = 2.004
+    node._on_command(cmd)
+    now[0] = 2.002                                   # after the tick, before that send
+    node._on_command(cmd)
+    assert node.diag.get('commands_received') == 2
+    assert node.diag.get('commands_out_of_time') == 1
+    now[0] = 1.0                                     # jumped back, before the next tick
+    node._on_command(cmd)
+    assert node.diag.get('commands_received') == 2   # dropped: the next tick restarts
+    resets = []
+    real = node.sim.reset
+    node.sim.reset = lambda: (resets.append(1), real())
+    node._tick()
+    assert node.diag.get('clock_resets') == 1 and resets == [1] and node.run.t_last == 0.0
+    assert node.x_cmd == node.sim.robot.x
+    now[0] = 1.001
+    node._on_command(cmd)
+    assert node.diag.get('commands_received') == 3 and node.diag.get('commands_out_of_time') == 1
+    node.destroy_node()
