@@ -176,9 +176,10 @@ def test_a_clock_jump_restarts_the_simulation_and_mistimed_commands_are_counted(
     resets = []
     real = node.sim.reset
     node.sim.reset = lambda: (resets.append(1), real())
+    node.x_cmd = node.sim.robot.x + 0.02             # the old run's last delivered command
     node._tick()
     assert node.diag.get('clock_resets') == 1 and resets == [1] and node.run.t_last == 0.0
-    assert node.x_cmd == node.sim.robot.x
+    assert node.x_cmd == node.sim.robot.x            # the new run holds the initial position
     now[0] = 1.001
     node._on_command(cmd)
     assert node.diag.get('commands_received') == 3 and node.diag.get('commands_out_of_time') == 1
