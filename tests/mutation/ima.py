@@ -32,6 +32,7 @@ VT = TS + 'test_vessels.py'
 EST = TI + 'test_envelope_state.py'
 IVT = TI + 'test_impedance_validation.py'
 IDT = TI + 'test_identification.py'
+SNT = TS + 'test_node.py'
 VST = TS + 'test_vessel_selection.py'
 VDT = TS + 'test_vessel_draw_rules.py'
 IDF = TI + 'test_identification.py'
@@ -1021,4 +1022,22 @@ MUTANTS = [
            '            return',
            '        if t is None:\n            t = 0.0',
            'slave messages before the first tick sent at run time 0', tests=(NT,)),
+    # -- the eleventh session: the slave node on a clock jump (uncovered before)
+    Mutant('W103', S + 'sim_slave_node.py',
+           '        self.sim.reset()\n        self.link.reset()',
+           '        self.link.reset()',
+           "a restarted simulation keeps the old run's vessel and robot state", tests=(SNT,)),
+    Mutant('W104', S + 'sim_slave_node.py',
+           '        if t is None:\n            return          # the clock jumped back',
+           '        if t is None:\n            t = 0.0          # the clock jumped back',
+           'a command stamped after a jump back sent at run time 0 (before the restart)',
+           tests=(SNT,)),
+    Mutant('W105', S + 'sim_slave_node.py',
+           '        except ValueError:   # a send time before the previous one: only after a clock',
+           '        except KeyError:   # a send time before the previous one: only after a clock',
+           "a mistimed command raises out of the slave's callback", tests=(SNT,)),
+    Mutant('W106', S + 'sim_slave_node.py',
+           '        self.x_cmd = self.sim.robot.x\n        self.rot_cmd',
+           '        self.rot_cmd',
+           "after a restart the slave steers to the old run's last command", tests=(SNT,)),
 ]
