@@ -31,6 +31,7 @@ def test_registry():
         'fake_camera': NodeSpec('fake_camera', _mod(n.FakeCameraNode), (), ('/test/image',)),
         'unused': NodeSpec('unused', _mod(n.UnusedNode), (), ('/test/unused',)),
         'failing': NodeSpec('failing', _mod(n.FailingNode), (), ('/test/failing',)),
+        'bad_close': NodeSpec('bad_close', _mod(n.BadCloseNode), (), ('/test/bad_close',)),
         'not_installed': NodeSpec('not_installed', 'no_such_package.no_such_node', (),
                                   ('/test/missing',)),
     }

@@ -111,3 +111,16 @@ class FailingNode(Node):
 
 
 TalkerNode.NODE_CLASS = TalkerNode
+
+
+class BadCloseNode(Node):
+    """Publishes on /test/bad_close every 10 ms; its close() raises (a node whose shutdown
+    fails must not cost the run its recording or the other nodes their close)."""
+
+    def __init__(self, **kwargs):
+        super().__init__('bad_close', **kwargs)
+        self.pub = self.create_publisher(WrenchStamped, '/test/bad_close', QOS_DEFAULT)
+        self.timer = self.create_timer(0.01, lambda: self.pub.publish(WrenchStamped()))
+
+    def close(self):
+        raise OSError('disk full while saving')

@@ -100,6 +100,34 @@ def test_failing_node_stops_run_and_closes_recording(tmp_path, make_scenario, te
     assert len(_raw(bag)) > 0
 
 
+def test_a_node_whose_close_fails_costs_nothing_else(tmp_path, make_scenario, test_registry):
+    """The teardown logs the failed close and goes on: the other nodes are closed, the run
+    ends complete and its recording is closed with every message."""
+    import nodes_for_tests
+    bag = tmp_path / 'badclose.mcap'
+    lines = []
+    talkers = []
+    real_init = nodes_for_tests.TalkerNode.__init__
+
+    def keep(self, **kw):
+        real_init(self, **kw)
+        talkers.append(self)
+
+    nodes_for_tests.TalkerNode.__init__ = keep
+    try:
+        res = ScenarioRunner(make_scenario(outputs=['/test/relayed', '/test/bad_close']),
+                             bag=str(bag), registry=test_registry, progress=False,
+                             log=lines.append).run()
+    finally:
+        nodes_for_tests.TalkerNode.__init__ = real_init
+    assert res.status == 'complete', res.reason
+    assert "[run] error closing bad_close: OSError('disk full while saving')" in lines
+    assert talkers and all(t.closed for t in talkers)
+    meta = read_run_metadata(bag)
+    assert meta['status'] == 'complete'
+    assert json.loads(meta['counts'])['/test/bad_close'] == res.published['/test/bad_close'] > 0
+
+
 def test_interrupt_closes_recording(tmp_path, make_scenario, test_registry):
     bag = tmp_path / 'int.mcap'
     r = ScenarioRunner(make_scenario(duration=2.0), bag=str(bag), registry=test_registry,
