@@ -16,6 +16,7 @@ MCT = 'tests/catheter_bringup/test_main_command.py'
 ROT = 'tests/catheter_bringup/test_replay_offline.py'
 BFT = 'tests/catheter_bringup/test_bad_files.py'
 RVT = 'tests/catheter_bringup/test_recording_values.py'
+RUT = 'tests/catheter_bringup/test_runner.py'
 
 MUTANTS = [
     # -- issue 14's six recorder metadata survivors
@@ -852,4 +853,16 @@ MUTANTS = [
            '    if len(data) < 12:',
            '    if len(data) < 4:',
            'a payload too short for a stamp read past its end (struct.error)', tests=(RVT,)),
+    # -- the eleventh session: the teardown when a node's close() fails (uncovered before)
+    Mutant('B153', P + 'run_teardown.py',
+           '                except Exception as exc:  # noqa: BLE001 - keep shutting down\n'
+           "                    self.log(f'[run] error closing {name}: {exc!r}')",
+           '                except KeyError as exc:  # noqa: BLE001 - keep shutting down\n'
+           "                    self.log(f'[run] error closing {name}: {exc!r}')",
+           "one node's failing close() aborts the teardown: the recording is not closed",
+           tests=(RUT, '-k', 'close_fails')),
+    Mutant('B154', P + 'run_teardown.py',
+           "                    self.log(f'[run] error closing {name}: {exc!r}')",
+           '                    pass',
+           "a node's failing close() is not reported", tests=(RUT, '-k', 'close_fails')),
 ]
