@@ -66,3 +66,17 @@ def test_isolate_sets_an_isolated_domain_and_localhost_discovery(keep_env):
         == len(ISOLATED_DOMAINS)
     assert isolate_ros_env() == ros_testing.ISOLATED_DOMAINS[os.getpid() % len(ISOLATED_DOMAINS)]
     assert ros_testing.isolated_domain(5000 + 7) == isolate_ros_env(5007)
+
+
+def test_manual_clock_sets_the_nodes_time_and_runs_its_timer_callback():
+    from types import SimpleNamespace
+    from catheter_common.ros_testing import ManualClock
+    seen = []
+    node = SimpleNamespace()
+    node._tick = lambda: seen.append(node._clock_ns())
+    clock = ManualClock(node, 1.5)
+    assert node._clock_ns() == 1_500_000_000
+    clock.tick(2.0, 2.001)
+    assert seen == [2_000_000_000, 2_001_000_000]
+    clock.set(0.25)
+    assert node._clock_ns() == 250_000_000 and len(seen) == 2

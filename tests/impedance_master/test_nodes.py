@@ -458,30 +458,27 @@ def test_sim_haptic_node_restarts_on_a_clock_jump_and_counts_mistimed_sends(ros)
     """Sim time that jumps back (a bag or a simulation restarted) restarts the script, the
     device and the links, counted; a slave message before the first tick, or stamped before
     the previous send on its link, is counted and dropped, never raised."""
+    from catheter_common.ros_testing import ManualClock
     node = SimHapticNode(context=ros.context, parameter_overrides=params(rate=200.0))
-    now = [1.0]
-    node._clock_ns = lambda: int(round(now[0] * 1e9))
+    clock = ManualClock(node, 1.0)
     w = WrenchStamped()
     w.wrench.force.x = 0.1
     node._on_slave_force(w)                                  # before the first tick
     assert node.diag.get('force_before_start') == 1 and node.diag.get('force_sent') == 0
-    for t in (1.0, 1.005):
-        now[0] = t
-        node._tick()
-    now[0] = 1.010
+    clock.tick(1.0, 1.005)
+    clock.set(1.010)
     node._on_slave_force(w)
-    now[0] = 1.007                                           # after the tick, before that send
+    clock.set(1.007)                                         # after the tick, before that send
     node._on_slave_force(w)
     assert node.diag.get('force_sent') == 1 and node.diag.get('force_out_of_time') == 1
     links = (node.link_imp, node.link_force)
     resets = []
     real_reset = node.device.reset
     node.device.reset = lambda: (resets.append(1), real_reset())
-    now[0] = 0.5                                             # the clock jumped back
-    node._tick()
+    clock.tick(0.5)                                          # the clock jumped back
     assert node.diag.get('clock_resets') == 1 and node.run.t_last == 0.0 and resets == [1]
     assert node.link_imp is not links[0] and node.link_force is not links[1]
-    now[0] = 0.501
+    clock.set(0.501)
     node._on_slave_force(w)                                  # the new link takes it
     assert node.diag.get('force_sent') == 2
     node.destroy_node()

@@ -154,23 +154,21 @@ def test_a_clock_jump_restarts_the_simulation_and_mistimed_commands_are_counted(
     """Sim time that jumps back restarts the simulation and the link (counted); a command
     before the first tick, stamped after a jump back, or behind the link's last send is
     counted or dropped, never raised."""
+    from catheter_common.ros_testing import ManualClock
     node = SimSlaveNode(context=ros.context)
-    now = [2.0]
-    node._clock_ns = lambda: int(round(now[0] * 1e9))
+    clock = ManualClock(node, 2.0)
     cmd = MasterCommand()
     cmd.position = 0.01
     node._on_command(cmd)
     assert node.diag.get('commands_before_start') == 1
-    for t in (2.0, 2.001):
-        now[0] = t
-        node._tick()
-    now[0] = 2.004
+    clock.tick(2.0, 2.001)
+    clock.set(2.004)
     node._on_command(cmd)
-    now[0] = 2.002                                   # after the tick, before that send
+    clock.set(2.002)                                 # after the tick, before that send
     node._on_command(cmd)
     assert node.diag.get('commands_received') == 2
     assert node.diag.get('commands_out_of_time') == 1
-    now[0] = 1.0                                     # jumped back, before the next tick
+    clock.set(1.0)                                   # jumped back, before the next tick
     node._on_command(cmd)
     assert node.diag.get('commands_received') == 2   # dropped: the next tick restarts
     resets = []
@@ -180,7 +178,7 @@ def test_a_clock_jump_restarts_the_simulation_and_mistimed_commands_are_counted(
     node._tick()
     assert node.diag.get('clock_resets') == 1 and resets == [1] and node.run.t_last == 0.0
     assert node.x_cmd == node.sim.robot.x            # the new run holds the initial position
-    now[0] = 1.001
+    clock.set(1.001)
     node._on_command(cmd)
     assert node.diag.get('commands_received') == 3 and node.diag.get('commands_out_of_time') == 1
     node.destroy_node()
