@@ -11,7 +11,7 @@ import rclpy
 from rclpy.qos import QoSProfile
 
 from catheter_bringup.ros_recording import RecordingSink
-from catheter_common.ros_testing import RosHarness, isolate_ros_env
+from catheter_common.ros_testing import CapturedLog, RosHarness, isolate_ros_env
 
 pytestmark = pytest.mark.ros
 
@@ -100,11 +100,9 @@ def test_discover_excludes_a_type_it_cannot_import_and_skips_our_own_publisher(n
     monkeypatch.setattr(node, 'get_topic_names_and_types', lambda: graph)
     monkeypatch.setattr(node, 'get_publishers_info_by_topic', lambda t: [
         SimpleNamespace(node_name=n, qos_profile=q) for n, q in pubs[t]])
-    warnings = []
-    monkeypatch.setattr(node, 'get_logger', lambda: SimpleNamespace(
-        warning=warnings.append, error=warnings.append))
+    log = CapturedLog(node)
     assert sink.discover() == ['/theirs']
-    assert '/weird' in sink.exclude and len(warnings) == 1 and '/weird' in warnings[0]
+    assert '/weird' in sink.exclude and len(log) == 1 and '/weird' in log.texts('warning')[0]
     assert set(sink.subs) == {'/theirs'}
     assert sink.discover() == []                                # nothing new, no new warning
-    assert len(warnings) == 1
+    assert len(log) == 1

@@ -62,13 +62,12 @@ def test_events_clear_after_their_hold_on_the_node_clock(ros):
 def test_bad_input_counts_logs_rate_limited_and_warns(ros):
     c = SimClockNode(ros, 'diag_bad')
     d = Diagnostics(c.node, log_period=60.0)
-    logged = []
-    d._node.get_logger = lambda: type('L', (), {'warning': logged.append,
-                                                'error': logged.append})()
+    from catheter_common.ros_testing import CapturedLog
+    logged = CapturedLog(d._node)
     for k in range(5):
         d.bad_input('command', f'position[0] must be finite, got nan ({k})')
     assert d.get('bad_messages') == 5 and d.get('bad_command') == 5
-    assert len(logged) == 1 and 'bad command' in logged[0]
+    assert len(logged) == 1 and 'bad command' in logged.texts('warning')[0]
     assert d.level()[0] == WARN
     c.at(3.5)
     assert d.level()[0] == OK

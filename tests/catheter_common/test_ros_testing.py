@@ -80,3 +80,15 @@ def test_manual_clock_sets_the_nodes_time_and_runs_its_timer_callback():
     assert seen == [2_000_000_000, 2_001_000_000]
     clock.set(0.25)
     assert node._clock_ns() == 250_000_000 and len(seen) == 2
+
+
+def test_captured_log_keeps_each_line_with_its_level_and_ignores_rclpys_keywords():
+    from types import SimpleNamespace
+    from catheter_common.ros_testing import CapturedLog
+    node = SimpleNamespace()
+    log = CapturedLog(node)
+    node.get_logger().warning('w1', throttle_duration_sec=1.0)
+    node.get_logger().error('e1')
+    node.get_logger().warning('w2', once=True)
+    assert log == [('warning', 'w1'), ('error', 'e1'), ('warning', 'w2')]
+    assert log.texts('warning') == ['w1', 'w2'] and log.texts('info') == []

@@ -424,13 +424,11 @@ def test_identifier_node_says_when_it_cannot_write_its_state_and_still_closes(ro
         state_file=str(d / 'ident.json')))
     node.ident.update(0.03, 0.01, 0.0, 0.2)
     d.rmdir()                                          # the folder vanished during the run
-    errors = []
-    logger = node.get_logger()
-    node.get_logger = lambda: type('L', (), {'error': lambda s, m: errors.append(m),
-                                            'info': lambda s, m: None})()
+    from catheter_common.ros_testing import CapturedLog
+    log = CapturedLog(node)
     node.close()                                       # no exception
+    errors = log.texts('error')
     assert len(errors) == 1 and 'could not write the learned state' in errors[0]
-    node.get_logger = lambda: logger
     node.destroy_node()
 
 

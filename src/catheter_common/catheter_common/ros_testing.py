@@ -117,3 +117,25 @@ class ManualClock:
         for t in times:
             self.set(t)
             self.node._tick()
+
+
+class CapturedLog(list):
+    """The log lines of a node, captured in a test instead of printed: ``(level, text)``
+    pairs in order (level 'debug', 'info', 'warning', 'error' or 'fatal'). Installing it
+    replaces the node's ``get_logger``; `texts(level)` lists one level's texts. rclpy's
+    keyword arguments (throttle_duration_sec, once, ...) are accepted and ignored.
+
+    >>> log = CapturedLog(node); node.get_logger().warning('x'); log.texts('warning') == ['x']
+    """
+
+    LEVELS = ('debug', 'info', 'warning', 'error', 'fatal')
+
+    def __init__(self, node):
+        super().__init__()
+        logger = type('CapturedLogger', (), {
+            lvl: (lambda _self, text, _lvl=lvl, **_kw: self.append((_lvl, text)))
+            for lvl in self.LEVELS})()
+        node.get_logger = lambda: logger
+
+    def texts(self, level: str) -> list:
+        return [t for lvl, t in self if lvl == level]
